@@ -1,0 +1,144 @@
+//! A dense 2-D grid of values in row-major order, the image/depth/mask container
+//! shared by every layer.
+
+use serde::{Deserialize, Serialize};
+
+/// A dense row-major 2-D array: `data[row * width + column]`.
+///
+/// Column `i` runs along image x (left to right), row `j` along image y (top to
+/// bottom), as in METHOD.md section 1.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Grid<T> {
+    width: usize,
+    height: usize,
+    data: Vec<T>,
+}
+
+impl<T: Clone> Grid<T> {
+    /// A `width` x `height` grid filled with `value`.
+    pub fn filled(width: usize, height: usize, value: T) -> Self {
+        Self {
+            width,
+            height,
+            data: vec![value; width * height],
+        }
+    }
+}
+
+impl<T> Grid<T> {
+    /// Wraps `data` (row-major, `width * height` values).
+    ///
+    /// Returns `None` when the length does not match the size.
+    pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Option<Self> {
+        (data.len() == width * height).then_some(Self {
+            width,
+            height,
+            data,
+        })
+    }
+
+    /// Builds a grid by calling `f(column, row)` for every cell.
+    pub fn from_fn(width: usize, height: usize, mut f: impl FnMut(usize, usize) -> T) -> Self {
+        let mut data = Vec::with_capacity(width * height);
+        for row in 0..height {
+            for column in 0..width {
+                data.push(f(column, row));
+            }
+        }
+        Self {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// Number of columns.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Number of rows.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// Number of cells.
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+
+    /// True when the grid has no cells.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// Row-major index of `(column, row)`.
+    #[inline]
+    pub fn index(&self, column: usize, row: usize) -> usize {
+        row * self.width + column
+    }
+
+    /// The value at `(column, row)`; panics outside the grid.
+    #[inline]
+    pub fn at(&self, column: usize, row: usize) -> &T {
+        &self.data[row * self.width + column]
+    }
+
+    /// Mutable value at `(column, row)`; panics outside the grid.
+    #[inline]
+    pub fn at_mut(&mut self, column: usize, row: usize) -> &mut T {
+        &mut self.data[row * self.width + column]
+    }
+
+    /// The value at `(column, row)` with the coordinates clamped into the grid
+    /// (Neumann border: the nearest edge value continues outwards).
+    #[inline]
+    pub fn at_clamped(&self, column: isize, row: isize) -> &T {
+        let c = column.clamp(0, self.width as isize - 1) as usize;
+        let r = row.clamp(0, self.height as isize - 1) as usize;
+        &self.data[r * self.width + c]
+    }
+
+    /// All values, row-major.
+    pub fn as_slice(&self) -> &[T] {
+        &self.data
+    }
+
+    /// All values, row-major, mutable.
+    pub fn as_mut_slice(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+
+    /// Consumes the grid and returns its row-major values.
+    pub fn into_vec(self) -> Vec<T> {
+        self.data
+    }
+
+    /// A new grid of the same size with `f` applied to every value.
+    pub fn map<U>(&self, f: impl FnMut(&T) -> U) -> Grid<U> {
+        Grid {
+            width: self.width,
+            height: self.height,
+            data: self.data.iter().map(f).collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn indexing_is_row_major() {
+        let g = Grid::from_fn(3, 2, |c, r| 10 * r + c);
+        assert_eq!(*g.at(2, 1), 12);
+        assert_eq!(g.as_slice(), &[0, 1, 2, 10, 11, 12]);
+        assert_eq!(*g.at_clamped(-1, 5), 10);
+        assert!(Grid::from_vec(2, 2, vec![0; 3]).is_none());
+    }
+}
