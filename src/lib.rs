@@ -8,7 +8,9 @@
 #![deny(missing_docs)]
 
 pub mod camera;
+pub mod cli;
 pub mod grid;
+pub mod io;
 pub mod metrics;
 pub mod model;
 pub mod params;

@@ -42,10 +42,10 @@ pub enum SmoothnessUnits {
 #[serde(rename_all = "snake_case")]
 pub enum StepControl {
     /// The paper's: crop `|dz| <= dz_limit` per pixel and apply.
-    #[default]
     Crop,
     /// Crop, then halve the whole step (at most 4 times) until the level's
-    /// energy does not increase.
+    /// energy does not increase; the last halving is applied regardless.
+    #[default]
     Backtracking,
 }
 
@@ -98,11 +98,15 @@ pub struct SolverParams {
     pub domain: DomainMode,
     /// Initial depth; default [`InitialDepth::FromImage`].
     pub initial_depth: InitialDepth,
-    /// Update control; default [`StepControl::Crop`].
+    /// Update control; default [`StepControl::Backtracking`] (lower energy
+    /// and RIE on every test scene; see README).
     pub step_control: StepControl,
     /// Anti-aliasing of the pyramid: Gaussian `sigma = anti_alias_sigma *
     /// sqrt(1/eta^2 - 1)` finer pixels before each downsampling (IPOL's
-    /// `sigma_0`); default 0.6.
+    /// `sigma_0`, usually 0.6). Default 0: every level is point-sampled
+    /// (bilinear) from the full image, which keeps bright peaks: area
+    /// averaging darkened the Sombrero's dome on coarse levels and left it too
+    /// far away (RSE 0.048 against 0.018).
     pub anti_alias_sigma: f64,
 }
 
@@ -122,8 +126,8 @@ impl Default for SolverParams {
             min_level_side: 16,
             domain: DomainMode::Object,
             initial_depth: InitialDepth::FromImage,
-            step_control: StepControl::Crop,
-            anti_alias_sigma: 0.6,
+            step_control: StepControl::Backtracking,
+            anti_alias_sigma: 0.0,
         }
     }
 }

@@ -55,7 +55,7 @@ pub fn gaussian_blur(grid: &Grid<f64>, sigma_px: f64) -> Grid<f64> {
             .iter()
             .enumerate()
             .map(|(k, wgt)| wgt * grid.at_clamped(c as isize + k as isize - radius, r as isize))
-            .sum()
+            .sum::<f64>()
     });
     Grid::from_fn(w, h, |c, r| {
         kernel
@@ -64,7 +64,7 @@ pub fn gaussian_blur(grid: &Grid<f64>, sigma_px: f64) -> Grid<f64> {
             .map(|(k, wgt)| {
                 wgt * horizontal.at_clamped(c as isize, r as isize + k as isize - radius)
             })
-            .sum()
+            .sum::<f64>()
     })
 }
 

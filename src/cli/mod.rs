@@ -1,0 +1,122 @@
+//! The command line: `synth`, `solve` and `eval` (and, later, the viewer),
+//! parsed with clap. Errors are `anyhow` chains that name the file or
+//! parameter at fault; nothing here panics on user input.
+
+use std::ffi::OsString;
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+mod eval;
+mod solve;
+mod synth;
+
+pub use eval::EvalArgs;
+pub use solve::SolveArgs;
+pub use synth::SynthArgs;
+
+/// Perspective shape from shading (Maurer et al., GCPR 2015): recover depth
+/// from one image lit by a point light at the camera centre.
+#[derive(Debug, Parser)]
+#[command(name = "sfs-studio", version, about, long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// Subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a synthetic scene with ground truth (the Sombrero or an OBJ mesh).
+    Synth(SynthArgs),
+    /// Recover depth from an image.
+    Solve(SolveArgs),
+    /// Compare a depth map with a synthetic scene's ground truth (prints JSON).
+    Eval(EvalArgs),
+}
+
+/// Parses `args` (including the program name) and runs the command.
+pub fn run(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> Result<()> {
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            // --help and --version are successes; everything else is an error.
+            if matches!(
+                e.kind(),
+                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion
+            ) {
+                // Ignoring a failed print to a closed stdout is fine here.
+                let _ = e.print();
+                return Ok(());
+            }
+            return Err(CliUsage(e.render().to_string()).into());
+        }
+    };
+    match cli.command {
+        Command::Synth(args) => synth::run(&args),
+        Command::Solve(args) => solve::run(&args),
+        Command::Eval(args) => eval::run(&args),
+    }
+}
+
+/// A usage error from clap, already rendered.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct CliUsage(pub String);
+
+/// Parses `WxH` (e.g. `512x256`).
+pub fn parse_size(text: &str) -> Result<(usize, usize), String> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size `{text}` must look like WIDTHxHEIGHT, e.g. 256x256"))?;
+    let parse = |s: &str| {
+        s.trim()
+            .parse::<usize>()
+            .map_err(|_| format!("size `{text}`: `{s}` is not a whole number"))
+    };
+    let (w, h) = (parse(w)?, parse(h)?);
+    if w < 3 || h < 3 {
+        return Err(format!(
+            "size `{text}`: both sides must be at least 3 pixels"
+        ));
+    }
+    if w.saturating_mul(h) > 100_000_000 {
+        return Err(format!("size `{text}` is larger than 100 megapixels"));
+    }
+    Ok((w, h))
+}
+
+/// Parses a comma-separated list of exactly `N` finite numbers.
+pub fn parse_floats<const N: usize>(text: &str) -> Result<[f64; N], String> {
+    let values: Vec<f64> = text
+        .split(',')
+        .map(|s| {
+            s.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("`{s}` in `{text}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    let array: [f64; N] = values
+        .try_into()
+        .map_err(|v: Vec<f64>| format!("`{text}` has {} values, expected {N}", v.len()))?;
+    if array.iter().any(|v| !v.is_finite()) {
+        return Err(format!("`{text}` contains a non-finite value"));
+    }
+    Ok(array)
+}
+
+/// The default output folder path, when a command needs one.
+pub fn display_path(path: &std::path::Path) -> String {
+    path.display().to_string()
+}
+
+/// `PathBuf` parser that rejects empty strings.
+pub fn parse_path(text: &str) -> Result<PathBuf, String> {
+    if text.is_empty() {
+        Err("empty path".into())
+    } else {
+        Ok(PathBuf::from(text))
+    }
+}

@@ -1,0 +1,110 @@
+//! `sfs-studio synth`: render a scene with ground truth into a folder.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Args;
+
+use crate::io::{self, CameraFile, OutputStage};
+use crate::scene::{self, Scene, mesh, sombrero};
+
+/// Arguments of `synth`.
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// `sombrero` (analytic, METHOD.md section 7) or the path of an OBJ mesh.
+    pub scene: String,
+    /// Image size WIDTHxHEIGHT in pixels.
+    #[arg(long, default_value = "256x256", value_parser = super::parse_size)]
+    pub size: (usize, usize),
+    /// Gaussian noise standard deviation on the 0..255 scale; writes noisy8.png.
+    #[arg(long, value_name = "SIGMA")]
+    pub noise: Option<f64>,
+    /// Seed of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Inpainting disc CX,CY,R (fractions of width, height and the smaller
+    /// side) where confidence is 0; writes confidence.png (255 = trusted).
+    #[arg(long, value_name = "CX,CY,R", value_parser = super::parse_floats::<3>)]
+    pub inpaint_disc: Option<[f64; 3]>,
+    /// Mesh rotation X,Y,Z in degrees (applied about X, then Y, then Z).
+    #[arg(long, value_name = "X,Y,Z", default_value = "180,0,0", value_parser = super::parse_floats::<3>)]
+    pub rotation: [f64; 3],
+    /// Mesh distance from the camera, in units of the mesh's largest side.
+    #[arg(long, default_value_t = 2.0)]
+    pub distance: f64,
+    /// Output folder (created if needed).
+    #[arg(long, value_parser = super::parse_path)]
+    pub out: PathBuf,
+}
+
+/// Renders the scene named by the arguments.
+pub fn render_scene(args: &SynthArgs) -> Result<Scene> {
+    let (width, height) = args.size;
+    if args.scene == "sombrero" {
+        return Ok(sombrero::sombrero(width, height));
+    }
+    let path = Path::new(&args.scene);
+    let mesh = mesh::load_obj(path)?;
+    let placement = mesh::Placement {
+        rotation_deg: args.rotation,
+        distance: args.distance,
+        ..Default::default()
+    };
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "mesh".into());
+    Ok(mesh::render(&mesh, width, height, &placement, &name)?)
+}
+
+/// Runs `synth`.
+pub fn run(args: &SynthArgs) -> Result<()> {
+    if let Some(sigma) = args.noise
+        && !(sigma.is_finite() && sigma >= 0.0)
+    {
+        anyhow::bail!("invalid parameter noise = {sigma}: must be finite and >= 0");
+    }
+    if let Some([cx, cy, r]) = args.inpaint_disc
+        && !((0.0..=1.0).contains(&cx) && (0.0..=1.0).contains(&cy) && r > 0.0 && r <= 1.0)
+    {
+        anyhow::bail!(
+            "invalid parameter inpaint-disc = {cx},{cy},{r}: centre in [0,1], radius in (0,1]"
+        );
+    }
+    let scene = render_scene(args)?;
+    let (w, h) = scene.image.size();
+    let mut stage = OutputStage::new(&args.out)?;
+    io::write_png16(&stage.path("image16.png"), &scene.image)?;
+    io::write_png8(&stage.path("image8.png"), &scene.image)?;
+    if let Some(sigma) = args.noise {
+        let noisy = scene::add_noise(&scene.image, sigma, args.seed);
+        io::write_png8(&stage.path("noisy8.png"), &noisy)?;
+    }
+    if let Some([cx, cy, r]) = args.inpaint_disc {
+        let confidence = scene::disc_confidence(w, h, cx, cy, r);
+        io::write_png8(&stage.path("confidence.png"), &confidence)?;
+    }
+    io::write_mask_png(&stage.path("mask.png"), &scene.object_mask)?;
+    io::write_npy_f64(&stage.path("depth_gt.npy"), &scene.depth_gt)?;
+    let camera = CameraFile {
+        name: Some(scene.name.clone()),
+        width: w,
+        height: h,
+        focal: scene.camera.focal_px,
+        cx: scene.camera.principal_x_px,
+        cy: scene.camera.principal_y_px,
+        intensity_scale: scene.intensity_scale,
+    };
+    io::write_camera(&stage.path("scene.json"), &camera)?;
+    stage
+        .commit()
+        .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    eprintln!(
+        "wrote {} ({w}x{h}, f = {:.1} px, s = {:.4}) to {}",
+        scene.name,
+        scene.camera.focal_px,
+        scene.intensity_scale,
+        args.out.display()
+    );
+    Ok(())
+}

@@ -1,0 +1,1221 @@
+//! Reading and writing the files sfs-studio works with: grey images, masks,
+//! `.npy` arrays, PLY meshes, the camera/scene JSON file, and an
+//! [`OutputStage`] that makes a run's outputs appear all at once or not at all.
+//!
+//! Every error names the file (or folder) it concerns.
+
+use std::fs;
+use std::io::{BufWriter, Cursor, Write};
+use std::path::{Path, PathBuf};
+
+use image::{DynamicImage, ImageBuffer, ImageError, ImageFormat, ImageReader, Luma};
+use npyz::{DType, NpyFile, NpyHeader, Order, TypeChar, WriteOptions, WriterBuilder};
+use serde::{Deserialize, Serialize};
+
+use crate::camera::Intrinsics;
+use crate::grid::Grid;
+
+/// Rec. 709 luminance weights for linear red, green and blue.
+const LUMA_709: [f64; 3] = [0.2126, 0.7152, 0.0722];
+
+/// An input/output failure; its message always names the file concerned.
+///
+/// The cause is part of the message (`Display`), so the variants do not
+/// expose it again as an error `source`.
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    /// A file could not be opened or read.
+    #[error("cannot read {}: {cause}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        cause: std::io::Error,
+    },
+    /// An image file could not be opened or read (missing, a folder,
+    /// unreadable, truncated, too large for the decoder's limits).
+    #[error("cannot read image {}: {cause}", path.display())]
+    ReadImage {
+        /// The image file.
+        path: PathBuf,
+        /// What went wrong.
+        cause: ImageError,
+    },
+    /// The file was read but is not an image in a supported format
+    /// (PNG, TIFF, JPEG).
+    #[error("{} is not an image ({cause})", path.display())]
+    NotAnImage {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's complaint.
+        cause: ImageError,
+    },
+    /// The image decoded but its content cannot be used (empty, NaN values).
+    #[error("{} is not a usable image: {reason}", path.display())]
+    BadImage {
+        /// The image file.
+        path: PathBuf,
+        /// Why it cannot be used.
+        reason: String,
+    },
+    /// An image-like input does not have the size it must have.
+    #[error(
+        "{} is {}x{} but the image is {}x{}",
+        path.display(), found.0, found.1, expected.0, expected.1
+    )]
+    SizeMismatch {
+        /// The file whose size is wrong.
+        path: PathBuf,
+        /// Its `(width, height)`.
+        found: (usize, usize),
+        /// The `(width, height)` it must have.
+        expected: (usize, usize),
+    },
+    /// A `.npy` file is malformed or does not hold a 2-D numeric array.
+    #[error("{} is not a usable .npy array: {reason}", path.display())]
+    Npy {
+        /// The `.npy` file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The camera/scene file is malformed, has missing or unknown keys, or
+    /// holds invalid values.
+    #[error("camera file {}: {reason}", path.display())]
+    Camera {
+        /// The camera file.
+        path: PathBuf,
+        /// What is wrong with it (names the key concerned).
+        reason: String,
+    },
+    /// A file could not be written.
+    #[error("cannot write {}: {cause}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        cause: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// An output folder could not be created.
+    #[error("cannot create folder {}: {cause}", path.display())]
+    CreateDir {
+        /// The folder.
+        path: PathBuf,
+        /// What went wrong.
+        cause: std::io::Error,
+    },
+    /// A staged output could not be moved to its final name.
+    #[error("cannot move {} to {}: {cause}", from.display(), to.display())]
+    Rename {
+        /// The temporary file.
+        from: PathBuf,
+        /// The final name.
+        to: PathBuf,
+        /// What went wrong.
+        cause: std::io::Error,
+    },
+}
+
+fn write_error(path: &Path, cause: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> IoError {
+    IoError::Write {
+        path: path.to_path_buf(),
+        cause: cause.into(),
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Images
+// ---------------------------------------------------------------------------
+
+/// The sRGB electro-optical transfer function: encoded value in [0, 1] to
+/// linear value in [0, 1].
+fn srgb_to_linear(v: f64) -> f64 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
+    let read_error = |cause: std::io::Error| IoError::ReadImage {
+        path: path.to_path_buf(),
+        cause: ImageError::IoError(cause),
+    };
+    let meta = fs::metadata(path).map_err(read_error)?;
+    if meta.is_dir() {
+        return Err(read_error(std::io::Error::other("it is a folder")));
+    }
+    let reader = ImageReader::open(path)
+        .map_err(read_error)?
+        .with_guessed_format()
+        .map_err(read_error)?;
+    reader.decode().map_err(|cause| match cause {
+        ImageError::IoError(_) | ImageError::Limits(_) => IoError::ReadImage {
+            path: path.to_path_buf(),
+            cause,
+        },
+        _ => IoError::NotAnImage {
+            path: path.to_path_buf(),
+            cause,
+        },
+    })
+}
+
+/// Converts interleaved samples (`channels` per pixel, the first one grey or
+/// the first three red/green/blue) to linear grey in [0, 1].
+fn samples_to_grey<T: Copy + Into<f64>>(
+    width: usize,
+    height: usize,
+    raw: &[T],
+    channels: usize,
+    colour: bool,
+    max: f64,
+    srgb: bool,
+) -> Grid<f64> {
+    let lin = |s: T| {
+        let v = (s.into() / max).clamp(0.0, 1.0);
+        if srgb { srgb_to_linear(v) } else { v }
+    };
+    let data = raw
+        .chunks_exact(channels)
+        .map(|px| {
+            if colour {
+                LUMA_709[0] * lin(px[0]) + LUMA_709[1] * lin(px[1]) + LUMA_709[2] * lin(px[2])
+            } else {
+                lin(px[0])
+            }
+        })
+        .collect();
+    Grid::from_vec(width, height, data).unwrap_or_else(|| Grid::filled(width, height, 0.0))
+}
+
+fn image_to_grey(path: &Path, image: DynamicImage, srgb: bool) -> Result<Grid<f64>, IoError> {
+    let (w, h) = (image.width() as usize, image.height() as usize);
+    if w == 0 || h == 0 {
+        return Err(IoError::BadImage {
+            path: path.to_path_buf(),
+            reason: format!("it is empty ({w}x{h})"),
+        });
+    }
+    let grid = match image {
+        DynamicImage::ImageLuma8(b) => samples_to_grey(w, h, b.as_raw(), 1, false, 255.0, srgb),
+        DynamicImage::ImageLumaA8(b) => samples_to_grey(w, h, b.as_raw(), 2, false, 255.0, srgb),
+        DynamicImage::ImageRgb8(b) => samples_to_grey(w, h, b.as_raw(), 3, true, 255.0, srgb),
+        DynamicImage::ImageRgba8(b) => samples_to_grey(w, h, b.as_raw(), 4, true, 255.0, srgb),
+        DynamicImage::ImageLuma16(b) => samples_to_grey(w, h, b.as_raw(), 1, false, 65535.0, srgb),
+        DynamicImage::ImageLumaA16(b) => samples_to_grey(w, h, b.as_raw(), 2, false, 65535.0, srgb),
+        DynamicImage::ImageRgb16(b) => samples_to_grey(w, h, b.as_raw(), 3, true, 65535.0, srgb),
+        DynamicImage::ImageRgba16(b) => samples_to_grey(w, h, b.as_raw(), 4, true, 65535.0, srgb),
+        DynamicImage::ImageRgb32F(b) => float_to_grey(path, w, h, b.as_raw(), 3, srgb)?,
+        DynamicImage::ImageRgba32F(b) => float_to_grey(path, w, h, b.as_raw(), 4, srgb)?,
+        other => {
+            // Layouts added to `image` later: go through normalised float RGB.
+            let rgb = other.to_rgb32f();
+            float_to_grey(path, w, h, rgb.as_raw(), 3, srgb)?
+        }
+    };
+    Ok(grid)
+}
+
+fn float_to_grey(
+    path: &Path,
+    width: usize,
+    height: usize,
+    raw: &[f32],
+    channels: usize,
+    srgb: bool,
+) -> Result<Grid<f64>, IoError> {
+    let has_nan = raw
+        .chunks_exact(channels)
+        .any(|px| px[..3].iter().any(|v| v.is_nan()));
+    if has_nan {
+        return Err(IoError::BadImage {
+            path: path.to_path_buf(),
+            reason: "it contains NaN values".into(),
+        });
+    }
+    Ok(samples_to_grey(
+        width, height, raw, channels, true, 1.0, srgb,
+    ))
+}
+
+/// Reads a PNG, TIFF or JPEG (8-bit, 16-bit or float) as linear grey values
+/// in [0, 1].
+///
+/// Integer samples are divided by the maximum of their type (8-bit by 255,
+/// 16-bit by 65535); float samples are clamped to [0, 1] and NaN is rejected.
+/// When `srgb` is true every channel (grey included) is first linearised with
+/// the sRGB transfer function. Colour is converted to luminance with the
+/// Rec. 709 weights (0.2126, 0.7152, 0.0722) on the linear channel values.
+/// Alpha is ignored. The format is recognised from the content, falling back
+/// to the extension. Empty images are an error.
+pub fn read_image(path: &Path, srgb: bool) -> Result<Grid<f64>, IoError> {
+    let image = decode_image(path)?;
+    image_to_grey(path, image, srgb)
+}
+
+/// Reads a mask/confidence image as values in [0, 1]: grey value divided by
+/// the maximum of its type, luminance (Rec. 709) for colour, never
+/// sRGB-decoded; alpha is ignored.
+pub fn read_mask(path: &Path) -> Result<Grid<f64>, IoError> {
+    read_image(path, false)
+}
+
+fn image_dims(path: &Path, width: usize, height: usize) -> Result<(u32, u32), IoError> {
+    match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) => Ok((w, h)),
+        _ => Err(write_error(
+            path,
+            format!("{width}x{height} is too large for an image"),
+        )),
+    }
+}
+
+/// A grey image buffer holding `data` (row-major).
+fn grey_buffer<P: image::Primitive>(
+    path: &Path,
+    width: usize,
+    height: usize,
+    data: Vec<P>,
+) -> Result<ImageBuffer<Luma<P>, Vec<P>>, IoError> {
+    let (w, h) = image_dims(path, width, height)?;
+    ImageBuffer::from_raw(w, h, data)
+        .ok_or_else(|| write_error(path, "internal error: pixel count does not match the size"))
+}
+
+fn save_png(path: &Path, image: DynamicImage) -> Result<(), IoError> {
+    // The format is explicit: staged outputs end in `.partial`.
+    image
+        .save_with_format(path, ImageFormat::Png)
+        .map_err(|e| write_error(path, e))
+}
+
+/// Quantises a value to `0..=max`: clamped to [0, 1], NaN as 0, rounded.
+fn quantise(v: f64, max: f64) -> f64 {
+    if v.is_nan() {
+        0.0
+    } else {
+        (v.clamp(0.0, 1.0) * max).round()
+    }
+}
+
+/// Writes a 16-bit linear grey PNG: values clamped to [0, 1], NaN as 0,
+/// scaled by 65535 and rounded.
+pub fn write_png16(path: &Path, image: &Grid<f64>) -> Result<(), IoError> {
+    let data = image
+        .as_slice()
+        .iter()
+        .map(|&v| quantise(v, 65535.0) as u16)
+        .collect();
+    let buffer = grey_buffer(path, image.width(), image.height(), data)?;
+    save_png(path, DynamicImage::ImageLuma16(buffer))
+}
+
+/// Writes an 8-bit grey PNG: values clamped to [0, 1], NaN as 0, scaled by
+/// 255 and rounded.
+pub fn write_png8(path: &Path, image: &Grid<f64>) -> Result<(), IoError> {
+    let data = image
+        .as_slice()
+        .iter()
+        .map(|&v| quantise(v, 255.0) as u8)
+        .collect();
+    let buffer = grey_buffer(path, image.width(), image.height(), data)?;
+    save_png(path, DynamicImage::ImageLuma8(buffer))
+}
+
+/// Writes a binary mask as an 8-bit grey PNG, 255 for true and 0 for false.
+pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
+    let data = mask
+        .as_slice()
+        .iter()
+        .map(|&b| if b { 255u8 } else { 0 })
+        .collect();
+    let buffer = grey_buffer(path, mask.width(), mask.height(), data)?;
+    save_png(path, DynamicImage::ImageLuma8(buffer))
+}
+
+// ---------------------------------------------------------------------------
+// .npy
+// ---------------------------------------------------------------------------
+
+fn write_npy<T>(path: &Path, grid: &Grid<f64>, convert: impl Fn(f64) -> T) -> Result<(), IoError>
+where
+    T: npyz::AutoSerialize,
+{
+    let err = |e: std::io::Error| write_error(path, e);
+    let file = fs::File::create(path).map_err(err)?;
+    let mut out = BufWriter::new(file);
+    let shape = [grid.height() as u64, grid.width() as u64];
+    let mut writer = WriteOptions::<T>::new()
+        .default_dtype()
+        .shape(&shape)
+        .writer(&mut out)
+        .begin_nd()
+        .map_err(err)?;
+    writer
+        .extend(grid.as_slice().iter().map(|&v| convert(v)))
+        .map_err(err)?;
+    writer.finish().map_err(err)?;
+    out.flush().map_err(err)
+}
+
+/// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
+/// float32.
+pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
+    write_npy(path, grid, |v| v as f32)
+}
+
+/// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
+/// float64.
+pub fn write_npy_f64(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
+    write_npy(path, grid, |v| v)
+}
+
+/// Reads all elements of `file` (whose data is known to be complete) as f64.
+fn npy_values<T, R>(file: NpyFile<R>, to_f64: impl Fn(T) -> f64) -> std::io::Result<Vec<f64>>
+where
+    T: npyz::Deserialize,
+    R: std::io::Read,
+{
+    let reader = file
+        .data::<T>()
+        .map_err(|e| std::io::Error::new(std::io::ErrorKind::InvalidData, e.to_string()))?;
+    reader.map(|v| v.map(&to_f64)).collect()
+}
+
+/// Reads a 2-D `.npy` array as a grid with rows along the first axis.
+///
+/// Accepted element types, in either byte order and in C or Fortran order:
+/// float32, float64, signed and unsigned integers of 1 to 8 bytes and bool
+/// (converted to f64; integers beyond 2^53 lose precision, bool is 0 or 1).
+/// Anything else (other dimensions, strings, records, complex, float16), a
+/// truncated file or an array with no elements is an error naming the file
+/// and what was found.
+pub fn read_npy(path: &Path) -> Result<Grid<f64>, IoError> {
+    let bad = |reason: String| IoError::Npy {
+        path: path.to_path_buf(),
+        reason,
+    };
+    let bytes = fs::read(path).map_err(|cause| IoError::Read {
+        path: path.to_path_buf(),
+        cause,
+    })?;
+    let mut cursor = Cursor::new(bytes.as_slice());
+    let header =
+        NpyHeader::from_reader(&mut cursor).map_err(|e| bad(format!("bad header: {e}")))?;
+    let shape = header.shape().to_vec();
+    if shape.len() != 2 {
+        return Err(bad(format!(
+            "expected a 2-D array, found {}-D with shape {:?}",
+            shape.len(),
+            shape
+        )));
+    }
+    let (rows, cols) = match (usize::try_from(shape[0]), usize::try_from(shape[1])) {
+        (Ok(r), Ok(c)) => (r, c),
+        _ => return Err(bad(format!("shape {shape:?} is too large"))),
+    };
+    let count = rows
+        .checked_mul(cols)
+        .ok_or_else(|| bad(format!("shape {shape:?} is too large")))?;
+    if count == 0 {
+        return Err(bad(format!("the array is empty (shape {shape:?})")));
+    }
+    let dtype = header.dtype();
+    let type_str = match &dtype {
+        DType::Plain(t) => t.clone(),
+        other => return Err(bad(format!("unsupported element type {}", other.descr()))),
+    };
+    let item_size = dtype
+        .num_bytes()
+        .ok_or_else(|| bad(format!("unsupported element type {type_str}")))?;
+    let available = bytes.len() as u64 - cursor.position();
+    let needed = (count as u64).checked_mul(item_size as u64);
+    if needed.is_none_or(|n| n > available) {
+        return Err(bad(format!(
+            "the file is truncated: shape {shape:?} of {type_str} needs {} bytes of data, found {available}",
+            needed.map_or_else(|| "too many".to_string(), |n| n.to_string())
+        )));
+    }
+    let order = header.order();
+    let file = NpyFile::with_header(header, cursor);
+    let values = match (type_str.type_char(), item_size) {
+        (TypeChar::Float, 8) => npy_values(file, |v: f64| v),
+        (TypeChar::Float, 4) => npy_values(file, |v: f32| f64::from(v)),
+        (TypeChar::Int, 1) => npy_values(file, |v: i8| f64::from(v)),
+        (TypeChar::Int, 2) => npy_values(file, |v: i16| f64::from(v)),
+        (TypeChar::Int, 4) => npy_values(file, |v: i32| f64::from(v)),
+        (TypeChar::Int, 8) => npy_values(file, |v: i64| v as f64),
+        (TypeChar::Uint, 1) => npy_values(file, |v: u8| f64::from(v)),
+        (TypeChar::Uint, 2) => npy_values(file, |v: u16| f64::from(v)),
+        (TypeChar::Uint, 4) => npy_values(file, |v: u32| f64::from(v)),
+        (TypeChar::Uint, 8) => npy_values(file, |v: u64| v as f64),
+        (TypeChar::Bool, 1) => npy_values(file, |v: bool| if v { 1.0 } else { 0.0 }),
+        _ => {
+            return Err(bad(format!(
+                "unsupported element type {type_str} (expected float32, float64, an integer or bool)"
+            )));
+        }
+    }
+    .map_err(|e| bad(format!("bad data: {e}")))?;
+    if values.len() != count {
+        return Err(bad(format!(
+            "expected {count} values, read {}",
+            values.len()
+        )));
+    }
+    let grid = match order {
+        Order::C => Grid::from_vec(cols, rows, values),
+        // Fortran order: the first axis (rows) varies fastest.
+        Order::Fortran => Some(Grid::from_fn(cols, rows, |c, r| values[c * rows + r])),
+    };
+    grid.ok_or_else(|| bad("internal error: value count does not match the shape".into()))
+}
+
+// ---------------------------------------------------------------------------
+// PLY mesh
+// ---------------------------------------------------------------------------
+
+/// Writes a triangle mesh of a depth map as a binary little-endian PLY.
+///
+/// Every pixel with finite depth `z > 0` becomes the vertex
+/// `((i - cx) z / f, (j - cy) z / f, z)` (column `i`, row `j`). Each 2x2 block
+/// of valid pixels gives two triangles, a block with exactly three valid
+/// pixels one; no triangle spans a missing pixel. Triangles wind
+/// counter-clockwise as seen from the camera, so their normals
+/// `(v1 - v0) x (v2 - v0)` point towards it (negative z for a fronto-parallel
+/// plane). With `shade` (same size as `depth`, values in [0, 1], NaN as 0)
+/// each vertex gets grey `red`/`green`/`blue` uchar properties.
+pub fn write_depth_ply(
+    path: &Path,
+    depth: &Grid<f64>,
+    camera: &Intrinsics,
+    shade: Option<&Grid<f64>>,
+) -> Result<(), IoError> {
+    let (w, h) = depth.size();
+    if let Some(s) = shade
+        && s.size() != depth.size()
+    {
+        return Err(write_error(
+            path,
+            format!(
+                "the shading is {}x{} but the depth map is {w}x{h}",
+                s.width(),
+                s.height()
+            ),
+        ));
+    }
+    // Vertex index of every valid pixel.
+    let mut index: Vec<Option<u32>> = Vec::with_capacity(w * h);
+    let mut count: u32 = 0;
+    for &z in depth.as_slice() {
+        if z.is_finite() && z > 0.0 {
+            if count > i32::MAX as u32 {
+                return Err(write_error(path, "too many vertices for a PLY mesh"));
+            }
+            index.push(Some(count));
+            count += 1;
+        } else {
+            index.push(None);
+        }
+    }
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    for j in 0..h.saturating_sub(1) {
+        for i in 0..w.saturating_sub(1) {
+            let a = index[j * w + i];
+            let b = index[j * w + i + 1];
+            let c = index[(j + 1) * w + i];
+            let d = index[(j + 1) * w + i + 1];
+            // a b      image x to the right, y down; camera looks along +Z:
+            // c d      a -> c -> b is counter-clockwise seen from the camera.
+            match (a, b, c, d) {
+                (Some(a), Some(b), Some(c), Some(d)) => {
+                    faces.push([a, c, b]);
+                    faces.push([b, c, d]);
+                }
+                (None, Some(b), Some(c), Some(d)) => faces.push([b, c, d]),
+                (Some(a), None, Some(c), Some(d)) => faces.push([a, c, d]),
+                (Some(a), Some(b), None, Some(d)) => faces.push([a, d, b]),
+                (Some(a), Some(b), Some(c), None) => faces.push([a, c, b]),
+                _ => {}
+            }
+        }
+    }
+
+    let err = |e: std::io::Error| write_error(path, e);
+    let file = fs::File::create(path).map_err(err)?;
+    let mut out = BufWriter::new(file);
+    let mut header = format!(
+        "ply\nformat binary_little_endian 1.0\ncomment sfs-studio depth mesh\n\
+         element vertex {count}\nproperty float x\nproperty float y\nproperty float z\n"
+    );
+    if shade.is_some() {
+        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    }
+    header.push_str(&format!(
+        "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        faces.len()
+    ));
+    out.write_all(header.as_bytes()).map_err(err)?;
+    for j in 0..h {
+        for i in 0..w {
+            if index[j * w + i].is_none() {
+                continue;
+            }
+            let z = *depth.at(i, j);
+            let (x, y) = camera.image_xy(i as f64, j as f64);
+            let p = camera.back_project(x, y, z);
+            for v in p {
+                out.write_all(&(v as f32).to_le_bytes()).map_err(err)?;
+            }
+            if let Some(s) = shade {
+                let g = quantise(*s.at(i, j), 255.0) as u8;
+                out.write_all(&[g, g, g]).map_err(err)?;
+            }
+        }
+    }
+    for f in &faces {
+        out.write_all(&[3u8]).map_err(err)?;
+        for &v in f {
+            out.write_all(&(v as i32).to_le_bytes()).map_err(err)?;
+        }
+    }
+    out.flush().map_err(err)
+}
+
+// ---------------------------------------------------------------------------
+// Camera / scene file and JSON
+// ---------------------------------------------------------------------------
+
+/// The camera/scene file (`scene.json`). All keys are required except `name`;
+/// unknown keys are rejected so that typos are caught.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraFile {
+    /// Optional scene name (omitted from the file when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Image width in pixels.
+    pub width: usize,
+    /// Image height in pixels.
+    pub height: usize,
+    /// Focal length in pixels.
+    pub focal: f64,
+    /// Principal point column in pixels.
+    pub cx: f64,
+    /// Principal point row in pixels.
+    pub cy: f64,
+    /// Light/albedo intensity scale applied to the image values.
+    pub intensity_scale: f64,
+}
+
+impl CameraFile {
+    /// The pinhole intrinsics of this camera.
+    pub fn intrinsics(&self) -> Intrinsics {
+        Intrinsics {
+            focal_px: self.focal,
+            principal_x_px: self.cx,
+            principal_y_px: self.cy,
+        }
+    }
+
+    /// Checks `focal > 0` and finite, `cx`/`cy` finite, `intensity_scale > 0`
+    /// and finite, `width`/`height >= 1`; the error names the field and
+    /// `path`.
+    pub fn validate(&self, path: &Path) -> Result<(), IoError> {
+        let bad = |reason: String| {
+            Err(IoError::Camera {
+                path: path.to_path_buf(),
+                reason,
+            })
+        };
+        let positive = [
+            ("focal", self.focal),
+            ("intensity_scale", self.intensity_scale),
+        ];
+        for (key, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("`{key}` must be a positive finite number, got {v}"));
+            }
+        }
+        for (key, v) in [("cx", self.cx), ("cy", self.cy)] {
+            if !v.is_finite() {
+                return bad(format!("`{key}` must be a finite number, got {v}"));
+            }
+        }
+        for (key, v) in [("width", self.width), ("height", self.height)] {
+            if v == 0 {
+                return bad(format!("`{key}` must be at least 1, got 0"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Reads and validates ([`CameraFile::validate`]) a camera/scene file.
+///
+/// Missing keys, unknown keys and values of the wrong type are errors naming
+/// the key and the file.
+pub fn read_camera(path: &Path) -> Result<CameraFile, IoError> {
+    let text = fs::read_to_string(path).map_err(|cause| IoError::Read {
+        path: path.to_path_buf(),
+        cause,
+    })?;
+    let camera: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })?;
+    camera.validate(path)?;
+    Ok(camera)
+}
+
+/// Writes a camera/scene file as pretty JSON.
+pub fn write_camera(path: &Path, camera: &CameraFile) -> Result<(), IoError> {
+    write_json(path, camera)
+}
+
+/// Writes any serde value as pretty JSON, with a final newline.
+pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), IoError> {
+    let mut text = serde_json::to_string_pretty(value).map_err(|e| write_error(path, e))?;
+    text.push('\n');
+    fs::write(path, text).map_err(|e| write_error(path, e))
+}
+
+// ---------------------------------------------------------------------------
+// Output staging
+// ---------------------------------------------------------------------------
+
+/// Collects output files under temporary names (`.NAME.partial` in the same
+/// folder) and renames them all into place only on [`OutputStage::commit`];
+/// dropping it without committing removes the temporaries.
+#[derive(Debug)]
+pub struct OutputStage {
+    dir: PathBuf,
+    /// `(temporary, final)` paths, in registration order.
+    entries: Vec<(PathBuf, PathBuf)>,
+}
+
+impl OutputStage {
+    /// Starts staging outputs into `dir`, creating it (and its parents) if
+    /// needed; the error names the folder.
+    pub fn new(dir: &Path) -> Result<Self, IoError> {
+        fs::create_dir_all(dir).map_err(|cause| IoError::CreateDir {
+            path: dir.to_path_buf(),
+            cause,
+        })?;
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            entries: Vec::new(),
+        })
+    }
+
+    /// The folder the outputs go to.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Registers output `name` (a file name, or a relative path whose folders
+    /// already exist) and returns the temporary path to write it to.
+    /// Registering the same name twice returns the same temporary path.
+    pub fn path(&mut self, name: &str) -> PathBuf {
+        let target = self.dir.join(name);
+        let file_name = target
+            .file_name()
+            .map_or_else(|| name.to_string(), |f| f.to_string_lossy().into_owned());
+        let temporary = target.with_file_name(format!(".{file_name}.partial"));
+        if let Some((t, _)) = self.entries.iter().find(|(_, f)| *f == target) {
+            return t.clone();
+        }
+        self.entries.push((temporary.clone(), target));
+        temporary
+    }
+
+    /// Renames every registered temporary to its final name and returns the
+    /// final paths, in registration order. On failure the temporaries not yet
+    /// moved are removed.
+    pub fn commit(mut self) -> Result<Vec<PathBuf>, IoError> {
+        let entries = std::mem::take(&mut self.entries);
+        let mut done = Vec::with_capacity(entries.len());
+        for (k, (temporary, target)) in entries.iter().enumerate() {
+            if let Err(cause) = fs::rename(temporary, target) {
+                for (rest, _) in &entries[k..] {
+                    let _ = fs::remove_file(rest);
+                }
+                return Err(IoError::Rename {
+                    from: temporary.clone(),
+                    to: target.clone(),
+                    cause,
+                });
+            }
+            done.push(target.clone());
+        }
+        Ok(done)
+    }
+}
+
+impl Drop for OutputStage {
+    fn drop(&mut self) {
+        for (temporary, _) in &self.entries {
+            let _ = fs::remove_file(temporary);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Tests
+// ---------------------------------------------------------------------------
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tempfile::tempdir;
+
+    fn ramp(w: usize, h: usize) -> Grid<f64> {
+        Grid::from_fn(w, h, |i, j| (i + w * j) as f64 / (w * h - 1) as f64)
+    }
+
+    #[test]
+    fn png16_round_trip_is_exact_to_one_step() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("a.png");
+        let mut g = ramp(7, 5);
+        *g.at_mut(0, 0) = f64::NAN;
+        *g.at_mut(1, 0) = 1.5;
+        *g.at_mut(2, 0) = -0.5;
+        write_png16(&p, &g).unwrap();
+        let back = read_image(&p, false).unwrap();
+        assert_eq!(back.size(), (7, 5));
+        assert_eq!(*back.at(0, 0), 0.0);
+        assert_eq!(*back.at(1, 0), 1.0);
+        assert_eq!(*back.at(2, 0), 0.0);
+        for (k, (a, b)) in g.as_slice().iter().zip(back.as_slice()).enumerate().skip(3) {
+            assert!(
+                (a - b).abs() <= 0.5 / 65535.0 + 1e-12,
+                "pixel {k}: {a} vs {b}"
+            );
+        }
+    }
+
+    #[test]
+    fn png8_round_trip() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("a.png");
+        let g = ramp(4, 3);
+        write_png8(&p, &g).unwrap();
+        let back = read_image(&p, false).unwrap();
+        for (a, b) in g.as_slice().iter().zip(back.as_slice()) {
+            assert!((a - b).abs() <= 0.5 / 255.0 + 1e-12);
+        }
+    }
+
+    #[test]
+    fn mask_round_trip() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("m.png");
+        let m = Grid::from_fn(5, 4, |i, j| (i + j) % 2 == 0);
+        write_mask_png(&p, &m).unwrap();
+        let back = read_mask(&p).unwrap();
+        assert_eq!(back.size(), (5, 4));
+        for (a, b) in m.as_slice().iter().zip(back.as_slice()) {
+            assert_eq!(*b, if *a { 1.0 } else { 0.0 });
+        }
+    }
+
+    #[test]
+    fn rgb_reads_as_linear_luminance_and_srgb_decodes() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("rgb.png");
+        let img = image::RgbImage::from_fn(2, 1, |x, _| {
+            if x == 0 {
+                image::Rgb([0, 255, 0])
+            } else {
+                image::Rgb([128, 128, 128])
+            }
+        });
+        img.save(&p).unwrap();
+        let lin = read_image(&p, false).unwrap();
+        assert!((lin.at(0, 0) - 0.7152).abs() < 1e-12);
+        assert!((lin.at(1, 0) - 128.0 / 255.0).abs() < 1e-12);
+        let dec = read_image(&p, true).unwrap();
+        assert!((dec.at(0, 0) - 0.7152).abs() < 1e-12);
+        assert!((dec.at(1, 0) - 0.2158).abs() < 1e-3, "{}", dec.at(1, 0));
+        // Grey images are sRGB-decoded too; masks never are.
+        let q = dir.path().join("grey.png");
+        image::GrayImage::from_pixel(1, 1, Luma([128]))
+            .save(&q)
+            .unwrap();
+        assert!((read_image(&q, true).unwrap().at(0, 0) - 0.2158).abs() < 1e-3);
+        assert!((read_mask(&q).unwrap().at(0, 0) - 128.0 / 255.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn one_pixel_image_reads() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("one.tif");
+        image::ImageBuffer::<Luma<u16>, _>::from_pixel(1, 1, Luma([65535u16]))
+            .save(&p)
+            .unwrap();
+        let g = read_image(&p, false).unwrap();
+        assert_eq!(g.size(), (1, 1));
+        assert_eq!(*g.at(0, 0), 1.0);
+    }
+
+    #[test]
+    fn bad_image_files_name_the_path() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("x.png");
+        fs::write(&p, "this is text").unwrap();
+        let e = read_image(&p, false).unwrap_err().to_string();
+        assert!(e.contains(&p.display().to_string()), "{e}");
+        assert!(e.contains("is not an image"), "{e}");
+
+        let missing = dir.path().join("missing.png");
+        let e = read_image(&missing, false).unwrap_err().to_string();
+        assert!(e.contains(&missing.display().to_string()), "{e}");
+        assert!(e.starts_with("cannot read image"), "{e}");
+
+        let e = read_image(dir.path(), false).unwrap_err().to_string();
+        assert!(e.contains(&dir.path().display().to_string()), "{e}");
+    }
+
+    #[test]
+    fn npy_round_trips_keep_nan() {
+        let dir = tempdir().unwrap();
+        let mut g = ramp(4, 3);
+        *g.at_mut(1, 2) = f64::NAN;
+        *g.at_mut(3, 0) = -2.5e10;
+        for (name, f32_file) in [("a32.npy", true), ("a64.npy", false)] {
+            let p = dir.path().join(name);
+            if f32_file {
+                write_npy_f32(&p, &g).unwrap();
+            } else {
+                write_npy_f64(&p, &g).unwrap();
+            }
+            let back = read_npy(&p).unwrap();
+            assert_eq!(back.size(), (4, 3));
+            for (a, b) in g.as_slice().iter().zip(back.as_slice()) {
+                if a.is_nan() {
+                    assert!(b.is_nan());
+                } else if f32_file {
+                    assert_eq!(*b, *a as f32 as f64);
+                } else {
+                    assert_eq!(a, b);
+                }
+            }
+        }
+    }
+
+    /// A hand-made `.npy` (version 1.0) with the given header dict and data.
+    fn npy_bytes(dict: &str, data: &[u8]) -> Vec<u8> {
+        let mut text = dict.to_string();
+        while !(10 + text.len() + 1).is_multiple_of(64) {
+            text.push(' ');
+        }
+        text.push('\n');
+        let mut out = b"\x93NUMPY\x01\x00".to_vec();
+        out.extend((text.len() as u16).to_le_bytes());
+        out.extend(text.as_bytes());
+        out.extend(data);
+        out
+    }
+
+    #[test]
+    fn reads_fortran_order_big_endian_npy() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("f.npy");
+        // 2 rows x 3 columns, value 10 r + c, stored column by column.
+        let mut data = Vec::new();
+        for c in 0..3 {
+            for r in 0..2 {
+                data.extend((10.0 * r as f64 + c as f64).to_be_bytes());
+            }
+        }
+        let dict = "{'descr': '>f8', 'fortran_order': True, 'shape': (2, 3), }";
+        fs::write(&p, npy_bytes(dict, &data)).unwrap();
+        let g = read_npy(&p).unwrap();
+        assert_eq!(g.size(), (3, 2));
+        assert_eq!(g.as_slice(), &[0.0, 1.0, 2.0, 10.0, 11.0, 12.0]);
+
+        // Fortran order written by npyz, float32.
+        let q = dir.path().join("f32.npy");
+        let mut out = BufWriter::new(fs::File::create(&q).unwrap());
+        let mut w = WriteOptions::<f32>::new()
+            .default_dtype()
+            .shape(&[2, 3])
+            .order(Order::Fortran)
+            .writer(&mut out)
+            .begin_nd()
+            .unwrap();
+        w.extend([0.0, 10.0, 1.0, 11.0, 2.0, 12.0]).unwrap();
+        w.finish().unwrap();
+        out.flush().unwrap();
+        drop(out);
+        assert_eq!(read_npy(&q).unwrap(), g);
+    }
+
+    #[test]
+    fn npy_errors_name_the_file_and_what_was_found() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("v.npy");
+        let data: Vec<u8> = [1.0f64, 2.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        fs::write(
+            &p,
+            npy_bytes(
+                "{'descr': '<f8', 'fortran_order': False, 'shape': (2,), }",
+                &data,
+            ),
+        )
+        .unwrap();
+        let e = read_npy(&p).unwrap_err().to_string();
+        assert!(
+            e.contains(&p.display().to_string()) && e.contains("1-D"),
+            "{e}"
+        );
+
+        // Truncated: the header promises far more than the file holds.
+        fs::write(
+            &p,
+            npy_bytes(
+                "{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }",
+                &data,
+            ),
+        )
+        .unwrap();
+        let e = read_npy(&p).unwrap_err().to_string();
+        assert!(e.contains("truncated"), "{e}");
+
+        // Integers convert; strings do not.
+        let ints: Vec<u8> = [1i32, -2, 3, 4]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        fs::write(
+            &p,
+            npy_bytes(
+                "{'descr': '<i4', 'fortran_order': False, 'shape': (2, 2), }",
+                &ints,
+            ),
+        )
+        .unwrap();
+        assert_eq!(read_npy(&p).unwrap().as_slice(), &[1.0, -2.0, 3.0, 4.0]);
+        fs::write(
+            &p,
+            npy_bytes(
+                "{'descr': '|S4', 'fortran_order': False, 'shape': (2, 2), }",
+                &ints,
+            ),
+        )
+        .unwrap();
+        let e = read_npy(&p).unwrap_err().to_string();
+        assert!(e.contains("unsupported element type"), "{e}");
+
+        fs::write(&p, "not npy").unwrap();
+        let e = read_npy(&p).unwrap_err().to_string();
+        assert!(e.contains(&p.display().to_string()), "{e}");
+        let e = read_npy(&dir.path().join("none.npy"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("none.npy"), "{e}");
+    }
+
+    fn camera() -> CameraFile {
+        CameraFile {
+            name: Some("vase".into()),
+            width: 64,
+            height: 48,
+            focal: 80.0,
+            cx: 31.5,
+            cy: 23.5,
+            intensity_scale: 1.0,
+        }
+    }
+
+    #[test]
+    fn camera_file_round_trip() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("scene.json");
+        write_camera(&p, &camera()).unwrap();
+        assert_eq!(read_camera(&p).unwrap(), camera());
+        let unnamed = CameraFile {
+            name: None,
+            ..camera()
+        };
+        write_camera(&p, &unnamed).unwrap();
+        assert!(!fs::read_to_string(&p).unwrap().contains("name"));
+        assert_eq!(read_camera(&p).unwrap(), unnamed);
+        let k = camera().intrinsics();
+        assert_eq!(
+            (k.focal_px, k.principal_x_px, k.principal_y_px),
+            (80.0, 31.5, 23.5)
+        );
+    }
+
+    #[test]
+    fn camera_file_errors_name_key_and_path() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("cam.json");
+        fs::write(
+            &p,
+            r#"{"width": 4, "height": 4, "cx": 1.5, "cy": 1.5, "intensity_scale": 1}"#,
+        )
+        .unwrap();
+        let e = read_camera(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("focal") && e.contains(&p.display().to_string()),
+            "{e}"
+        );
+
+        fs::write(
+            &p,
+            r#"{"width": 4, "height": 4, "focal": 5, "cx": 1.5, "cy": 1.5,
+                "intensity_scale": 1, "focla": 3}"#,
+        )
+        .unwrap();
+        let e = read_camera(&p).unwrap_err().to_string();
+        assert!(e.contains("focla") && e.contains("unknown field"), "{e}");
+
+        let bad = CameraFile {
+            focal: 0.0,
+            ..camera()
+        };
+        let e = bad.validate(&p).unwrap_err().to_string();
+        assert!(
+            e.contains("`focal`") && e.contains(&p.display().to_string()),
+            "{e}"
+        );
+        write_camera(&p, &bad).unwrap();
+        assert!(read_camera(&p).unwrap_err().to_string().contains("`focal`"));
+        let bad = CameraFile {
+            width: 0,
+            ..camera()
+        };
+        assert!(
+            bad.validate(&p)
+                .unwrap_err()
+                .to_string()
+                .contains("`width`")
+        );
+    }
+
+    /// Parses the PLY written by `write_depth_ply`: header lines, vertices
+    /// (x, y, z) and faces.
+    fn parse_ply(bytes: &[u8], colour: bool) -> (Vec<String>, Vec<[f32; 3]>, Vec<[i32; 3]>) {
+        let end = b"end_header\n";
+        let pos = bytes.windows(end.len()).position(|w| w == end).unwrap() + end.len();
+        let header: Vec<String> = std::str::from_utf8(&bytes[..pos])
+            .unwrap()
+            .lines()
+            .map(String::from)
+            .collect();
+        let count = |prefix: &str| -> usize {
+            header
+                .iter()
+                .find_map(|l| l.strip_prefix(prefix))
+                .unwrap()
+                .parse()
+                .unwrap()
+        };
+        let (nv, nf) = (count("element vertex "), count("element face "));
+        let stride = if colour { 15 } else { 12 };
+        let mut k = pos;
+        let f32_at = |k: usize| f32::from_le_bytes(bytes[k..k + 4].try_into().unwrap());
+        let mut vertices = Vec::new();
+        for _ in 0..nv {
+            vertices.push([f32_at(k), f32_at(k + 4), f32_at(k + 8)]);
+            k += stride;
+        }
+        let mut faces = Vec::new();
+        for _ in 0..nf {
+            assert_eq!(bytes[k], 3);
+            let i = |o: usize| i32::from_le_bytes(bytes[k + o..k + o + 4].try_into().unwrap());
+            faces.push([i(1), i(5), i(9)]);
+            k += 13;
+        }
+        assert_eq!(k, bytes.len());
+        (header, vertices, faces)
+    }
+
+    #[test]
+    fn ply_of_a_plane_faces_the_camera() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("plane.ply");
+        let depth = Grid::filled(3, 3, 2.0);
+        let cam = Intrinsics::centred(10.0, 3, 3);
+        write_depth_ply(&p, &depth, &cam, Some(&Grid::filled(3, 3, 0.5))).unwrap();
+        let (header, v, f) = parse_ply(&fs::read(&p).unwrap(), true);
+        assert_eq!(header[0], "ply");
+        assert_eq!(header[1], "format binary_little_endian 1.0");
+        assert!(header.contains(&"element vertex 9".to_string()));
+        assert!(header.contains(&"element face 8".to_string()));
+        assert!(header.contains(&"property uchar red".to_string()));
+        assert!(header.contains(&"property list uchar int vertex_indices".to_string()));
+        assert_eq!(header.last().unwrap(), "end_header");
+        assert_eq!((v.len(), f.len()), (9, 8));
+        // Pixel (0, 0) is at x = (0 - 1) * 2 / 10.
+        assert_eq!(v[0], [-0.2, -0.2, 2.0]);
+        for face in &f {
+            let [a, b, c] = face.map(|i| v[i as usize]);
+            let e1 = [b[0] - a[0], b[1] - a[1]];
+            let e2 = [c[0] - a[0], c[1] - a[1]];
+            let nz = e1[0] * e2[1] - e1[1] * e2[0];
+            assert!(nz < 0.0, "face {face:?} has normal z {nz}");
+        }
+    }
+
+    #[test]
+    fn ply_skips_missing_pixels() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("hole.ply");
+        let mut depth = Grid::filled(3, 3, 2.0);
+        *depth.at_mut(0, 0) = f64::NAN;
+        let cam = Intrinsics::centred(10.0, 3, 3);
+        write_depth_ply(&p, &depth, &cam, None).unwrap();
+        let (header, v, f) = parse_ply(&fs::read(&p).unwrap(), false);
+        assert!(!header.iter().any(|l| l.contains("red")));
+        assert_eq!((v.len(), f.len()), (8, 7));
+        // With the centre missing too, the top-left block has two valid
+        // pixels (no face) and the other three blocks three (one face each).
+        *depth.at_mut(1, 1) = 0.0;
+        write_depth_ply(&p, &depth, &cam, None).unwrap();
+        let (_, v, f) = parse_ply(&fs::read(&p).unwrap(), false);
+        assert_eq!((v.len(), f.len()), (7, 3));
+        let e = write_depth_ply(&p, &depth, &cam, Some(&Grid::filled(2, 2, 0.0)));
+        assert!(e.unwrap_err().to_string().contains("hole.ply"));
+    }
+
+    #[test]
+    fn output_stage_commits_or_cleans_up() {
+        let dir = tempdir().unwrap();
+        let out = dir.path().join("out/deep");
+        let mut stage = OutputStage::new(&out).unwrap();
+        let a = stage.path("depth.npy");
+        assert_eq!(a, out.join(".depth.npy.partial"));
+        write_npy_f64(&a, &ramp(2, 2)).unwrap();
+        let b = stage.path("shade.png");
+        write_png8(&b, &ramp(2, 2)).unwrap();
+        let done = stage.commit().unwrap();
+        assert_eq!(done, vec![out.join("depth.npy"), out.join("shade.png")]);
+        assert_eq!(read_npy(&done[0]).unwrap(), ramp(2, 2));
+        assert!(read_image(&done[1], false).is_ok());
+        let names: Vec<_> = fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
+
+        let other = dir.path().join("other");
+        {
+            let mut stage = OutputStage::new(&other).unwrap();
+            write_json(&stage.path("report.json"), &[1, 2, 3]).unwrap();
+            assert!(other.join(".report.json.partial").exists());
+        }
+        assert_eq!(fs::read_dir(&other).unwrap().count(), 0);
+
+        let file = dir.path().join("plain-file");
+        fs::write(&file, "x").unwrap();
+        let under = file.join("sub");
+        let e = OutputStage::new(&under).unwrap_err().to_string();
+        assert!(e.contains(&under.display().to_string()), "{e}");
+    }
+}
