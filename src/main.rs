@@ -6,7 +6,12 @@ fn main() -> ExitCode {
     match sfs_studio::cli::run(std::env::args_os()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {
-            eprintln!("error: {error:#}");
+            // clap's usage errors arrive rendered, with their own prefix.
+            if let Some(usage) = error.downcast_ref::<sfs_studio::cli::CliUsage>() {
+                eprint!("{usage}");
+            } else {
+                eprintln!("error: {error:#}");
+            }
             ExitCode::FAILURE
         }
     }

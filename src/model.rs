@@ -530,8 +530,6 @@ pub fn reproject<M: Reflectance + ?Sized>(
 mod tests {
     use super::*;
 
-    const H1: Spacing = Spacing { x: 1.0, y: 1.0 };
-
     #[test]
     fn facing_plane_on_axis_is_s_over_z_squared() {
         let model = Lambertian {
@@ -555,10 +553,16 @@ mod tests {
             upwind(Some(1.0), 2.0, Some(1.0), 1.0),
             (Branch::Backward, 1.0)
         );
-        // Rising to the right: D- = -1 < 0, -D+ = -1 < 0 -> zero.
-        assert_eq!(upwind(Some(1.0), 2.0, Some(3.0), 1.0), (Branch::Zero, 0.0));
-        // Falling to the right: D- = 1, -D+ = 1 -> backward 1.
-        assert_eq!(upwind(Some(3.0), 2.0, Some(1.0), 1.0).0, Branch::Backward);
+        // Rising to the right: D- = 1 > 0, -D+ = -1 -> backward, slope 1.
+        assert_eq!(
+            upwind(Some(1.0), 2.0, Some(3.0), 1.0),
+            (Branch::Backward, 1.0)
+        );
+        // Falling to the right: D- = -1, -D+ = 1 -> forward, slope -1.
+        assert_eq!(
+            upwind(Some(3.0), 2.0, Some(1.0), 1.0),
+            (Branch::Forward, -1.0)
+        );
         // Steeper on the right: D- = 0.5, -D+ = 2 -> forward, sign restored.
         assert_eq!(
             upwind(Some(1.5), 2.0, Some(0.0), 1.0),

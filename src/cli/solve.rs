@@ -27,6 +27,7 @@ pub enum DerivativesArg {
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SolveArgs {
     /// Input image: 8/16-bit PNG, TIFF or JPEG, read as linear values in [0, 1]
     /// (colour converted to luminance).

@@ -10,6 +10,7 @@ use crate::scene::{self, Scene, mesh, sombrero};
 
 /// Arguments of `synth`.
 #[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
 pub struct SynthArgs {
     /// `sombrero` (analytic, METHOD.md section 7) or the path of an OBJ mesh.
     pub scene: String,

@@ -279,7 +279,7 @@ mod tests {
                 .collect();
             let order: Vec<usize> = sweep_order(h)
                 .into_iter()
-                .flat_map(|r| (r * w..(r + 1) * w))
+                .flat_map(|r| r * w..(r + 1) * w)
                 .collect();
             let mut x = vec![0.0; w * h];
             for _ in 0..5 {
@@ -289,12 +289,10 @@ mod tests {
             let got = fast.dz_grid();
             let scale = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             assert!(scale > 0.0);
-            for q in 0..w * h {
+            for (q, (fast, reference)) in got.as_slice().iter().zip(&x).enumerate() {
                 assert!(
-                    (got.as_slice()[q] - x[q]).abs() <= 1e-9 * scale,
-                    "{w}x{h} pixel {q}: fast {} reference {}",
-                    got.as_slice()[q],
-                    x[q]
+                    (fast - reference).abs() <= 1e-9 * scale,
+                    "{w}x{h} pixel {q}: fast {fast} reference {reference}"
                 );
             }
         }

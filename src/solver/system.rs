@@ -179,6 +179,19 @@ impl LinearSystem {
         }
     }
 
+    /// Bytes held by the system's buffers (all proportional to the pixel count).
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.rows.capacity() * size_of::<SystemRow>()
+            + self.dz_padded.capacity() * size_of::<f64>()
+            + self.data.capacity() * size_of::<DataRow>()
+            + self.residual.capacity() * size_of::<f64>()
+            + self.jacobian.capacity() * size_of::<[f64; 5]>()
+            + self.smooth_flags.capacity()
+            + self.psi_weights.capacity() * size_of::<[f64; 3]>()
+            + self.z_padded.capacity() * size_of::<f64>()
+    }
+
     /// Padded row width.
     #[inline]
     pub fn padded_width(&self) -> usize {

@@ -1,0 +1,739 @@
+//! End-to-end tests of the `sfs-studio` binary: `synth`, `solve` and `eval`
+//! on tiny scenes, `--help`, and bad inputs (non-zero exit, a message naming
+//! the problem, and nothing left in the output folder).
+
+use std::collections::BTreeSet;
+use std::ffi::OsStr;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+use sfs_studio::params::SolverParams;
+use tempfile::{TempDir, tempdir};
+
+/// The binary under test.
+const BIN: &str = env!("CARGO_BIN_EXE_sfs-studio");
+
+/// Files `synth` writes (with `--noise` and `--inpaint-disc`).
+const SYNTH_FILES: [&str; 7] = [
+    "image16.png",
+    "image8.png",
+    "noisy8.png",
+    "confidence.png",
+    "mask.png",
+    "depth_gt.npy",
+    "scene.json",
+];
+
+/// Files `solve` writes.
+const SOLVE_FILES: [&str; 4] = ["depth.npy", "reprojection.png", "mesh.ply", "report.json"];
+
+/// Runs the binary with `args`.
+fn sfs<I, S>(args: I) -> Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cannot start the sfs-studio binary")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Asserts a run succeeded, showing its output otherwise.
+#[track_caller]
+fn assert_success(out: &Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed with {}\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        stdout(out),
+        stderr(out)
+    );
+}
+
+/// Names of the entries of `dir` (empty if it does not exist).
+fn entries(dir: &Path) -> Vec<String> {
+    match fs::read_dir(dir) {
+        Ok(read) => {
+            let mut names: Vec<String> = read
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        }
+        Err(_) => Vec::new(),
+    }
+}
+
+/// Paths as strings, for argument lists.
+fn s(path: &Path) -> String {
+    path.to_str().expect("temporary paths are UTF-8").to_owned()
+}
+
+fn read_json(path: &Path) -> Value {
+    let text =
+        fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
+}
+
+/// A temporary folder holding `synth sombrero --size 40x40` with noise and
+/// an inpainting disc in `scene/`.
+struct Fixture {
+    tmp: TempDir,
+    scene: PathBuf,
+}
+
+impl Fixture {
+    fn new() -> Self {
+        let tmp = tempdir().unwrap();
+        let scene = tmp.path().join("scene");
+        let out = sfs([
+            "synth",
+            "sombrero",
+            "--size",
+            "40x40",
+            "--noise",
+            "10",
+            "--seed",
+            "3",
+            "--inpaint-disc",
+            "0.5,0.5,0.2",
+            "--out",
+            &s(&scene),
+        ]);
+        assert_success(&out, "synth sombrero");
+        Self { tmp, scene }
+    }
+
+    /// A path in the temporary folder (not created).
+    fn path(&self, name: &str) -> PathBuf {
+        self.tmp.path().join(name)
+    }
+
+    /// `D/name` as a string.
+    fn scene_file(&self, name: &str) -> String {
+        s(&self.scene.join(name))
+    }
+
+    /// `solve D/image16.png --camera D/scene.json -q --out OUT` plus `extra`.
+    fn solve_args(&self, out: &Path, extra: &[&str]) -> Vec<String> {
+        let mut args: Vec<String> = vec![
+            "solve".into(),
+            self.scene_file("image16.png"),
+            "--camera".into(),
+            self.scene_file("scene.json"),
+            "-q".into(),
+            "--out".into(),
+            s(out),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    }
+
+    /// `solve IMAGE --focal 40 -q --out OUT` plus `extra`.
+    fn solve_focal_args(&self, image: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
+        let mut args: Vec<String> = vec![
+            "solve".into(),
+            s(image),
+            "--focal".into(),
+            "40".into(),
+            "-q".into(),
+            "--out".into(),
+            s(out),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    }
+
+    /// Writes a grey 8-bit PNG of one value.
+    fn grey_png(&self, name: &str, width: u32, height: u32, value: u8) -> PathBuf {
+        let path = self.path(name);
+        image::GrayImage::from_pixel(width, height, image::Luma([value]))
+            .save(&path)
+            .unwrap();
+        path
+    }
+
+    fn write(&self, name: &str, contents: &str) -> PathBuf {
+        let path = self.path(name);
+        fs::write(&path, contents).unwrap();
+        path
+    }
+}
+
+/// Runs a command that must fail: non-zero exit, stderr containing every
+/// one of `needles`, and `out` holding no files (no complete outputs, no
+/// `*.partial` leftovers). Returns stderr.
+#[track_caller]
+fn expect_failure(args: &[String], out: &Path, needles: &[&str]) -> String {
+    let result = sfs(args);
+    let err = stderr(&result);
+    assert!(
+        !result.status.success(),
+        "expected failure but it succeeded: {args:?}\nstderr:\n{err}"
+    );
+    assert_ne!(
+        result.status.code(),
+        None,
+        "killed by a signal (a crash?): {args:?}\nstderr:\n{err}"
+    );
+    for needle in needles {
+        assert!(
+            err.contains(needle),
+            "stderr does not mention `{needle}` for {args:?}:\n{err}"
+        );
+    }
+    assert!(
+        !err.contains("panicked"),
+        "the binary panicked for {args:?}:\n{err}"
+    );
+    let left = entries(out);
+    assert!(
+        left.is_empty(),
+        "{} holds {left:?} after a failed run of {args:?}",
+        out.display()
+    );
+    err
+}
+
+// ---------------------------------------------------------------------------
+// Happy paths
+// ---------------------------------------------------------------------------
+
+#[test]
+fn synth_solve_eval_round_trip() {
+    let fx = Fixture::new();
+    let names = entries(&fx.scene);
+    let expected: Vec<String> = {
+        let mut v: Vec<String> = SYNTH_FILES.iter().map(|f| f.to_string()).collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names, expected, "synth wrote the wrong files");
+
+    let camera = read_json(&fx.scene.join("scene.json"));
+    let keys: BTreeSet<&str> = camera
+        .as_object()
+        .expect("scene.json is an object")
+        .keys()
+        .map(String::as_str)
+        .collect();
+    let expected_keys: BTreeSet<&str> = [
+        "name",
+        "width",
+        "height",
+        "focal",
+        "cx",
+        "cy",
+        "intensity_scale",
+    ]
+    .into();
+    assert_eq!(keys, expected_keys);
+    assert_eq!(camera["width"], 40);
+    assert_eq!(camera["height"], 40);
+    assert!(camera["focal"].as_f64().unwrap() > 0.0);
+
+    // Solve against the ground truth.
+    let r = fx.path("result");
+    let mut args = fx.solve_args(&r, &[]);
+    args.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args), "solve");
+    let mut expected: Vec<String> = SOLVE_FILES.iter().map(|f| f.to_string()).collect();
+    expected.sort();
+    assert_eq!(entries(&r), expected, "solve wrote the wrong files");
+
+    let report = read_json(&r.join("report.json"));
+    let rse = report["rse"].as_f64().expect("report.rse is a number");
+    assert!(rse.is_finite() && (0.0..0.1).contains(&rse), "rse {rse}");
+    assert!(
+        report["rie"]
+            .as_f64()
+            .expect("report.rie is a number")
+            .is_finite()
+    );
+    assert!(
+        report["seconds"]
+            .as_f64()
+            .expect("report.seconds is a number")
+            >= 0.0
+    );
+    let levels = report["levels"]
+        .as_array()
+        .expect("report.levels is an array");
+    assert!(!levels.is_empty());
+    let widths: Vec<u64> = levels
+        .iter()
+        .map(|l| l["width"].as_u64().expect("level width"))
+        .collect();
+    assert!(
+        widths.windows(2).all(|w| w[0] < w[1]),
+        "level widths do not grow: {widths:?}"
+    );
+    assert_eq!(*widths.last().unwrap(), 40);
+    assert_eq!(
+        report["parameters"]["alpha"].as_f64(),
+        Some(SolverParams::default().alpha)
+    );
+
+    // The depth map has the image's size and positive depth on the object.
+    let depth = sfs_studio::io::read_npy(&r.join("depth.npy")).unwrap();
+    assert_eq!(depth.size(), (40, 40));
+    assert!(depth.as_slice().iter().any(|z| z.is_finite() && *z > 0.0));
+
+    // eval agrees with the report.
+    let out = sfs([
+        "eval",
+        "--depth",
+        &s(&r.join("depth.npy")),
+        "--gt",
+        &s(&fx.scene),
+    ]);
+    assert_success(&out, "eval");
+    let printed: Value = serde_json::from_str(stdout(&out).trim())
+        .unwrap_or_else(|e| panic!("eval printed no JSON ({e}): {}", stdout(&out)));
+    let eval_rse = printed["rse"].as_f64().expect("eval rse");
+    assert!(
+        (eval_rse - rse).abs() <= 1e-6,
+        "eval rse {eval_rse} != report rse {rse}"
+    );
+    assert!(printed["rie"].as_f64().is_some());
+
+    // Warm start from the result: one level at full resolution.
+    let warm = fx.path("warm");
+    let depth_path = s(&r.join("depth.npy"));
+    let args = fx.solve_args(&warm, &["--init-depth", &depth_path, "--kappa", "2"]);
+    assert_success(&sfs(&args), "solve --init-depth depth.npy");
+    let report = read_json(&warm.join("report.json"));
+    let levels = report["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 1, "a warm start skips the coarse levels");
+    assert_eq!(levels[0]["width"], 40);
+    assert_eq!(report["parameters"]["initial_depth"], depth_path.as_str());
+    assert!(report["rse"].is_null(), "no --gt, no rse");
+}
+
+#[test]
+fn solve_with_focal_and_intensity_scale() {
+    let fx = Fixture::new();
+    let r = fx.path("r");
+    let image = fx.scene.join("image16.png");
+    let args = fx.solve_focal_args(&image, &r, &["--intensity-scale", "2"]);
+    assert_success(&sfs(&args), "solve --focal --intensity-scale");
+    let report = read_json(&r.join("report.json"));
+    let camera = &report["input"]["camera"];
+    assert_eq!(camera["focal"].as_f64(), Some(40.0));
+    assert_eq!(camera["intensity_scale"].as_f64(), Some(2.0));
+    assert_eq!(camera["cx"].as_f64(), Some(19.5));
+    assert!(r.join("depth.npy").is_file());
+}
+
+#[test]
+fn solve_with_mask_confidence_and_every_parameter() {
+    let fx = Fixture::new();
+    let r = fx.path("r");
+    let mask = fx.scene_file("mask.png");
+    let confidence = fx.scene_file("confidence.png");
+    let args = fx.solve_args(
+        &r,
+        &[
+            "--mask",
+            &mask,
+            "--confidence",
+            &confidence,
+            "--alpha",
+            "0.01",
+            "--kappa",
+            "2",
+            "--inner-iters",
+            "2",
+            "--sor-iters",
+            "3",
+            "--omega",
+            "1.2",
+            "--dz-limit",
+            "0.02",
+            "--eta",
+            "0.8",
+            "--init-depth",
+            "1.8",
+        ],
+    );
+    assert_success(&sfs(&args), "solve with every option");
+    let report = read_json(&r.join("report.json"));
+    let p = &report["parameters"];
+    assert_eq!(p["alpha"].as_f64(), Some(0.01));
+    assert_eq!(p["kappa"], 2);
+    assert_eq!(p["inner_iterations"], 2);
+    assert_eq!(p["sor_iterations"], 3);
+    assert_eq!(p["omega"].as_f64(), Some(1.2));
+    assert_eq!(p["dz_limit"].as_f64(), Some(0.02));
+    assert_eq!(p["eta"].as_f64(), Some(0.8));
+    assert_eq!(report["initial_depth"].as_f64(), Some(1.8));
+    for level in report["levels"].as_array().unwrap() {
+        assert_eq!(level["energies"].as_array().unwrap().len(), 2, "kappa = 2");
+    }
+}
+
+#[test]
+fn synth_renders_a_mesh() {
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes/suzanne.obj");
+    if !mesh.is_file() {
+        eprintln!("skipped: {} does not exist", mesh.display());
+        return;
+    }
+    let tmp = tempdir().unwrap();
+    let d = tmp.path().join("suzanne");
+    let out = sfs(["synth", &s(&mesh), "--size", "64x32", "--out", &s(&d)]);
+    assert_success(&out, "synth suzanne.obj");
+    let mask = image::open(d.join("mask.png")).unwrap().to_luma8();
+    assert_eq!(mask.dimensions(), (64, 32));
+    let values: BTreeSet<u8> = mask.pixels().map(|p| p.0[0]).collect();
+    assert!(
+        values.contains(&0) && values.len() >= 2,
+        "the mask should show object and background: {values:?}"
+    );
+    let camera = read_json(&d.join("scene.json"));
+    assert_eq!(camera["name"], "suzanne");
+    assert_eq!(
+        (camera["width"].clone(), camera["height"].clone()),
+        (64.into(), 32.into())
+    );
+}
+
+#[test]
+fn help_of_every_subcommand() {
+    for (sub, options) in [
+        (
+            "solve",
+            &[
+                "--alpha",
+                "--lambda",
+                "--eta",
+                "--kappa",
+                "--inner-iters",
+                "--sor-iters",
+                "--omega",
+                "--dz-limit",
+                "--init-depth",
+                "--camera",
+                "--focal",
+                "--mask",
+                "--confidence",
+                "--srgb",
+                "--gt",
+                "--out",
+            ][..],
+        ),
+        (
+            "synth",
+            &["--size", "--noise", "--seed", "--inpaint-disc", "--out"][..],
+        ),
+        ("eval", &["--depth", "--gt"][..]),
+    ] {
+        let out = sfs([sub, "--help"]);
+        assert_success(&out, &format!("{sub} --help"));
+        let text = stdout(&out);
+        for option in options {
+            assert!(
+                text.contains(option),
+                "`{sub} --help` does not mention {option}:\n{text}"
+            );
+        }
+    }
+    let out = sfs(["--help"]);
+    assert_success(&out, "--help");
+    let text = stdout(&out);
+    for sub in ["synth", "solve", "eval"] {
+        assert!(text.contains(sub), "--help does not list {sub}:\n{text}");
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Bad inputs: each must fail, name the problem and write nothing.
+// ---------------------------------------------------------------------------
+
+#[test]
+fn missing_image() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    let image = fx.path("missing.png");
+    expect_failure(
+        &fx.solve_focal_args(&image, &out, &[]),
+        &out,
+        &["missing.png"],
+    );
+}
+
+#[test]
+fn text_file_as_image() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    let image = fx.write("x.png", "this is not a PNG\n");
+    expect_failure(&fx.solve_focal_args(&image, &out, &[]), &out, &["x.png"]);
+}
+
+#[test]
+fn directory_as_image() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    expect_failure(
+        &fx.solve_focal_args(&fx.scene, &out, &[]),
+        &out,
+        &[&s(&fx.scene)],
+    );
+}
+
+#[test]
+fn images_below_3x3_are_too_small() {
+    let fx = Fixture::new();
+    for side in [1, 2] {
+        let out = fx.path(&format!("r{side}"));
+        let image = fx.grey_png(&format!("tiny{side}.png"), side, side, 128);
+        let err = expect_failure(
+            &fx.solve_focal_args(&image, &out, &[]),
+            &out,
+            &[&format!("tiny{side}.png"), "3x3"],
+        );
+        assert!(err.contains("at least"), "{err}");
+    }
+}
+
+#[test]
+fn mask_and_confidence_of_another_size() {
+    let fx = Fixture::new();
+    let small = s(&fx.grey_png("small.png", 20, 20, 255));
+    for option in ["--mask", "--confidence"] {
+        let out = fx.path(&format!("r{option}"));
+        expect_failure(
+            &fx.solve_args(&out, &[option, &small]),
+            &out,
+            &["small.png", "20x20", &option[2..]],
+        );
+    }
+}
+
+#[test]
+fn black_image() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    let image = fx.grey_png("black.png", 40, 40, 0);
+    expect_failure(
+        &fx.solve_focal_args(&image, &out, &[]),
+        &out,
+        &["black.png", "black on every"],
+    );
+}
+
+#[test]
+fn saturated_image() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    let image = fx.grey_png("white.png", 40, 40, 255);
+    expect_failure(
+        &fx.solve_focal_args(&image, &out, &[]),
+        &out,
+        &["white.png", "saturated"],
+    );
+}
+
+/// `solve IMAGE --focal ... -q --out OUT` with `focal_args` for the focal length.
+fn solve_with_focal(fx: &Fixture, focal_args: &[&str], out: &Path) -> Vec<String> {
+    let mut args = vec!["solve".to_string(), fx.scene_file("image16.png")];
+    args.extend(focal_args.iter().map(|a| a.to_string()));
+    args.extend(["-q".into(), "--out".into(), s(out)]);
+    args
+}
+
+#[test]
+fn bad_focal_lengths() {
+    let fx = Fixture::new();
+    for (k, focal_args) in [
+        &["--focal", "0"][..],
+        &["--focal=-3"][..],
+        &["--focal", "nan"][..],
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = fx.path(&format!("r{k}"));
+        expect_failure(&solve_with_focal(&fx, focal_args, &out), &out, &["focal"]);
+    }
+}
+
+#[test]
+fn bad_solver_parameters_are_named() {
+    let fx = Fixture::new();
+    for (k, (option, value, name)) in [
+        ("--alpha=-1", "-1", "alpha"),
+        ("--eta=1.5", "1.5", "eta"),
+        ("--eta=0", "0", "eta"),
+        ("--kappa=0", "0", "kappa"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let out = fx.path(&format!("r{k}"));
+        let err = expect_failure(&fx.solve_args(&out, &[option]), &out, &[name]);
+        assert!(
+            err.contains(&format!("{name} = {value}")),
+            "the message should show {name} = {value}: {err}"
+        );
+    }
+    // The same values as separate arguments (clap's other spelling).
+    for (k, (option, value)) in [("--eta", "1.5"), ("--eta", "0"), ("--kappa", "0")]
+        .into_iter()
+        .enumerate()
+    {
+        let out = fx.path(&format!("s{k}"));
+        expect_failure(
+            &fx.solve_args(&out, &[option, value]),
+            &out,
+            &[&option[2..]],
+        );
+    }
+}
+
+/// Negative values written as a separate argument (`--focal -3`, `--alpha -1`)
+/// are rejected by clap as unknown arguments (`unexpected argument '-3'
+/// found`) without naming the option; a legitimate negative principal point
+/// (`--cx -1`) cannot be given that way at all.
+#[test]
+fn negative_values_as_separate_arguments() {
+    let fx = Fixture::new();
+    let focal = fx.path("focal");
+    expect_failure(
+        &solve_with_focal(&fx, &["--focal", "-3"], &focal),
+        &focal,
+        &["focal"],
+    );
+    let alpha = fx.path("alpha");
+    expect_failure(
+        &fx.solve_args(&alpha, &["--alpha", "-1"]),
+        &alpha,
+        &["alpha"],
+    );
+    // A principal point left of the image is valid.
+    let cx = fx.path("cx");
+    let args = solve_with_focal(&fx, &["--focal", "40", "--cx", "-1"], &cx);
+    assert_success(&sfs(&args), "solve --cx -1");
+}
+
+/// clap's rendered usage errors already start with `error: `, and `main`
+/// adds another.
+#[test]
+fn usage_errors_have_one_error_prefix() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    let err = expect_failure(&fx.solve_args(&out, &["--nonsense"]), &out, &["--nonsense"]);
+    assert!(!err.contains("error: error:"), "{err}");
+}
+
+#[test]
+fn unreadable_camera_files() {
+    let fx = Fixture::new();
+    let image = s(&fx.scene.join("image16.png"));
+    let good = fs::read_to_string(fx.scene.join("scene.json")).unwrap();
+    let mut without_focal: Value = serde_json::from_str(&good).unwrap();
+    without_focal.as_object_mut().unwrap().remove("focal");
+    let mut wrong_size: Value = serde_json::from_str(&good).unwrap();
+    wrong_size["width"] = 30.into();
+    let cases: [(&str, Option<String>, &[&str]); 4] = [
+        ("nope.json", None, &["nope.json"]),
+        (
+            "malformed.json",
+            Some("{\"width\": 40,".into()),
+            &["malformed.json"],
+        ),
+        (
+            "nofocal.json",
+            Some(without_focal.to_string()),
+            &["nofocal.json", "focal"],
+        ),
+        (
+            "wrongsize.json",
+            Some(wrong_size.to_string()),
+            &["wrongsize.json", "30x40"],
+        ),
+    ];
+    for (name, contents, needles) in cases {
+        let camera = match contents {
+            Some(text) => fx.write(name, &text),
+            None => fx.path(name),
+        };
+        let out = fx.path(&format!("r-{name}"));
+        let args: Vec<String> = vec![
+            "solve".into(),
+            image.clone(),
+            "--camera".into(),
+            s(&camera),
+            "-q".into(),
+            "--out".into(),
+            s(&out),
+        ];
+        expect_failure(&args, &out, needles);
+    }
+}
+
+#[test]
+fn malformed_obj_files() {
+    let fx = Fixture::new();
+    let cases = [
+        (
+            "garbage.obj",
+            "hello world\nv 1 2\nf one two three\n\x01\x02\n",
+        ),
+        (
+            "badindex.obj",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n",
+        ),
+    ];
+    for (name, contents) in cases {
+        let obj = fx.write(name, contents);
+        let out = fx.path(&format!("r-{name}"));
+        let args: Vec<String> = vec![
+            "synth".into(),
+            s(&obj),
+            "--size".into(),
+            "16x16".into(),
+            "--out".into(),
+            s(&out),
+        ];
+        expect_failure(&args, &out, &[name]);
+    }
+}
+
+#[test]
+fn output_folder_inside_a_file() {
+    let fx = Fixture::new();
+    let file = fx.write("afile", "a plain file\n");
+    let out = file.join("sub");
+    let synth: Vec<String> = ["synth", "sombrero", "--size", "16x16", "--out", &s(&out)]
+        .map(String::from)
+        .into();
+    expect_failure(&synth, &out, &[&s(&out)]);
+    expect_failure(&fx.solve_args(&out, &[]), &out, &[&s(&out)]);
+    assert_eq!(fs::read_to_string(&file).unwrap(), "a plain file\n");
+}
+
+#[test]
+fn no_camera_and_no_focal() {
+    let fx = Fixture::new();
+    let out = fx.path("r");
+    let args: Vec<String> = vec![
+        "solve".into(),
+        fx.scene_file("image16.png"),
+        "-q".into(),
+        "--out".into(),
+        s(&out),
+    ];
+    expect_failure(&args, &out, &["--camera", "--focal"]);
+}
