@@ -27,7 +27,13 @@ const SYNTH_FILES: [&str; 7] = [
 ];
 
 /// Files `solve` writes.
-const SOLVE_FILES: [&str; 4] = ["depth.npy", "reprojection.png", "mesh.ply", "report.json"];
+const SOLVE_FILES: [&str; 5] = [
+    "depth.npy",
+    "depth16.png",
+    "reprojection.png",
+    "mesh.ply",
+    "report.json",
+];
 
 /// Runs the binary with `args`.
 fn sfs<I, S>(args: I) -> Output

@@ -117,7 +117,9 @@ unsafe fn sweep_band(
         let mut left_coupling = records[i0 - 1].forward[0] as f64;
         for c in 0..w {
             let i = i0 + c;
-            let row = &records[i];
+            // SAFETY: i indexes column c of row r of the padded buffer, and
+            // `records` has the padded size (checked above in debug builds).
+            let row = unsafe { records.get_unchecked(i) };
             if row.inverse_diagonal == 0.0 {
                 // Not solved for: its unknown keeps its value (0).
                 // SAFETY: column c of this row is inside the buffer.
@@ -127,8 +129,12 @@ unsafe fn sweep_band(
             }
             let a = &row.forward;
             // Backward couplings, stored with the earlier neighbours.
-            let back = |dx: isize, dy: isize, k: usize| {
-                records[(i as isize + dx + dy * pw as isize) as usize].forward[k] as f64
+            // SAFETY: the neighbours are within two rows and columns of i,
+            // inside the padded buffer thanks to the halo.
+            let back = |dx: isize, dy: isize, k: usize| unsafe {
+                records
+                    .get_unchecked((i as isize + dx + dy * pw as isize) as usize)
+                    .forward[k] as f64
             };
             // SAFETY: every read is at column c-2 ..= c+2 of rows r-2 ..= r+2,
             // inside the padded buffer; only column c of row r is written, by
@@ -152,10 +158,11 @@ unsafe fn sweep_band(
                     + back(0, -2, 6) * at(up2, 0)
                     + back(2, -2, 5) * at(up2, 2);
                 let independent = (f0 + f1) + (f2 + b0) + (b1 + b2);
-                let relaxed_inverse = omega * row.inverse_diagonal;
+                let relaxed_inverse = omega * f64::from(row.inverse_diagonal);
                 let old = at(mid, 0);
                 // x_new = (1 - omega) x + omega (b - sum) / a_qq
-                let base = one_minus_omega * old + relaxed_inverse * (row.rhs - independent);
+                let base =
+                    one_minus_omega * old + relaxed_inverse * (f64::from(row.rhs) - independent);
                 let new = base - (relaxed_inverse * left_coupling) * left;
                 *mid.add(c) = new;
                 left = new;
@@ -210,7 +217,7 @@ pub fn explicit_rows(system: &LinearSystem) -> Vec<Vec<(usize, f64)>> {
             if !solved(c, r) {
                 return Vec::new();
             }
-            let mut row = vec![(q, 1.0 / record(c, r).inverse_diagonal)];
+            let mut row = vec![(q, 1.0 / f64::from(record(c, r).inverse_diagonal))];
             for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
                 // Forward coupling stored here, backward one stored there.
                 for (cc, rr, a) in [
@@ -275,7 +282,7 @@ mod tests {
             let mut fast = system(w, h);
             let rows = explicit_rows(&fast);
             let rhs: Vec<f64> = (0..w * h)
-                .map(|q| fast.rows[fast.padded_index(q % w, q / w)].rhs)
+                .map(|q| f64::from(fast.rows[fast.padded_index(q % w, q / w)].rhs))
                 .collect();
             let order: Vec<usize> = sweep_order(h)
                 .into_iter()
@@ -304,7 +311,7 @@ mod tests {
         let mut s = system(w, h);
         let rows = explicit_rows(&s);
         let rhs: Vec<f64> = (0..w * h)
-            .map(|q| s.rows[s.padded_index(q % w, q / w)].rhs)
+            .map(|q| f64::from(s.rows[s.padded_index(q % w, q / w)].rhs))
             .collect();
         for _ in 0..3000 {
             sweep(&mut s, 1.5);
