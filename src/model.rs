@@ -239,6 +239,25 @@ pub fn residual<M: Reflectance + ?Sized>(
     image_value - model.radiance(ray, values[0], gx, gy)
 }
 
+/// Adds the chain rule of one axis to `jac` (derivatives of `D = I - R`):
+/// `r_g_over_h` is `dR/dz_axis / h_axis`; a backward difference depends on the
+/// pixel and its `minus` neighbour, a forward one on the pixel and its `plus`
+/// neighbour.
+#[inline]
+fn add_axis(jac: &mut [f64; 5], branch: Branch, r_g_over_h: f64, minus: usize, plus: usize) {
+    match branch {
+        Branch::Backward => {
+            jac[slot::CENTRE] -= r_g_over_h;
+            jac[minus] = r_g_over_h;
+        }
+        Branch::Forward => {
+            jac[slot::CENTRE] += r_g_over_h;
+            jac[plus] = -r_g_over_h;
+        }
+        Branch::Zero => {}
+    }
+}
+
 /// How the derivatives of `D` with respect to the stencil depths are computed.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -275,28 +294,8 @@ pub fn residual_and_jacobian<M: Reflectance + ?Sized>(
             let mut jac = [0.0; 5];
             // D = I - R: every derivative carries a minus sign.
             jac[slot::CENTRE] = -r_z;
-            match branches.x {
-                Branch::Backward => {
-                    jac[slot::CENTRE] -= r_gx / h.x;
-                    jac[slot::LEFT] = r_gx / h.x;
-                }
-                Branch::Forward => {
-                    jac[slot::CENTRE] += r_gx / h.x;
-                    jac[slot::RIGHT] = -r_gx / h.x;
-                }
-                Branch::Zero => {}
-            }
-            match branches.y {
-                Branch::Backward => {
-                    jac[slot::CENTRE] -= r_gy / h.y;
-                    jac[slot::UP] = r_gy / h.y;
-                }
-                Branch::Forward => {
-                    jac[slot::CENTRE] += r_gy / h.y;
-                    jac[slot::DOWN] = -r_gy / h.y;
-                }
-                Branch::Zero => {}
-            }
+            add_axis(&mut jac, branches.x, r_gx / h.x, slot::LEFT, slot::RIGHT);
+            add_axis(&mut jac, branches.y, r_gy / h.y, slot::UP, slot::DOWN);
             Some((image_value - r, jac))
         }
         Derivatives::Numeric { h_z } => {
@@ -470,7 +469,8 @@ pub struct Energy {
     pub total: f64,
 }
 
-/// Evaluates the energy (paper Eqs. 6-8) of `depth` on one level.
+/// Evaluates the energy (paper Eqs. 6-8) of `depth` on one level (rows
+/// summed in parallel).
 #[allow(clippy::too_many_arguments)]
 pub fn energy<M: Reflectance + ?Sized>(
     model: &M,
@@ -482,28 +482,31 @@ pub fn energy<M: Reflectance + ?Sized>(
     alpha: f64,
     lambda: f64,
 ) -> Energy {
-    let mut data = 0.0;
-    let mut smooth = 0.0;
-    for r in 0..geometry.height {
-        for c in 0..geometry.width {
-            if !domain.at(c, r) {
-                continue;
+    use rayon::prelude::*;
+    let (data, smoothness) = (0..geometry.height)
+        .into_par_iter()
+        .map(|r| {
+            let (mut data, mut smooth) = (0.0, 0.0);
+            for c in 0..geometry.width {
+                if !domain.at(c, r) {
+                    continue;
+                }
+                let nb = neighbourhood(depth, domain, c, r);
+                let (_, gx, gy) = nb.upwind(geometry.spacing);
+                let d = image.at(c, r) - model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
+                data += confidence.at(c, r) * d * d;
+                smooth += charbonnier(
+                    smoothness_squared(depth, domain, c, r, geometry.spacing),
+                    lambda,
+                );
             }
-            let nb = neighbourhood(depth, domain, c, r);
-            let (_, gx, gy) = nb.upwind(geometry.spacing);
-            let ray = geometry.ray(c, r);
-            let d = image.at(c, r) - model.radiance(&ray, nb.centre, gx, gy);
-            data += confidence.at(c, r) * d * d;
-            smooth += charbonnier(
-                smoothness_squared(depth, domain, c, r, geometry.spacing),
-                lambda,
-            );
-        }
-    }
+            (data, smooth)
+        })
+        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
     Energy {
         data,
-        smoothness: smooth,
-        total: data + alpha * smooth,
+        smoothness,
+        total: data + alpha * smoothness,
     }
 }
 

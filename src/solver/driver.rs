@@ -5,7 +5,6 @@
 
 use std::time::{Duration, Instant};
 
-use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::camera::Intrinsics;
@@ -571,7 +570,7 @@ fn apply_update(
     max_step
 }
 
-/// Energy of a level, rows summed in parallel.
+/// Energy of a level.
 fn level_energy<M: Reflectance>(
     model: &M,
     level: &PyramidLevel,
@@ -579,33 +578,16 @@ fn level_energy<M: Reflectance>(
     alpha: f64,
     lambda: f64,
 ) -> Energy {
-    let g = level.geometry;
-    let (data, smoothness) = (0..g.height)
-        .into_par_iter()
-        .map(|r| {
-            let mut data = 0.0;
-            let mut smooth = 0.0;
-            for c in 0..g.width {
-                if !level.domain.at(c, r) {
-                    continue;
-                }
-                let nb = model::neighbourhood(depth, &level.domain, c, r);
-                let (_, gx, gy) = nb.upwind(g.spacing);
-                let d = level.image.at(c, r) - model.radiance(&g.ray(c, r), nb.centre, gx, gy);
-                data += level.confidence.at(c, r) * d * d;
-                smooth += model::charbonnier(
-                    model::smoothness_squared(depth, &level.domain, c, r, g.spacing),
-                    lambda,
-                );
-            }
-            (data, smooth)
-        })
-        .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    Energy {
-        data,
-        smoothness,
-        total: data + alpha * smoothness,
-    }
+    model::energy(
+        model,
+        &level.geometry,
+        &level.image,
+        &level.confidence,
+        &level.domain,
+        depth,
+        alpha,
+        lambda,
+    )
 }
 
 /// The depth with NaN outside `domain`.
