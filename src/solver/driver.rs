@@ -406,6 +406,8 @@ fn solve_on_worker<M: Reflectance>(
         let mut energies = Vec::with_capacity(params.kappa);
         // Energy of the current depth on this level, once known.
         let mut current_energy: Option<Energy> = None;
+        // The depth before a trial step (backtracking), reused across iterations.
+        let mut previous = depth.clone();
         for iteration in 0..params.kappa {
             let t0 = Instant::now();
             if !system.linearise_data(model, level, &depth, params.derivatives) {
@@ -447,7 +449,7 @@ fn solve_on_worker<M: Reflectance>(
                         Some(e) => e,
                         None => level_energy(model, level, &depth, alpha, lambda),
                     };
-                    let previous = depth.clone();
+                    previous.as_mut_slice().copy_from_slice(depth.as_slice());
                     let mut scale = 1.0;
                     loop {
                         let step = apply_update(

@@ -19,20 +19,27 @@ pub const BAND_ROWS: usize = 8;
 /// Levels with fewer pixels are swept on one thread (same order).
 const PARALLEL_MIN_PIXELS: usize = 16 * 1024;
 
-/// Row ranges of the bands of a `height`-row level: `BAND_ROWS` rows each, the
-/// remainder joined to the last band so no band is shorter than the reach.
+/// Number of bands of a `height`-row level.
+pub fn band_count(height: usize) -> usize {
+    (height / BAND_ROWS).max(1)
+}
+
+/// Rows of band `band`: `BAND_ROWS` rows each, the remainder joined to the
+/// last band so that no band is shorter than the stencil's reach.
+pub fn band_rows(height: usize, band: usize) -> std::ops::Range<usize> {
+    let start = band * BAND_ROWS;
+    let end = if band + 1 == band_count(height) {
+        height
+    } else {
+        start + BAND_ROWS
+    };
+    start..end
+}
+
+/// Row ranges of all bands of a `height`-row level.
 pub fn bands(height: usize) -> Vec<std::ops::Range<usize>> {
-    let count = (height / BAND_ROWS).max(1);
-    (0..count)
-        .map(|b| {
-            let start = b * BAND_ROWS;
-            let end = if b + 1 == count {
-                height
-            } else {
-                start + BAND_ROWS
-            };
-            start..end
-        })
+    (0..band_count(height))
+        .map(|b| band_rows(height, b))
         .collect()
 }
 
@@ -54,7 +61,8 @@ unsafe impl Sync for SharedUnknowns {}
 
 /// One SOR sweep in band red-black order.
 pub fn sweep(system: &mut LinearSystem, omega: f64) {
-    let bands = bands(system.height);
+    let height = system.height;
+    let count_all = band_count(height);
     let len = system.dz_padded.len();
     let unknowns = SharedUnknowns(system.dz_padded.as_mut_ptr());
     let sys = &*system;
@@ -67,13 +75,14 @@ pub fn sweep(system: &mut LinearSystem, omega: f64) {
             // other colour of at least BAND_ROWS >= 2 rows (the stencil's
             // reach), so no row written by one task is read or written by
             // another running task.
-            unsafe { sweep_band(sys, unknowns, len, bands[b].clone(), omega) }
+            unsafe { sweep_band(sys, unknowns, len, band_rows(height, b), omega) }
         };
-        let of_colour = (colour..bands.len()).step_by(2);
+        // Bands colour, colour + 2, ...: no allocation in the sweep.
+        let count = (count_all + 1 - colour) / 2;
         if parallel {
-            of_colour.collect::<Vec<_>>().into_par_iter().for_each(run);
+            (0..count).into_par_iter().for_each(|k| run(colour + 2 * k));
         } else {
-            of_colour.for_each(run);
+            (0..count).for_each(|k| run(colour + 2 * k));
         }
     }
 }
