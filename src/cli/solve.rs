@@ -99,9 +99,10 @@ pub struct SolveArgs {
     /// Smallest side of the coarsest pyramid level, pixels.
     #[arg(long, default_value_t = SolverParams::default().min_level_side)]
     pub min_level_side: usize,
-    /// `object`: only mask pixels carry depth; `paper`: every pixel does,
-    /// the background only has confidence 0.
-    #[arg(long, value_enum, default_value = "object")]
+    /// `paper`: every pixel carries depth, the background only has
+    /// confidence 0 (lowest RSE at the default alpha); `object`: only mask
+    /// pixels do (better image fit, faster).
+    #[arg(long, value_enum, default_value = "paper")]
     pub domain: DomainArg,
     /// `crop` (the paper's) or `backtracking` (crop, then halve the step
     /// until the energy does not increase).
