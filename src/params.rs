@@ -64,10 +64,6 @@ pub enum InitialDepth {
     FromImage,
     /// A constant depth (depth units, > 0).
     Constant(f64),
-    /// Every pixel of the coarsest level assumed to face the light:
-    /// `z = Q sqrt(s / I)`, the largest depth its brightness allows
-    /// (`N . L <= 1`); exact at singular points.
-    FacingLight,
     /// Warm start from a full-resolution depth map (NaN where unknown): the
     /// coarse levels are skipped and the map is refined at full resolution.
     Map(crate::grid::Grid<f64>),
@@ -249,7 +245,7 @@ impl SolverParams {
                 "depth map",
                 "has no finite positive depth",
             )?,
-            InitialDepth::FromImage | InitialDepth::FacingLight => {}
+            InitialDepth::FromImage => {}
         }
         Ok(())
     }

@@ -107,11 +107,6 @@ pub fn parse_floats<const N: usize>(text: &str) -> Result<[f64; N], String> {
     Ok(array)
 }
 
-/// The default output folder path, when a command needs one.
-pub fn display_path(path: &std::path::Path) -> String {
-    path.display().to_string()
-}
-
 /// `PathBuf` parser that rejects empty strings.
 pub fn parse_path(text: &str) -> Result<PathBuf, String> {
     if text.is_empty() {

@@ -284,20 +284,6 @@ pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> f
     }
 }
 
-/// Depth of every pixel of a level if it faced the light, `Q sqrt(s / I)`;
-/// pixels with no usable brightness take `fallback`.
-pub fn facing_light_depth(level: &PyramidLevel, intensity_scale: f64, fallback: f64) -> Grid<f64> {
-    let g = level.geometry;
-    Grid::from_fn(g.width, g.height, |c, r| {
-        let v = *level.image.at(c, r);
-        if *level.domain.at(c, r) && *level.confidence.at(c, r) > 0.0 && v > 0.0 {
-            g.ray(c, r).q() * (intensity_scale / v).sqrt()
-        } else {
-            fallback
-        }
-    })
-}
-
 /// Solves with the Lambertian model of the paper.
 pub fn solve(
     problem: &Problem,
@@ -375,13 +361,6 @@ fn solve_on_worker<M: Reflectance>(
             let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
             (
                 Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
-                z0,
-            )
-        }
-        InitialDepth::FacingLight => {
-            let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
-            (
-                facing_light_depth(coarsest, problem.intensity_scale, z0),
                 z0,
             )
         }
