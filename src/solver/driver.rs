@@ -374,6 +374,8 @@ fn solve_on_worker<M: Reflectance>(
     let z_floor = 1e-6 * initial_depth.abs().max(1e-9);
 
     let mut reports = Vec::with_capacity(level_count);
+    // The finest level's reprojection, kept for the solution.
+    let mut last_reprojection = Grid::filled(0, 0, 0.0);
     let mut phases = PhaseTimes::default();
     let mut final_energy = initial_energy;
     for (index, level) in levels.iter().enumerate() {
@@ -463,15 +465,16 @@ fn solve_on_worker<M: Reflectance>(
                 elapsed: start.elapsed(),
             });
         }
-        let reprojection = model::reproject(model, &level.geometry, &level.domain, &depth);
-        observer.on_level(&LevelResult {
+        let result = LevelResult {
             level: index,
             levels: level_count,
             depth: masked(&depth, &level.domain),
-            reprojection,
+            reprojection: model::reproject(model, &level.geometry, &level.domain, &depth),
             energy: final_energy,
             elapsed: start.elapsed(),
-        });
+        };
+        observer.on_level(&result);
+        last_reprojection = result.reprojection;
         reports.push(LevelReport {
             width: level.geometry.width,
             height: level.geometry.height,
@@ -479,15 +482,13 @@ fn solve_on_worker<M: Reflectance>(
             seconds: level_start.elapsed().as_secs_f64(),
         });
     }
-    let finest = &levels[level_count - 1];
     let object = problem
         .object_mask
         .clone()
         .unwrap_or_else(|| Grid::filled(w, h, true));
-    let reprojection = model::reproject(model, &finest.geometry, &finest.domain, &depth);
     let reprojection = Grid::from_fn(w, h, |c, r| {
         if *object.at(c, r) {
-            *reprojection.at(c, r)
+            *last_reprojection.at(c, r)
         } else {
             0.0
         }

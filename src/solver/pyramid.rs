@@ -70,7 +70,15 @@ pub fn gaussian_blur(grid: &Grid<f64>, sigma_px: f64) -> Grid<f64> {
 
 /// Bilinear interpolation at fractional `(column, row)`, clamped to the grid.
 pub fn bilinear(grid: &Grid<f64>, column: f64, row: f64) -> f64 {
-    let (w, h) = grid.size();
+    bilinear_taps(grid.size(), column, row)
+        .iter()
+        .map(|&(q, weight)| weight * grid.as_slice()[q])
+        .sum()
+}
+
+/// The four cells (row-major indices) and weights of bilinear interpolation
+/// at fractional `(column, row)` in a grid of `size`, clamped to the grid.
+pub fn bilinear_taps((w, h): (usize, usize), column: f64, row: f64) -> [(usize, f64); 4] {
     let u = column.clamp(0.0, (w - 1) as f64);
     let v = row.clamp(0.0, (h - 1) as f64);
     let c0 = (u.floor() as usize).min(w.saturating_sub(2));
@@ -79,9 +87,12 @@ pub fn bilinear(grid: &Grid<f64>, column: f64, row: f64) -> f64 {
     let r1 = (r0 + 1).min(h - 1);
     let fu = u - c0 as f64;
     let fv = v - r0 as f64;
-    let top = grid.at(c0, r0) * (1.0 - fu) + grid.at(c1, r0) * fu;
-    let bottom = grid.at(c0, r1) * (1.0 - fu) + grid.at(c1, r1) * fu;
-    top * (1.0 - fv) + bottom * fv
+    [
+        (r0 * w + c0, (1.0 - fu) * (1.0 - fv)),
+        (r0 * w + c1, fu * (1.0 - fv)),
+        (r1 * w + c0, (1.0 - fu) * fv),
+        (r1 * w + c1, fu * fv),
+    ]
 }
 
 /// Position in a `from`-sized grid of the centre of cell `index` of a
@@ -100,12 +111,39 @@ pub fn downsample(finer: &PyramidLevel, geometry: LevelGeometry, sigma_scale: f6
     let (w, h) = (geometry.width, geometry.height);
     let ratio = (w as f64 / fw as f64).min(h as f64 / fh as f64);
     let sigma = sigma_scale * (1.0 / (ratio * ratio) - 1.0).max(0.0).sqrt();
-    let weight = finer.domain.map(|&d| if d { 1.0 } else { 0.0 });
-    let weighted_image = Grid::from_fn(fw, fh, |c, r| weight.at(c, r) * finer.image.at(c, r));
-    let weighted_conf = Grid::from_fn(fw, fh, |c, r| weight.at(c, r) * finer.confidence.at(c, r));
-    let coverage = gaussian_blur(&weight, sigma);
-    let image_sum = gaussian_blur(&weighted_image, sigma);
-    let conf_sum = gaussian_blur(&weighted_conf, sigma);
+    // Normalised convolution over the finer domain: blurred sums of the
+    // domain weight, of weight x image and of weight x confidence. Without
+    // blur they are sampled straight from the finer level (no copies).
+    let blurred = (sigma > 1e-3).then(|| {
+        let weight = finer.domain.map(|&d| if d { 1.0 } else { 0.0 });
+        let weighted_image = Grid::from_fn(fw, fh, |c, r| weight.at(c, r) * finer.image.at(c, r));
+        let weighted_conf =
+            Grid::from_fn(fw, fh, |c, r| weight.at(c, r) * finer.confidence.at(c, r));
+        [
+            gaussian_blur(&weight, sigma),
+            gaussian_blur(&weighted_image, sigma),
+            gaussian_blur(&weighted_conf, sigma),
+        ]
+    });
+    let sample = |u: f64, v: f64| -> [f64; 3] {
+        match &blurred {
+            Some([coverage, image_sum, conf_sum]) => [
+                bilinear(coverage, u, v),
+                bilinear(image_sum, u, v),
+                bilinear(conf_sum, u, v),
+            ],
+            None => bilinear_taps((fw, fh), u, v)
+                .iter()
+                .filter(|&&(q, _)| finer.domain.as_slice()[q])
+                .fold([0.0; 3], |[cov, img, conf], &(q, wgt)| {
+                    [
+                        cov + wgt,
+                        img + wgt * finer.image.as_slice()[q],
+                        conf + wgt * finer.confidence.as_slice()[q],
+                    ]
+                }),
+        }
+    };
     let mut image = Grid::filled(w, h, 0.0);
     let mut confidence = Grid::filled(w, h, 0.0);
     let mut domain = Grid::filled(w, h, false);
@@ -113,11 +151,11 @@ pub fn downsample(finer: &PyramidLevel, geometry: LevelGeometry, sigma_scale: f6
         let v = map_coordinate(r, h, fh);
         for c in 0..w {
             let u = map_coordinate(c, w, fw);
-            let cov = bilinear(&coverage, u, v);
+            let [cov, image_sum, conf_sum] = sample(u, v);
             if cov >= 0.5 {
                 *domain.at_mut(c, r) = true;
-                *image.at_mut(c, r) = bilinear(&image_sum, u, v) / cov;
-                *confidence.at_mut(c, r) = (bilinear(&conf_sum, u, v) / cov).clamp(0.0, 1.0);
+                *image.at_mut(c, r) = image_sum / cov;
+                *confidence.at_mut(c, r) = (conf_sum / cov).clamp(0.0, 1.0);
             }
         }
     }
