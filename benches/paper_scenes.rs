@@ -214,7 +214,7 @@ fn main() {
     system.add_smoothness(&level, 1.0, 1e-3);
     let rows = sor::explicit_rows(&system);
     let rhs: Vec<f64> = (0..n * n)
-        .map(|q| f64::from(system.rows[system.padded_index(q % n, q / n)].rhs))
+        .map(|q| f64::from(system.row(q % n, q / n).rhs))
         .collect();
     let order: Vec<usize> = sor::sweep_order(n)
         .into_iter()

@@ -537,7 +537,7 @@ fn apply_update(
             if !domain.at(c, r) {
                 continue;
             }
-            let dz = system.dz_padded[system.padded_index(c, r)];
+            let dz = f64::from(system.dz_padded[system.padded_index(c, r)]);
             let dz = if dz.is_finite() {
                 scale * dz.clamp(-dz_limit, dz_limit)
             } else {

@@ -11,7 +11,7 @@
 
 use rayon::prelude::*;
 
-use super::system::{FORWARD, HALO, LinearSystem};
+use super::system::{FORWARD, HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES};
 
 /// Rows per band (at least 2, the stencil's reach).
 pub const BAND_ROWS: usize = 8;
@@ -53,131 +53,292 @@ pub fn sweep_order(height: usize) -> Vec<usize> {
 
 /// Raw pointer to the unknowns, shared by the band tasks of one colour.
 #[derive(Clone, Copy)]
-struct SharedUnknowns(*mut f64);
+struct SharedUnknowns(*mut f32);
 // SAFETY: see `sweep_band`; tasks of one colour write disjoint rows and read
 // only rows that no task of that colour writes.
 unsafe impl Send for SharedUnknowns {}
 unsafe impl Sync for SharedUnknowns {}
 
 /// One SOR sweep in band red-black order.
+///
+/// Each row is updated in two passes: a vectorisable pass computes, for every
+/// pixel, everything that does not depend on the row's own new values (the
+/// rows above are final, the row itself and the rows below still hold their
+/// old values, exactly what lexicographic SOR reads), then a short sequential
+/// pass applies the two couplings to the left neighbours just updated. On
+/// x86-64 with AVX2 and FMA (detected at run time) the kernel is compiled for
+/// those; the FMA path rounds differently in the last bit, so results are
+/// deterministic per machine, not across machines.
 pub fn sweep(system: &mut LinearSystem, omega: f64) {
     let height = system.height;
+    let pw = system.padded_width();
     let count_all = band_count(height);
     let len = system.dz_padded.len();
     let unknowns = SharedUnknowns(system.dz_padded.as_mut_ptr());
-    let sys = &*system;
-    let parallel = sys.width * sys.height >= PARALLEL_MIN_PIXELS;
+    let parallel = system.width * system.height >= PARALLEL_MIN_PIXELS;
+    let kernel = RowKernel::detect();
+    let coefficients = &system.coefficients[..];
+    let scratch = &mut system.sweep_scratch[..];
+    let shape = Shape {
+        width: system.width,
+        height,
+        len,
+    };
+    let omega = omega as f32;
     for colour in 0..2 {
-        let run = |b: usize| {
-            // SAFETY: `unknowns` points to `len` f64s owned by `system`, which is
+        let run = |(b, work): (usize, &mut [f32])| {
+            if b % 2 != colour {
+                return;
+            }
+            // SAFETY: `unknowns` points to `len` f32s owned by `system`, which is
             // not otherwise accessed during the sweep. Band `b` writes only its
             // own rows; bands of the same colour are separated by a band of the
             // other colour of at least BAND_ROWS >= 2 rows (the stencil's
             // reach), so no row written by one task is read or written by
             // another running task.
-            unsafe { sweep_band(sys, unknowns, len, band_rows(height, b), omega) }
+            unsafe {
+                sweep_band(
+                    shape,
+                    coefficients,
+                    unknowns,
+                    band_rows(height, b),
+                    omega,
+                    kernel,
+                    work,
+                )
+            }
         };
-        // Bands colour, colour + 2, ...: no allocation in the sweep.
-        let count = (count_all + 1 - colour) / 2;
+        // Scratch rows are per band, so no allocation in the sweep.
         if parallel {
-            (0..count).into_par_iter().for_each(|k| run(colour + 2 * k));
+            scratch
+                .par_chunks_mut(3 * pw)
+                .take(count_all)
+                .enumerate()
+                .for_each(run);
         } else {
-            (0..count).for_each(|k| run(colour + 2 * k));
+            scratch
+                .chunks_mut(3 * pw)
+                .take(count_all)
+                .enumerate()
+                .for_each(run);
         }
+    }
+}
+
+/// Sizes [`sweep_band`] needs.
+#[derive(Clone, Copy)]
+struct Shape {
+    width: usize,
+    height: usize,
+    /// Length of the padded unknowns.
+    len: usize,
+}
+
+/// Which compiled variant of the row kernel runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum RowKernel {
+    /// Baseline x86-64 / any target.
+    Portable,
+    /// AVX2 + FMA, chosen at run time when the CPU has both.
+    #[cfg(target_arch = "x86_64")]
+    Avx2Fma,
+}
+
+impl RowKernel {
+    fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            return RowKernel::Avx2Fma;
+        }
+        RowKernel::Portable
     }
 }
 
 /// Sweeps rows `rows` lexicographically.
 ///
 /// # Safety
-/// `unknowns` must point to `len` valid f64s laid out as `system.dz_padded`,
-/// and no other thread may write rows within two of `rows` while it runs.
+/// `unknowns` must point to `shape.len` valid f32s laid out as
+/// `LinearSystem::dz_padded`, and no other thread may access rows within two
+/// of `rows` while it runs, nor write any row this task reads.
 unsafe fn sweep_band(
-    system: &LinearSystem,
+    shape: Shape,
+    coefficients: &[f32],
     unknowns: SharedUnknowns,
-    len: usize,
     rows: std::ops::Range<usize>,
-    omega: f64,
+    omega: f32,
+    kernel: RowKernel,
+    work: &mut [f32],
 ) {
-    let w = system.width;
+    let w = shape.width;
     let pw = w + 2 * HALO;
-    let one_minus_omega = 1.0 - omega;
-    let records = &system.rows;
-    debug_assert!(len == records.len() && len >= (system.height + 2 * HALO) * pw);
+    assert!(shape.len >= (shape.height + 2 * HALO) * pw && work.len() >= 3 * pw);
+    assert!(coefficients.len() >= shape.len * PLANES);
     for r in rows {
-        let i0 = (r + HALO) * pw + HALO;
-        // SAFETY: rows r-2 ..= r+2 of the padded buffer exist thanks to the
-        // halo; column offsets below stay within -2 ..= w+1.
+        // Padded row index of image row r.
+        let pr = r + HALO;
+        // SAFETY: rows pr-2 ..= pr+2 exist thanks to the halo (asserted
+        // above); by the caller's contract no other thread writes them now and
+        // only row pr is written here, through `mid` alone.
         let (up2, up1, mid, down1, down2) = unsafe {
-            let base = unknowns.0.add(i0);
+            let line = |k: usize| unknowns.0.add(k * pw);
             (
-                base.sub(2 * pw),
-                base.sub(pw),
-                base,
-                base.add(pw),
-                base.add(2 * pw),
+                std::slice::from_raw_parts(line(pr - 2), pw),
+                std::slice::from_raw_parts(line(pr - 1), pw),
+                std::slice::from_raw_parts_mut(line(pr), pw),
+                std::slice::from_raw_parts(line(pr + 1), pw),
+                std::slice::from_raw_parts(line(pr + 2), pw),
             )
         };
-        // The value left of the current pixel, as last written, and its
-        // forward (1, 0) coefficient: kept in registers so the sequential
-        // dependency is one multiply-subtract.
-        // SAFETY: column -1 is inside the halo.
-        let mut left = unsafe { *mid.sub(1) };
-        let mut left_coupling = records[i0 - 1].forward[0] as f64;
-        for c in 0..w {
-            let i = i0 + c;
-            // SAFETY: i indexes column c of row r of the padded buffer, and
-            // `records` has the padded size (checked above in debug builds).
-            let row = unsafe { records.get_unchecked(i) };
-            if row.inverse_diagonal == 0.0 {
-                // Not solved for: its unknown keeps its value (0).
-                // SAFETY: column c of this row is inside the buffer.
-                left = unsafe { *mid.add(c) };
-                left_coupling = row.forward[0] as f64;
-                continue;
-            }
-            let a = &row.forward;
-            // Backward couplings, stored with the earlier neighbours.
-            // SAFETY: the neighbours are within two rows and columns of i,
-            // inside the padded buffer thanks to the halo.
-            let back = |dx: isize, dy: isize, k: usize| unsafe {
-                records
-                    .get_unchecked((i as isize + dx + dy * pw as isize) as usize)
-                    .forward[k] as f64
-            };
-            // SAFETY: every read is at column c-2 ..= c+2 of rows r-2 ..= r+2,
-            // inside the padded buffer; only column c of row r is written, by
-            // this task alone.
-            unsafe {
-                let at = |line: *mut f64, dx: isize| *line.offset(c as isize + dx);
-                // Forward half, in FORWARD order.
-                let f0 = a[0] as f64 * at(mid, 1) + a[1] as f64 * at(mid, 2);
-                let f1 = a[2] as f64 * at(down1, -1)
-                    + a[3] as f64 * at(down1, 0)
-                    + a[4] as f64 * at(down1, 1);
-                let f2 = a[5] as f64 * at(down2, -2)
-                    + a[6] as f64 * at(down2, 0)
-                    + a[7] as f64 * at(down2, 2);
-                // Backward half: the coupling to q + o is forward entry -o of q + o.
-                let b0 = back(-2, 0, 1) * at(mid, -2);
-                let b1 = back(-1, -1, 4) * at(up1, -1)
-                    + back(0, -1, 3) * at(up1, 0)
-                    + back(1, -1, 2) * at(up1, 1);
-                let b2 = back(-2, -2, 7) * at(up2, -2)
-                    + back(0, -2, 6) * at(up2, 0)
-                    + back(2, -2, 5) * at(up2, 2);
-                let independent = (f0 + f1) + (f2 + b0) + (b1 + b2);
-                let relaxed_inverse = omega * f64::from(row.inverse_diagonal);
-                let old = at(mid, 0);
-                // x_new = (1 - omega) x + omega (b - sum) / a_qq
-                let base =
-                    one_minus_omega * old + relaxed_inverse * (f64::from(row.rhs) - independent);
-                let new = base - (relaxed_inverse * left_coupling) * left;
-                *mid.add(c) = new;
-                left = new;
-            }
-            left_coupling = a[0] as f64;
+        let block = |k: usize| &coefficients[k * PLANES * pw..(k + 1) * PLANES * pw];
+        let rows = RowSlices {
+            up2,
+            up1,
+            down1,
+            down2,
+            here: block(pr),
+            above1: block(pr - 1),
+            above2: block(pr - 2),
+        };
+        match kernel {
+            RowKernel::Portable => update_row_portable(&rows, mid, omega, work),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `detect` saw AVX2 and FMA on this CPU.
+            RowKernel::Avx2Fma => unsafe { update_row_avx2_fma(&rows, mid, omega, work) },
         }
+    }
+}
+
+/// What one row update reads besides the row itself.
+struct RowSlices<'a> {
+    up2: &'a [f32],
+    up1: &'a [f32],
+    down1: &'a [f32],
+    down2: &'a [f32],
+    /// Coefficient block of this row and of the two rows above.
+    here: &'a [f32],
+    above1: &'a [f32],
+    above2: &'a [f32],
+}
+
+fn update_row_portable(rows: &RowSlices<'_>, mid: &mut [f32], omega: f32, work: &mut [f32]) {
+    update_row::<false>(rows, mid, omega, work);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn update_row_avx2_fma(rows: &RowSlices<'_>, mid: &mut [f32], omega: f32, work: &mut [f32]) {
+    update_row::<true>(rows, mid, omega, work);
+}
+
+/// `a * b + c`, fused where the caller was compiled with FMA.
+#[inline(always)]
+fn madd<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
+    if FMA { a.mul_add(b, c) } else { a * b + c }
+}
+
+/// One row of lexicographic SOR (see [`sweep`]).
+#[inline(always)]
+fn update_row<const FMA: bool>(
+    rows: &RowSlices<'_>,
+    mid: &mut [f32],
+    omega: f32,
+    work: &mut [f32],
+) {
+    let pw = mid.len();
+    let n = pw - 2 * HALO;
+    fn plane(block: &[f32], pw: usize, n: usize, k: usize, dx: isize) -> &[f32] {
+        let start = (k * pw + HALO).wrapping_add_signed(dx);
+        &block[start..start + n]
+    }
+    fn line(values: &[f32], n: usize, dx: isize) -> &[f32] {
+        let start = HALO.wrapping_add_signed(dx);
+        &values[start..start + n]
+    }
+    let plane = |block, k, dx| plane(block, pw, n, k, dx);
+    let line = |values, dx| line(values, n, dx);
+    let (base, rest) = work.split_at_mut(pw);
+    let (g1, g2) = rest.split_at_mut(pw);
+    let (base, g1, g2) = (&mut base[..n], &mut g1[..n], &mut g2[..n]);
+    {
+        let old: &[f32] = mid;
+        let (x_p1, x_p2) = (line(old, 1), line(old, 2));
+        let x_0 = line(old, 0);
+        let (d1_m1, d1_0, d1_p1) = (
+            line(rows.down1, -1),
+            line(rows.down1, 0),
+            line(rows.down1, 1),
+        );
+        let (d2_m2, d2_0, d2_p2) = (
+            line(rows.down2, -2),
+            line(rows.down2, 0),
+            line(rows.down2, 2),
+        );
+        let (u1_m1, u1_0, u1_p1) = (line(rows.up1, -1), line(rows.up1, 0), line(rows.up1, 1));
+        let (u2_m2, u2_0, u2_p2) = (line(rows.up2, -2), line(rows.up2, 0), line(rows.up2, 2));
+        let f: [&[f32]; 8] = std::array::from_fn(|k| plane(rows.here, k, 0));
+        // Backward couplings: offset -o of this pixel is forward entry o of
+        // the pixel at -o (FORWARD order: (-1,1), (0,1), (1,1), (-2,2), (0,2), (2,2)).
+        let b2 = plane(rows.above1, 2, 1);
+        let b3 = plane(rows.above1, 3, 0);
+        let b4 = plane(rows.above1, 4, -1);
+        let b5 = plane(rows.above2, 5, 2);
+        let b6 = plane(rows.above2, 6, 0);
+        let b7 = plane(rows.above2, 7, -2);
+        let left1 = plane(rows.here, 0, -1);
+        let left2 = plane(rows.here, 1, -2);
+        let inverse = plane(rows.here, PLANE_INVERSE_DIAGONAL, 0);
+        let rhs = plane(rows.here, PLANE_RHS, 0);
+        for c in 0..n {
+            let forward_same = madd::<FMA>(f[0][c], x_p1[c], f[1][c] * x_p2[c]);
+            let forward_below = madd::<FMA>(
+                f[2][c],
+                d1_m1[c],
+                madd::<FMA>(f[3][c], d1_0[c], f[4][c] * d1_p1[c]),
+            );
+            let forward_below2 = madd::<FMA>(
+                f[5][c],
+                d2_m2[c],
+                madd::<FMA>(f[6][c], d2_0[c], f[7][c] * d2_p2[c]),
+            );
+            let backward_above = madd::<FMA>(
+                b2[c],
+                u1_p1[c],
+                madd::<FMA>(b3[c], u1_0[c], b4[c] * u1_m1[c]),
+            );
+            let backward_above2 = madd::<FMA>(
+                b5[c],
+                u2_p2[c],
+                madd::<FMA>(b6[c], u2_0[c], b7[c] * u2_m2[c]),
+            );
+            let independent = (forward_same + forward_below)
+                + (forward_below2 + backward_above)
+                + backward_above2;
+            let relaxed_inverse = omega * inverse[c];
+            // x_new = (1 - omega) x + omega (b - sum) / a_qq; an unsolved
+            // pixel (inverse 0) keeps its value.
+            base[c] = if inverse[c] == 0.0 {
+                x_0[c]
+            } else {
+                madd::<FMA>(
+                    relaxed_inverse,
+                    rhs[c] - independent,
+                    (1.0 - omega) * x_0[c],
+                )
+            };
+            g1[c] = relaxed_inverse * left1[c];
+            g2[c] = relaxed_inverse * left2[c];
+        }
+    }
+    // Sequential part: the couplings to the two left neighbours, just updated.
+    let row = &mut mid[HALO - 2..HALO + n];
+    let (mut left2_value, mut left1_value) = (row[0], row[1]);
+    for c in 0..n {
+        let partial = madd::<FMA>(-g2[c], left2_value, base[c]);
+        let new = madd::<FMA>(-g1[c], left1_value, partial);
+        row[c + 2] = new;
+        left2_value = left1_value;
+        left1_value = new;
     }
 }
 
@@ -212,7 +373,7 @@ pub fn reference_sweep(
 /// debugging). Rows of pixels that are not solved for are empty.
 pub fn explicit_rows(system: &LinearSystem) -> Vec<Vec<(usize, f64)>> {
     let (w, h) = (system.width, system.height);
-    let record = |c: isize, r: isize| &system.rows[system.padded_index(c as usize, r as usize)];
+    let record = |c: isize, r: isize| system.row(c as usize, r as usize);
     let solved = |c: isize, r: isize| {
         c >= 0
             && r >= 0
@@ -291,7 +452,7 @@ mod tests {
             let mut fast = system(w, h);
             let rows = explicit_rows(&fast);
             let rhs: Vec<f64> = (0..w * h)
-                .map(|q| f64::from(fast.rows[fast.padded_index(q % w, q / w)].rhs))
+                .map(|q| f64::from(fast.row(q % w, q / w).rhs))
                 .collect();
             let order: Vec<usize> = sweep_order(h)
                 .into_iter()
@@ -306,8 +467,10 @@ mod tests {
             let scale = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
             assert!(scale > 0.0);
             for (q, (fast, reference)) in got.as_slice().iter().zip(&x).enumerate() {
+                // The fast sweep computes in f32 (the reference in f64): a
+                // wrong order or coupling differs by ~1e-2 of the scale.
                 assert!(
-                    (fast - reference).abs() <= 1e-9 * scale,
+                    (fast - reference).abs() <= 1e-5 * scale,
                     "{w}x{h} pixel {q}: fast {fast} reference {reference}"
                 );
             }
@@ -320,7 +483,7 @@ mod tests {
         let mut s = system(w, h);
         let rows = explicit_rows(&s);
         let rhs: Vec<f64> = (0..w * h)
-            .map(|q| f64::from(s.rows[s.padded_index(q % w, q / w)].rhs))
+            .map(|q| f64::from(s.row(q % w, q / w).rhs))
             .collect();
         for _ in 0..3000 {
             sweep(&mut s, 1.5);
@@ -337,7 +500,9 @@ mod tests {
             .sum::<f64>()
             .sqrt();
         let norm: f64 = rhs.iter().map(|b| b * b).sum::<f64>().sqrt();
-        assert!(residual < 1e-6 * norm, "residual {residual} vs rhs {norm}");
+        // f32 unknowns bound the attainable relative residual near 1e-6
+        // (measured 1.1e-6); a sweep that does not converge stays near 1.
+        assert!(residual < 1e-5 * norm, "residual {residual} vs rhs {norm}");
     }
 
     #[test]

@@ -62,12 +62,6 @@ const SLOT_OFFSET: [(isize, isize); 5] = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 
 /// leave them.
 pub const HALO: usize = 2;
 
-/// Bits of the smoothness flags: which second-derivative stencils centred at
-/// a pixel lie in the domain.
-const HAS_XX: u8 = 1;
-const HAS_YY: u8 = 2;
-const HAS_XY: u8 = 4;
-
 /// Offsets of the 8 *forward* stencil entries (after the pixel in row-major
 /// order). The matrix is symmetric: the coefficient of a backward offset `-o`
 /// in row `q` is the forward coefficient `o` stored with the pixel `q - o`.
@@ -82,12 +76,16 @@ pub const FORWARD: [(isize, isize); 8] = [
     (2, 2),
 ];
 
-/// One row of the full system as the SOR sweep reads it (40 bytes): the
-/// diagonal, the right-hand side and the forward half of the off-diagonals.
-/// Stored in f32 to halve the memory traffic of the sweeps (memory-bound at
-/// 1920x1080); the arithmetic is f64, and the stored rounding changes an
-/// update by about 1e-7 relative, far below what a few sweeps resolve.
-#[derive(Clone, Copy, Debug, Default)]
+/// One row of the full system (40 bytes): the diagonal, the right-hand side
+/// and the forward half of the off-diagonals. Stored in f32 to halve the
+/// memory traffic of the sweeps (memory-bound at 1920x1080); the stored
+/// rounding changes an update by about 1e-7 relative, far below what a few
+/// sweeps resolve.
+///
+/// [`LinearSystem`] keeps these fields in separate planes (see
+/// [`LinearSystem::coefficients`]) so that the sweep reads each as a
+/// contiguous vector; [`LinearSystem::row`] gathers one.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SystemRow {
     /// Forward off-diagonal coefficients: `forward[k]` couples this pixel with
     /// the one at offset `FORWARD[k]`.
@@ -99,13 +97,22 @@ pub struct SystemRow {
     pub rhs: f32,
 }
 
-/// The data part of a row, fixed for one outer iteration.
-#[derive(Clone, Copy, Debug, Default)]
-struct DataRow {
-    forward: [f32; 8],
-    diagonal: f64,
-    rhs: f64,
-}
+/// Planes per padded row of [`LinearSystem::coefficients`]: the 8 forward
+/// coefficients, then `1 / diagonal`, then the right-hand side.
+pub const PLANES: usize = 10;
+/// Plane of `1 / diagonal` in a row block.
+pub const PLANE_INVERSE_DIAGONAL: usize = 8;
+/// Plane of the right-hand side in a row block.
+pub const PLANE_RHS: usize = 9;
+
+/// Planes per padded row of [`LinearSystem::smooth`].
+const SMOOTH_PLANES: usize = 12;
+/// First of the three `[xx, yy, xy]` planes of each kind in a smoothness row
+/// block.
+const SMOOTH_MASK: usize = 0;
+const SMOOTH_KZ: usize = 3;
+const SMOOTH_WEIGHT: usize = 6;
+const SMOOTH_WEIGHTED: usize = 9;
 
 /// The linear system of one level with its work buffers.
 pub struct LinearSystem {
@@ -113,23 +120,40 @@ pub struct LinearSystem {
     pub width: usize,
     /// Rows.
     pub height: usize,
-    /// Full system rows, padded like `dz_padded` (zero rows in the halo).
-    pub rows: Vec<SystemRow>,
+    /// The full system rows, padded like `dz_padded` (zero in the halo), as
+    /// planes: padded row `r` owns the block `[r * PLANES * pw, (r + 1) *
+    /// PLANES * pw)`, made of [`PLANES`] planes of `pw` values each (field `k`
+    /// of [`SystemRow`] in plane `k`, see [`PLANE_INVERSE_DIAGONAL`],
+    /// [`PLANE_RHS`]), `pw` the padded width.
+    pub coefficients: Vec<f32>,
     /// Unknowns `dz` with a [`HALO`]-wide border of zeros, row-major with
-    /// width `width + 2 HALO`.
-    pub dz_padded: Vec<f64>,
-    /// Data part (per outer iteration).
-    data: Vec<DataRow>,
+    /// width `width + 2 HALO`. f32: the unknowns are increments bounded by the
+    /// dz crop, and f32 vectors halve the sweep's traffic and double its SIMD
+    /// width.
+    pub dz_padded: Vec<f32>,
+    /// Per-band work rows of the fast sweep (3 padded rows per band).
+    pub(crate) sweep_scratch: Vec<f32>,
+    /// Data part (per outer iteration): the forward coefficients as 8 planes
+    /// per image row (row `r` owns `[8 r w, 8 (r + 1) w)`), the diagonal and
+    /// the right-hand side.
+    data_forward: Vec<f32>,
+    data_diagonal: Vec<f64>,
+    data_rhs: Vec<f64>,
     /// Residual `D` per pixel at the linearisation point.
     residual: Vec<f64>,
     /// `dD_p/dz_q` for the 5 slots of each pixel.
     jacobian: Vec<[f64; 5]>,
-    /// Smoothness stencil flags per pixel (unpadded).
-    smooth_flags: Vec<u8>,
-    /// `Psi'_p k^2` for the xx, yy and (doubled) xy stencils, one padded
-    /// plane each (laid out like `dz_padded`, 0 in the halo and where the
-    /// stencil leaves the domain).
-    psi_weights: [Vec<f64>; 3],
+    /// Smoothness planes, padded like `dz_padded` (0 in the halo), each
+    /// kind as `[xx, yy, xy]`: masks (1 where that stencil centred at the
+    /// pixel lies in the domain, else 0); `K z^k`, the unscaled stencils
+    /// applied to the linearisation point (`z[-1] - 2 z + z[+1]` and the
+    /// four-point mixed difference), per outer iteration; weights
+    /// `W = Psi' k^2` (mixed doubled: it enters `S^2` twice) and `W K z^k`, per
+    /// inner iteration. Stored as row blocks like [`Self::coefficients`]
+    /// ([`SMOOTH_PLANES`] planes of padded rows), so that the planes of one
+    /// row are neighbours in memory rather than separate page-aligned
+    /// buffers whose equal offsets collide in the L1 cache.
+    smooth: Vec<f32>,
     /// The linearisation point `z^k`, padded like `dz_padded`.
     z_padded: Vec<f64>,
 }
@@ -148,37 +172,39 @@ impl LinearSystem {
                 && (rr as usize) < h
                 && *domain.at(cc as usize, rr as usize)
         };
-        let smooth_flags = (0..n)
-            .map(|q| {
-                let (c, r) = (q % w, q / w);
+        let pw = w + 2 * HALO;
+        let padded = pw * (h + 2 * HALO);
+        let mut smooth = vec![0.0f32; padded * SMOOTH_PLANES];
+        for r in 0..h {
+            for c in 0..w {
                 let at = |dc, dr| inside(c, r, dc, dr);
                 if !at(0, 0) {
-                    return 0;
+                    continue;
                 }
-                let mut f = 0;
-                if at(-1, 0) && at(1, 0) {
-                    f |= HAS_XX;
+                let block = (r + HALO) * SMOOTH_PLANES * pw;
+                let flags = [
+                    at(-1, 0) && at(1, 0),
+                    at(0, -1) && at(0, 1),
+                    at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1),
+                ];
+                for (k, on) in flags.into_iter().enumerate() {
+                    smooth[block + (SMOOTH_MASK + k) * pw + c + HALO] = if on { 1.0 } else { 0.0 };
                 }
-                if at(0, -1) && at(0, 1) {
-                    f |= HAS_YY;
-                }
-                if at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1) {
-                    f |= HAS_XY;
-                }
-                f
-            })
-            .collect();
+            }
+        }
         let padded = (w + 2 * HALO) * (h + 2 * HALO);
         Self {
             width: w,
             height: h,
-            rows: vec![SystemRow::default(); padded],
+            coefficients: vec![0.0; padded * PLANES],
             dz_padded: vec![0.0; padded],
-            data: vec![DataRow::default(); n],
+            sweep_scratch: vec![0.0; crate::solver::sor::band_count(h) * 3 * (w + 2 * HALO)],
+            data_forward: vec![0.0; 8 * n],
+            data_diagonal: vec![0.0; n],
+            data_rhs: vec![0.0; n],
             residual: vec![0.0; n],
             jacobian: vec![[0.0; 5]; n],
-            smooth_flags,
-            psi_weights: std::array::from_fn(|_| vec![0.0; padded]),
+            smooth,
             z_padded: vec![0.0; padded],
         }
     }
@@ -186,17 +212,14 @@ impl LinearSystem {
     /// Bytes held by the system's buffers (all proportional to the pixel count).
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
-        self.rows.capacity() * size_of::<SystemRow>()
-            + self.dz_padded.capacity() * size_of::<f64>()
-            + self.data.capacity() * size_of::<DataRow>()
+        self.coefficients.capacity() * size_of::<f32>()
+            + self.dz_padded.capacity() * size_of::<f32>()
+            + self.sweep_scratch.capacity() * size_of::<f32>()
+            + self.data_forward.capacity() * size_of::<f32>()
+            + (self.data_diagonal.capacity() + self.data_rhs.capacity()) * size_of::<f64>()
             + self.residual.capacity() * size_of::<f64>()
             + self.jacobian.capacity() * size_of::<[f64; 5]>()
-            + self.smooth_flags.capacity()
-            + self
-                .psi_weights
-                .iter()
-                .map(|p| p.capacity() * size_of::<f64>())
-                .sum::<usize>()
+            + self.smooth.capacity() * size_of::<f32>()
             + self.z_padded.capacity() * size_of::<f64>()
     }
 
@@ -220,8 +243,20 @@ impl LinearSystem {
     /// Copies the unknowns into a `width x height` grid.
     pub fn dz_grid(&self) -> Grid<f64> {
         Grid::from_fn(self.width, self.height, |c, r| {
-            self.dz_padded[self.padded_index(c, r)]
+            f64::from(self.dz_padded[self.padded_index(c, r)])
         })
+    }
+
+    /// The row of `(column, row)`, gathered from the planes.
+    pub fn row(&self, column: usize, row: usize) -> SystemRow {
+        let pw = self.padded_width();
+        let block = (row + HALO) * PLANES * pw;
+        let at = |plane: usize| self.coefficients[block + plane * pw + column + HALO];
+        SystemRow {
+            forward: std::array::from_fn(at),
+            inverse_diagonal: at(PLANE_INVERSE_DIAGONAL),
+            rhs: at(PLANE_RHS),
+        }
     }
 
     /// Linearises the data term at `depth` (branches frozen there) and builds
@@ -241,6 +276,26 @@ impl LinearSystem {
             let start = (r + HALO) * pw + HALO;
             self.z_padded[start..start + w].copy_from_slice(&depth.as_slice()[r * w..(r + 1) * w]);
         }
+        let z = &self.z_padded;
+        self.smooth
+            .par_chunks_mut(SMOOTH_PLANES * pw)
+            .skip(HALO)
+            .take(self.height)
+            .with_min_len(min_rows)
+            .enumerate()
+            .for_each(|(r, block)| {
+                let kz = &mut block[SMOOTH_KZ * pw..(SMOOTH_KZ + 3) * pw];
+                let (xx, rest) = kz.split_at_mut(pw);
+                let (yy, xy) = rest.split_at_mut(pw);
+                let i0 = (r + HALO) * pw;
+                for c in HALO..HALO + w {
+                    let i = i0 + c;
+                    // Differences in f64 (z is large, they are small), stored in f32.
+                    xx[c] = (z[i - 1] - 2.0 * z[i] + z[i + 1]) as f32;
+                    yy[c] = (z[i - pw] - 2.0 * z[i] + z[i + pw]) as f32;
+                    xy[c] = (z[i + pw + 1] - z[i - pw + 1] - z[i + pw - 1] + z[i - pw - 1]) as f32;
+                }
+            });
         let geometry = level.geometry;
         let h = geometry.spacing;
         let ok = self
@@ -289,12 +344,14 @@ impl LinearSystem {
         let jacobian = &self.jacobian;
         let confidence = level.confidence.as_slice();
         let domain = &level.domain;
-        self.data
-            .par_chunks_mut(w)
+        self.data_forward
+            .par_chunks_mut(8 * w)
+            .zip(self.data_diagonal.par_chunks_mut(w))
+            .zip(self.data_rhs.par_chunks_mut(w))
             .with_min_len(min_rows)
             .enumerate()
-            .for_each(|(r, data_row)| {
-                for (c, out) in data_row.iter_mut().enumerate() {
+            .for_each(|(r, ((forward_row, diagonal_row), rhs_row))| {
+                for c in 0..w {
                     let mut stencil = [0.0f64; 17];
                     let mut rhs = 0.0;
                     if *domain.at(c, r) {
@@ -319,13 +376,11 @@ impl LinearSystem {
                             }
                         }
                     }
-                    *out = DataRow {
-                        forward: std::array::from_fn(|k| {
-                            stencil[stencil_index(FORWARD[k].0, FORWARD[k].1)] as f32
-                        }),
-                        diagonal: stencil[0],
-                        rhs,
-                    };
+                    for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
+                        forward_row[k * w + c] = stencil[stencil_index(dx, dy)] as f32;
+                    }
+                    diagonal_row[c] = stencil[0];
+                    rhs_row[c] = rhs;
                 }
             });
         true
@@ -336,83 +391,172 @@ impl LinearSystem {
     /// unknowns) and sets the full rows for the current inner iteration.
     /// Pixels with a non-positive diagonal are not solved for (their `dz`
     /// stays 0).
+    ///
+    /// Two passes over rows, each written as straight loops over slices so
+    /// that they vectorise (compiled for AVX2 where the CPU has it): the
+    /// weights `W = Psi' k^2` with `W * (K z^k)`, then the rows.
     pub fn add_smoothness(&mut self, level: &PyramidLevel, alpha: f64, lambda: f64) {
         let w = self.width;
         let pw = self.padded_width();
         let h = level.geometry.spacing;
         let min_rows = rows_per_task(w);
-        let kxx = 1.0 / (h.x * h.x);
-        let kyy = 1.0 / (h.y * h.y);
-        let kxy = 1.0 / (4.0 * h.x * h.y);
-        let flags = &self.smooth_flags;
-        let z = &self.z_padded;
-        let dz = &self.dz_padded;
-        let [wxx, wyy, wxy] = &mut self.psi_weights;
-        wxx.par_chunks_mut(pw)
-            .zip(wyy.par_chunks_mut(pw))
-            .zip(wxy.par_chunks_mut(pw))
+        let scale = [
+            1.0 / (h.x * h.x),
+            1.0 / (h.y * h.y),
+            1.0 / (4.0 * h.x * h.y),
+        ];
+        let inputs = WeightInputs {
+            padded_width: pw,
+            width: w,
+            // the mixed term enters S^2 twice
+            weight_scale: [
+                (scale[0] * scale[0]) as f32,
+                (scale[1] * scale[1]) as f32,
+                (2.0 * scale[2] * scale[2]) as f32,
+            ],
+            scale: scale.map(|k| k as f32),
+            inverse_lambda_squared: (1.0 / (lambda * lambda)) as f32,
+            dz: &self.dz_padded,
+        };
+        let simd = Simd::detect();
+        self.smooth
+            .par_chunks_mut(SMOOTH_PLANES * pw)
             .skip(HALO)
             .take(self.height)
             .with_min_len(min_rows)
             .enumerate()
-            .for_each(|(r, ((row_xx, row_yy), row_xy))| {
-                let trial = |i: usize| z[i] + dz[i];
-                for c in 0..w {
-                    let f = flags[r * w + c];
-                    let out = c + HALO;
-                    if f == 0 {
-                        (row_xx[out], row_yy[out], row_xy[out]) = (0.0, 0.0, 0.0);
-                        continue;
-                    }
-                    let i = (r + HALO) * pw + c + HALO;
-                    let centre = trial(i);
-                    let mut s2 = 0.0;
-                    if f & HAS_XX != 0 {
-                        let zxx = (trial(i - 1) - 2.0 * centre + trial(i + 1)) * kxx;
-                        s2 += zxx * zxx;
-                    }
-                    if f & HAS_YY != 0 {
-                        let zyy = (trial(i - pw) - 2.0 * centre + trial(i + pw)) * kyy;
-                        s2 += zyy * zyy;
-                    }
-                    if f & HAS_XY != 0 {
-                        let zxy = (trial(i + pw + 1) - trial(i - pw + 1) - trial(i + pw - 1)
-                            + trial(i - pw - 1))
-                            * kxy;
-                        s2 += 2.0 * zxy * zxy;
-                    }
-                    let psi = model::charbonnier_derivative(s2, lambda);
-                    let on = |bit: u8| if f & bit != 0 { psi } else { 0.0 };
-                    row_xx[out] = on(HAS_XX) * kxx * kxx;
-                    row_yy[out] = on(HAS_YY) * kyy * kyy;
-                    // the mixed term enters S^2 twice
-                    row_xy[out] = 2.0 * on(HAS_XY) * kxy * kxy;
-                }
+            .for_each(|(r, block)| {
+                simd.run(|| weight_row(&inputs, r, block));
             });
-        let weights = &self.psi_weights;
-        let data = &self.data;
+        let smooth = &self.smooth;
+        let data_forward = &self.data_forward;
+        let data_diagonal = &self.data_diagonal;
+        let data_rhs = &self.data_rhs;
         let domain = level.domain.as_slice();
-        self.rows
-            .par_chunks_mut(pw)
+        self.coefficients
+            .par_chunks_mut(PLANES * pw)
             .skip(HALO)
             .take(self.height)
             .with_min_len(min_rows)
             .enumerate()
-            .for_each(|(r, out)| {
-                assemble_row(
-                    RowInputs {
-                        row: r,
-                        padded_width: pw,
-                        alpha,
-                        data: &data[r * w..(r + 1) * w],
-                        domain: &domain[r * w..(r + 1) * w],
-                        weights,
-                        z,
-                    },
-                    &mut out[HALO..HALO + w],
-                )
+            .for_each(|(r, block)| {
+                let inputs = RowInputs {
+                    row: r,
+                    padded_width: pw,
+                    alpha,
+                    data_forward: &data_forward[8 * r * w..8 * (r + 1) * w],
+                    data_diagonal: &data_diagonal[r * w..(r + 1) * w],
+                    data_rhs: &data_rhs[r * w..(r + 1) * w],
+                    domain: &domain[r * w..(r + 1) * w],
+                    smooth,
+                };
+                simd.run(|| assemble_row(&inputs, block));
             });
     }
+}
+
+/// Which instruction set the row loops are compiled for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Simd {
+    /// Baseline for the target.
+    Portable,
+    /// AVX2 + FMA, chosen at run time when the CPU has both.
+    #[cfg(target_arch = "x86_64")]
+    Avx2Fma,
+}
+
+impl Simd {
+    /// The best variant this CPU runs.
+    pub(crate) fn detect() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            return Simd::Avx2Fma;
+        }
+        Simd::Portable
+    }
+
+    /// Runs `f`, compiled (after inlining) for this instruction set.
+    #[inline(always)]
+    pub(crate) fn run<R>(self, f: impl FnOnce() -> R) -> R {
+        match self {
+            Simd::Portable => f(),
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `detect` saw AVX2 and FMA on this CPU.
+            Simd::Avx2Fma => unsafe { run_avx2_fma(f) },
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn run_avx2_fma<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+/// What [`weight_row`] reads.
+struct WeightInputs<'a> {
+    padded_width: usize,
+    width: usize,
+    /// `[k_xx, k_yy, k_xy]`: `1/h_x^2`, `1/h_y^2`, `1/(4 h_x h_y)`.
+    scale: [f32; 3],
+    /// `[k_xx^2, k_yy^2, 2 k_xy^2]`.
+    weight_scale: [f32; 3],
+    inverse_lambda_squared: f32,
+    dz: &'a [f32],
+}
+
+/// `W = Psi'(S^2(z^k + dz)) k^2` per stencil (0 where the stencil leaves the
+/// domain) and `W * (K z^k)` for image row `row`.
+#[inline(always)]
+fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) {
+    let pw = inputs.padded_width;
+    let n = inputs.width;
+    let i0 = (row + HALO) * pw + HALO;
+    let pwi = pw as isize;
+    let dz = inputs.dz;
+    let span = |offset: isize| {
+        let start = i0.wrapping_add_signed(offset);
+        &dz[start..start + n]
+    };
+    let (left, centre, right) = (span(-1), span(0), span(1));
+    let (up, down) = (span(-pwi), span(pwi));
+    let (up_left, up_right) = (span(-pwi - 1), span(-pwi + 1));
+    let (down_left, down_right) = (span(pwi - 1), span(pwi + 1));
+    let (inputs_part, outputs) = block.split_at_mut(SMOOTH_WEIGHT * pw);
+    let plane = |k: usize| window(inputs_part, k * pw + HALO, 0, n);
+    let [mxx, myy, mxy] = [SMOOTH_MASK, SMOOTH_MASK + 1, SMOOTH_MASK + 2].map(plane);
+    let [kzxx, kzyy, kzxy] = [SMOOTH_KZ, SMOOTH_KZ + 1, SMOOTH_KZ + 2].map(plane);
+    let mut planes = outputs.chunks_exact_mut(pw).map(|p| &mut p[HALO..HALO + n]);
+    let mut next = || planes.next().unwrap_or_default();
+    let [wxx, wyy, wxy, vxx, vyy, vxy] = [next(), next(), next(), next(), next(), next()];
+    let [sxx, syy, sxy] = inputs.scale;
+    let [gxx, gyy, gxy] = inputs.weight_scale;
+    let il2 = inputs.inverse_lambda_squared;
+    for c in 0..n {
+        let f = |v: f32| v;
+        let txx = kzxx[c] + (f(left[c]) - 2.0 * f(centre[c]) + f(right[c]));
+        let tyy = kzyy[c] + (f(up[c]) - 2.0 * f(centre[c]) + f(down[c]));
+        let txy = kzxy[c] + (f(down_right[c]) - f(up_right[c]) - f(down_left[c]) + f(up_left[c]));
+        let (zxx, zyy, zxy) = (txx * sxx, tyy * syy, txy * sxy);
+        let s2 = mxx[c] * zxx * zxx + myy[c] * zyy * zyy + 2.0 * mxy[c] * zxy * zxy;
+        let psi = 1.0 / (1.0 + s2 * il2).sqrt();
+        let (axx, ayy, axy) = (mxx[c] * psi * gxx, myy[c] * psi * gyy, mxy[c] * psi * gxy);
+        wxx[c] = axx;
+        wyy[c] = ayy;
+        wxy[c] = axy;
+        // The mask, not the product, decides: 0 * (a non-finite kz) stays 0.
+        vxx[c] = if mxx[c] != 0.0 { axx * kzxx[c] } else { 0.0 };
+        vyy[c] = if myy[c] != 0.0 { ayy * kzyy[c] } else { 0.0 };
+        vxy[c] = if mxy[c] != 0.0 { axy * kzxy[c] } else { 0.0 };
+    }
+}
+
+/// `n` values of `v` from `start + offset`.
+#[inline(always)]
+fn window<T>(v: &[T], start: usize, offset: isize, n: usize) -> &[T] {
+    let start = start.wrapping_add_signed(offset);
+    &v[start..start + n]
 }
 
 /// What [`assemble_row`] reads.
@@ -420,96 +564,105 @@ struct RowInputs<'a> {
     row: usize,
     padded_width: usize,
     alpha: f64,
-    data: &'a [DataRow],
+    data_forward: &'a [f32],
+    data_diagonal: &'a [f64],
+    data_rhs: &'a [f64],
     domain: &'a [bool],
-    weights: &'a [Vec<f64>; 3],
-    z: &'a [f64],
+    smooth: &'a [f32],
 }
 
-/// Full rows of one image row: data part plus `alpha` times the smoothness
-/// operator `A(Psi') = K^T Psi' K`, right-hand side `-J^T C D - alpha A z`.
+/// Full rows of one image row into its coefficient block: data part plus
+/// `alpha` times the smoothness operator `A(Psi') = K^T W K`, right-hand side
+/// `-J^T C D - alpha A z^k`.
 ///
 /// The smoothness rows come in closed form from the per-pixel weights
-/// `[w_xx, w_yy, w_xy]` (`Psi'_p k^2`, mixed weight doubled): a z_xx stencil
-/// `(1, -2, 1)` centred at `p` contributes `w_p k_pq k_pr` to row `q`; summing
-/// over the three stencils that contain `q` gives the entries below, likewise
-/// for z_yy; a mixed stencil at the diagonal neighbour `p = q - (a, b)`
-/// contributes `+w` at `q`, `-w` at `q + (-2a, 0)` and at `q + (0, -2b)`, and
-/// `+w` at `q + (-2a, -2b)`.
-fn assemble_row(inputs: RowInputs<'_>, out: &mut [SystemRow]) {
-    let RowInputs {
-        row,
-        padded_width: pw,
-        alpha,
-        data,
-        domain,
-        weights,
-        z,
-    } = inputs;
-    let base = (row + HALO) * pw + HALO;
-    for (c, out) in out.iter_mut().enumerate() {
-        if !domain[c] {
-            *out = SystemRow::default();
-            continue;
-        }
-        let i = base + c;
-        let [wxx, wyy, wxy] = weights;
-        let (left, here, right) = (wxx[i - 1], wxx[i], wxx[i + 1]);
-        let (up, here_y, down) = (wyy[i - pw], wyy[i], wyy[i + pw]);
-        // Mixed stencils at p = q - (a, b): names give (a, b) as m/p signs.
-        let mm = wxy[i + pw + 1];
-        let pm = wxy[i + pw - 1];
-        let mp = wxy[i - pw + 1];
-        let pp = wxy[i - pw - 1];
-        // Entries in STENCIL order.
-        let s: [f64; 17] = [
-            left + 4.0 * here + right + up + 4.0 * here_y + down + mm + pm + mp + pp, // (0, 0)
-            -2.0 * (left + here),                                                     // (-1, 0)
-            pp,                                                                       // (-2, -2)
-            up - mp - pp,                                                             // (0, -2)
-            mp,                                                                       // (2, -2)
-            0.0,                                                                      // (-1, -1)
-            -2.0 * (up + here_y),                                                     // (0, -1)
-            0.0,                                                                      // (1, -1)
-            left - pm - pp,                                                           // (-2, 0)
-            -2.0 * (here + right),                                                    // (1, 0)
-            right - mm - mp,                                                          // (2, 0)
-            0.0,                                                                      // (-1, 1)
-            -2.0 * (here_y + down),                                                   // (0, 1)
-            0.0,                                                                      // (1, 1)
-            pm,                                                                       // (-2, 2)
-            down - mm - pm,                                                           // (0, 2)
-            mm,                                                                       // (2, 2)
-        ];
-        let zr = |dx: isize, dy: isize| z[(i as isize + dx + dy * pw as isize) as usize];
-        let az = s[0] * zr(0, 0)
-            + s[1] * zr(-1, 0)
-            + s[2] * zr(-2, -2)
-            + s[3] * zr(0, -2)
-            + s[4] * zr(2, -2)
-            + s[6] * zr(0, -1)
-            + s[8] * zr(-2, 0)
-            + s[9] * zr(1, 0)
-            + s[10] * zr(2, 0)
-            + s[12] * zr(0, 1)
-            + s[14] * zr(-2, 2)
-            + s[15] * zr(0, 2)
-            + s[16] * zr(2, 2);
-        let d = &data[c];
-        let diagonal = d.diagonal + alpha * s[0];
-        let rhs = d.rhs - alpha * az;
+/// `W = [w_xx, w_yy, w_xy]` (`Psi'_p k^2`, mixed weight doubled): a z_xx
+/// stencil `(1, -2, 1)` centred at `p` contributes `w_p k_pq k_pr` to row `q`;
+/// summing over the three stencils that contain `q` gives the entries below,
+/// likewise for z_yy; a mixed stencil at the diagonal neighbour
+/// `p = q - (a, b)` contributes `+w` at `q`, `-w` at `q + (-2a, 0)` and at
+/// `q + (0, -2b)`, and `+w` at `q + (-2a, -2b)`. `A z^k` is the adjoint of the
+/// stencils applied to `v = W * (K z^k)`.
+#[inline(always)]
+fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
+    let pw = inputs.padded_width;
+    let n = inputs.domain.len();
+    let row = inputs.row + HALO;
+    let smooth = inputs.smooth;
+    // Plane `k` of padded row `row + dy`, shifted by `dx` columns.
+    let span = |k: usize, dx: isize, dy: isize| {
+        let start = (row.wrapping_add_signed(dy) * SMOOTH_PLANES + k) * pw + HALO;
+        window(smooth, start, dx, n)
+    };
+    let (wxx, wyy, wxy) = (SMOOTH_WEIGHT, SMOOTH_WEIGHT + 1, SMOOTH_WEIGHT + 2);
+    let (vxx, vyy, vxy) = (SMOOTH_WEIGHTED, SMOOTH_WEIGHTED + 1, SMOOTH_WEIGHTED + 2);
+    let (left, here, right) = (span(wxx, -1, 0), span(wxx, 0, 0), span(wxx, 1, 0));
+    let (up, here_y, down) = (span(wyy, 0, -1), span(wyy, 0, 0), span(wyy, 0, 1));
+    // Mixed stencils at p = q - (a, b): names give (a, b) as m/p signs.
+    let mm = span(wxy, 1, 1);
+    let pm = span(wxy, -1, 1);
+    let mp = span(wxy, 1, -1);
+    let pp = span(wxy, -1, -1);
+    let (vx_l, vx_c, vx_r) = (span(vxx, -1, 0), span(vxx, 0, 0), span(vxx, 1, 0));
+    let (vy_u, vy_c, vy_d) = (span(vyy, 0, -1), span(vyy, 0, 0), span(vyy, 0, 1));
+    let (v_pp, v_pm) = (span(vxy, -1, -1), span(vxy, -1, 1));
+    let (v_mp, v_mm) = (span(vxy, 1, -1), span(vxy, 1, 1));
+    let data_forward: [&[f32]; 8] =
+        std::array::from_fn(|k| &inputs.data_forward[k * n..(k + 1) * n]);
+    let (data_diagonal, data_rhs) = (&inputs.data_diagonal[..n], &inputs.data_rhs[..n]);
+    let domain = &inputs.domain[..n];
+    let alpha = inputs.alpha;
+    let (planes, tail) = block.split_at_mut(PLANE_INVERSE_DIAGONAL * pw);
+    let (inverse_plane, rhs_plane) = tail.split_at_mut(pw);
+    let inverse_out = &mut inverse_plane[HALO..HALO + n];
+    let rhs_out = &mut rhs_plane[HALO..HALO + n];
+    let mut planes = planes
+        .chunks_exact_mut(pw)
+        .map(|plane| &mut plane[HALO..HALO + n]);
+    let forward_out: [&mut [f32]; 8] = std::array::from_fn(|_| planes.next().unwrap_or_default());
+    // Separate short loops: one long loop over all these streams does not
+    // vectorise (too many live pointers).
+    for c in 0..n {
+        let diagonal_s = (left[c] + right[c] + 4.0 * here[c])
+            + (up[c] + down[c] + 4.0 * here_y[c])
+            + ((mm[c] + pm[c]) + (mp[c] + pp[c]));
+        // The adjoint sums cancel: f64.
+        let v = |plane: &[f32]| f64::from(plane[c]);
+        let az = (v(vx_l) - 2.0 * v(vx_c) + v(vx_r))
+            + (v(vy_u) - 2.0 * v(vy_c) + v(vy_d))
+            + (v(v_pp) - v(v_pm) - v(v_mp) + v(v_mm));
+        let diagonal = data_diagonal[c] + alpha * f64::from(diagonal_s);
+        let rhs = data_rhs[c] - alpha * az;
         let inverse32 = (1.0 / diagonal) as f32;
         let rhs32 = rhs as f32;
         // Also rejects values that overflow f32.
-        let solvable = diagonal > 0.0 && inverse32.is_finite() && rhs32.is_finite();
-        // Forward entries of s, in FORWARD order.
-        let forward = [s[9], s[10], s[11], s[12], s[13], s[14], s[15], s[16]];
-        *out = SystemRow {
-            forward: std::array::from_fn(|k| d.forward[k] + (alpha * forward[k]) as f32),
-            inverse_diagonal: if solvable { inverse32 } else { 0.0 },
-            rhs: if solvable { rhs32 } else { 0.0 },
-        };
+        let solvable = domain[c] & (diagonal > 0.0) & inverse32.is_finite() & rhs32.is_finite();
+        inverse_out[c] = if solvable { inverse32 } else { 0.0 };
+        rhs_out[c] = if solvable { rhs32 } else { 0.0 };
     }
+    // Forward entries in FORWARD order: (1,0), (2,0), (-1,1), (0,1), (1,1),
+    // (-2,2), (0,2), (2,2); those at (-1,1) and (1,1) have no smoothness part.
+    // One plain loop per entry (a macro, not a closure, so that every slice
+    // is indexed directly and the loops vectorise).
+    let alpha32 = alpha as f32;
+    let [f0, f1, f2, f3, f4, f5, f6, f7] = forward_out;
+    macro_rules! fill {
+        ($out:expr, $k:expr, |$c:ident| $smooth:expr) => {{
+            let (out, data) = (&mut $out[..n], &data_forward[$k][..n]);
+            for $c in 0..n {
+                let value = data[$c] + alpha32 * $smooth;
+                out[$c] = if domain[$c] { value } else { 0.0 };
+            }
+        }};
+    }
+    fill!(f0, 0, |c| -2.0 * (here[c] + right[c]));
+    fill!(f1, 1, |c| right[c] - mm[c] - mp[c]);
+    fill!(f2, 2, |c| 0.0);
+    fill!(f3, 3, |c| -2.0 * (here_y[c] + down[c]));
+    fill!(f4, 4, |c| 0.0);
+    fill!(f5, 5, |c| pm[c]);
+    fill!(f6, 6, |c| down[c] - mm[c] - pm[c]);
+    fill!(f7, 7, |c| mm[c]);
 }
 
 /// Rows per rayon task so that small levels run as one task.
@@ -584,12 +737,10 @@ mod tests {
                 minus.as_mut_slice()[q] -= e;
                 let gradient = (energy(&plus) - energy(&minus)) / (2.0 * e);
                 assert!(
-                    (gradient
-                        + 2.0 * f64::from(system.rows[system.padded_index(q % w, q / w)].rhs))
-                    .abs()
+                    (gradient + 2.0 * f64::from(system.row(q % w, q / w).rhs)).abs()
                         < 1e-5 * (1.0 + gradient.abs()),
                     "hole={hole} q={q}: numeric {gradient} vs -2 rhs {}",
-                    -2.0 * f64::from(system.rows[system.padded_index(q % w, q / w)].rhs)
+                    -2.0 * f64::from(system.row(q % w, q / w).rhs)
                 );
             }
             let rows = super::super::sor::explicit_rows(&system);
