@@ -507,41 +507,7 @@ pub fn write_depth_ply(
         ));
     }
     // Vertex index of every valid pixel.
-    let mut index: Vec<Option<u32>> = Vec::with_capacity(w * h);
-    let mut count: u32 = 0;
-    for &z in depth.as_slice() {
-        if z.is_finite() && z > 0.0 {
-            if count > i32::MAX as u32 {
-                return Err(write_error(path, "too many vertices for a PLY mesh"));
-            }
-            index.push(Some(count));
-            count += 1;
-        } else {
-            index.push(None);
-        }
-    }
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    for j in 0..h.saturating_sub(1) {
-        for i in 0..w.saturating_sub(1) {
-            let a = index[j * w + i];
-            let b = index[j * w + i + 1];
-            let c = index[(j + 1) * w + i];
-            let d = index[(j + 1) * w + i + 1];
-            // a b      image x to the right, y down; camera looks along +Z:
-            // c d      a -> c -> b is counter-clockwise seen from the camera.
-            match (a, b, c, d) {
-                (Some(a), Some(b), Some(c), Some(d)) => {
-                    faces.push([a, c, b]);
-                    faces.push([b, c, d]);
-                }
-                (None, Some(b), Some(c), Some(d)) => faces.push([b, c, d]),
-                (Some(a), None, Some(c), Some(d)) => faces.push([a, c, d]),
-                (Some(a), Some(b), None, Some(d)) => faces.push([a, d, b]),
-                (Some(a), Some(b), Some(c), None) => faces.push([a, c, b]),
-                _ => {}
-            }
-        }
-    }
+    let (index, faces, count) = depth_mesh(path, depth)?;
 
     let err = |e: std::io::Error| write_error(path, e);
     let file = fs::File::create(path).map_err(err)?;
@@ -587,6 +553,108 @@ pub fn write_depth_ply(
 // ---------------------------------------------------------------------------
 // Camera / scene file and JSON
 // ---------------------------------------------------------------------------
+
+/// Vertex index of every pixel with a finite positive depth, the triangles
+/// of the depth grid (two per 2x2 block of vertices, one where a corner is
+/// missing) and the vertex count.
+#[allow(clippy::type_complexity)]
+fn depth_mesh(
+    path: &Path,
+    depth: &Grid<f64>,
+) -> Result<(Vec<Option<u32>>, Vec<[u32; 3]>, u32), IoError> {
+    let (w, h) = depth.size();
+    let mut index: Vec<Option<u32>> = Vec::with_capacity(w * h);
+    let mut count: u32 = 0;
+    for &z in depth.as_slice() {
+        if z.is_finite() && z > 0.0 {
+            if count > i32::MAX as u32 {
+                return Err(write_error(path, "too many vertices for a PLY mesh"));
+            }
+            index.push(Some(count));
+            count += 1;
+        } else {
+            index.push(None);
+        }
+    }
+    let mut faces: Vec<[u32; 3]> = Vec::new();
+    for j in 0..h.saturating_sub(1) {
+        for i in 0..w.saturating_sub(1) {
+            let a = index[j * w + i];
+            let b = index[j * w + i + 1];
+            let c = index[(j + 1) * w + i];
+            let d = index[(j + 1) * w + i + 1];
+            // a b      image x to the right, y down; camera looks along +Z:
+            // c d      a -> c -> b is counter-clockwise seen from the camera.
+            match (a, b, c, d) {
+                (Some(a), Some(b), Some(c), Some(d)) => {
+                    faces.push([a, c, b]);
+                    faces.push([b, c, d]);
+                }
+                (None, Some(b), Some(c), Some(d)) => faces.push([b, c, d]),
+                (Some(a), None, Some(c), Some(d)) => faces.push([a, c, d]),
+                (Some(a), Some(b), None, Some(d)) => faces.push([a, d, b]),
+                (Some(a), Some(b), Some(c), None) => faces.push([a, c, b]),
+                _ => {}
+            }
+        }
+    }
+
+    Ok((index, faces, count))
+}
+
+/// Writes the depth map as a Wavefront OBJ triangle mesh (camera
+/// coordinates: x right, y down, z forward, in depth units), triangulated
+/// as [`write_depth_ply`].
+pub fn write_depth_obj(path: &Path, depth: &Grid<f64>, camera: &Intrinsics) -> Result<(), IoError> {
+    let (index, faces, _) = depth_mesh(path, depth)?;
+    let (w, h) = depth.size();
+    let err = |e: std::io::Error| write_error(path, e);
+    let file = fs::File::create(path).map_err(err)?;
+    let mut out = BufWriter::new(file);
+    writeln!(
+        out,
+        "# sfs-studio depth mesh, camera coordinates (x right, y down, z forward)"
+    )
+    .map_err(err)?;
+    for j in 0..h {
+        for i in 0..w {
+            if index[j * w + i].is_none() {
+                continue;
+            }
+            let z = *depth.at(i, j);
+            let (x, y) = camera.image_xy(i as f64, j as f64);
+            let [px, py, pz] = camera.back_project(x, y, z);
+            writeln!(out, "v {px} {py} {pz}").map_err(err)?;
+        }
+    }
+    for [a, b, c] in faces {
+        writeln!(out, "f {} {} {}", a + 1, b + 1, c + 1).map_err(err)?;
+    }
+    out.flush().map_err(err)
+}
+
+/// Writes depth as a 16-bit PNG for viewing: 1 (white) at the nearest depth,
+/// 0 at the farthest and off the object. Returns `(near, far)` or `None`
+/// when no depth is finite.
+pub fn write_depth_png16(path: &Path, depth: &Grid<f64>) -> Result<Option<(f64, f64)>, IoError> {
+    let mut range: Option<(f64, f64)> = None;
+    for &z in depth.as_slice() {
+        if z.is_finite() {
+            range = Some(range.map_or((z, z), |(lo, hi)| (lo.min(z), hi.max(z))));
+        }
+    }
+    let (near, far) = range.unwrap_or((0.0, 1.0));
+    let span = (far - near).max(f64::MIN_POSITIVE);
+    let view = depth.map(|&z| {
+        if z.is_finite() {
+            1.0 - (z - near) / span
+        } else {
+            0.0
+        }
+    });
+    write_png16(path, &view)?;
+    Ok(range)
+}
 
 /// The camera/scene file (`scene.json`). All keys are required except `name`;
 /// unknown keys are rejected so that typos are caught.

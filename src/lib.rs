@@ -4,15 +4,24 @@
 //! Layers (see ARCHITECTURE.md): [`grid`], [`camera`], [`params`] are core
 //! types; [`model`] and [`metrics`] the image formation and error measures;
 //! [`solver`] the linearised coarse-to-fine Gauss-Newton scheme; [`scene`] and
-//! [`io`] synthetic scenes and files; [`cli`] the command line.
+//! [`io`] synthetic scenes and files; [`worker`] the viewer's solver thread
+//! and [`mask_edit`] its mask editing model (both without egui); `render`
+//! the wgpu surface renderer and `app` the egui viewer (feature `gui`);
+//! [`cli`] the command line.
 #![deny(missing_docs)]
 
+#[cfg(feature = "gui")]
+pub mod app;
 pub mod camera;
 pub mod cli;
 pub mod grid;
 pub mod io;
+pub mod mask_edit;
 pub mod metrics;
 pub mod model;
 pub mod params;
+#[cfg(feature = "gui")]
+pub mod render;
 pub mod scene;
 pub mod solver;
+pub mod worker;

@@ -1,4 +1,5 @@
-//! The `sfs-studio` binary: command-line subcommands (the viewer comes next).
+//! The `sfs-studio` binary: the viewer (no subcommand or `view`) and the
+//! command-line subcommands, all through `cli::run`.
 
 use std::process::ExitCode;
 

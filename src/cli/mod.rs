@@ -1,5 +1,5 @@
-//! The command line: `synth`, `solve` and `eval` (and, later, the viewer),
-//! parsed with clap. Errors are `anyhow` chains that name the file or
+//! The command line: `synth`, `solve`, `eval` and `view` (the viewer, which
+//! also opens when no subcommand is given), parsed with clap. Errors are `anyhow` chains that name the file or
 //! parameter at fault; nothing here panics on user input.
 
 use std::ffi::OsString;
@@ -11,19 +11,28 @@ use clap::{Parser, Subcommand};
 mod eval;
 mod solve;
 mod synth;
+#[cfg(feature = "gui")]
+mod view;
 
 pub use eval::EvalArgs;
 pub use solve::SolveArgs;
 pub use synth::SynthArgs;
+#[cfg(feature = "gui")]
+pub use view::ViewArgs;
 
 /// Perspective shape from shading (Maurer et al., GCPR 2015): recover depth
 /// from one image lit by a point light at the camera centre.
 #[derive(Debug, Parser)]
 #[command(name = "sfs-studio", version, about, long_about = None)]
 pub struct Cli {
-    /// What to do.
+    /// What to do; without a subcommand the viewer opens on the built-in
+    /// sample (the Sombrero) and starts solving it.
     #[command(subcommand)]
-    pub command: Command,
+    pub command: Option<Command>,
+    /// With no subcommand: save a screenshot of the viewer here once the
+    /// solve has finished, then exit.
+    #[arg(long, value_name = "PATH.png", value_parser = parse_path)]
+    pub screenshot: Option<PathBuf>,
 }
 
 /// Subcommands.
@@ -35,6 +44,9 @@ pub enum Command {
     Solve(SolveArgs),
     /// Compare a depth map with a synthetic scene's ground truth (prints JSON).
     Eval(EvalArgs),
+    /// Open the viewer on an image.
+    #[cfg(feature = "gui")]
+    View(ViewArgs),
 }
 
 /// Parses `args` (including the program name) and runs the command.
@@ -55,9 +67,17 @@ pub fn run(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> Resul
         }
     };
     match cli.command {
-        Command::Synth(args) => synth::run(&args),
-        Command::Solve(args) => solve::run(&args),
-        Command::Eval(args) => eval::run(&args),
+        Some(Command::Synth(args)) => synth::run(&args),
+        Some(Command::Solve(args)) => solve::run(&args),
+        Some(Command::Eval(args)) => eval::run(&args),
+        #[cfg(feature = "gui")]
+        Some(Command::View(args)) => view::run(&args),
+        #[cfg(feature = "gui")]
+        None => view::run_sample(cli.screenshot),
+        #[cfg(not(feature = "gui"))]
+        None => Err(anyhow::anyhow!(
+            "this build has no viewer (feature `gui`); use a subcommand, see --help"
+        )),
     }
 }
 

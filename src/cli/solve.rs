@@ -367,18 +367,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let mut stage = OutputStage::new(&args.out)?;
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
     io::write_png16(&stage.path("reprojection.png"), &solution.reprojection)?;
-    let depth_range = finite_range(&solution.depth);
-    let (near, far) = depth_range.unwrap_or((0.0, 1.0));
-    let span = (far - near).max(f64::MIN_POSITIVE);
-    // Near is bright: 1 at the nearest depth, 0 at the farthest and off the object.
-    let depth_view = solution.depth.map(|&z| {
-        if z.is_finite() {
-            1.0 - (z - near) / span
-        } else {
-            0.0
-        }
-    });
-    io::write_png16(&stage.path("depth16.png"), &depth_view)?;
+    let depth_range = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
     io::write_depth_ply(
         &stage.path("mesh.ply"),
         &solution.depth,
@@ -428,17 +417,6 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         eprintln!("{summary}");
     }
     Ok(())
-}
-
-/// Smallest and largest finite value, if any.
-fn finite_range(grid: &Grid<f64>) -> Option<(f64, f64)> {
-    grid.as_slice()
-        .iter()
-        .filter(|v| v.is_finite())
-        .fold(None, |acc, &v| match acc {
-            None => Some((v, v)),
-            Some((lo, hi)) => Some((f64::min(lo, v), f64::max(hi, v))),
-        })
 }
 
 /// Every parameter as JSON, for the report.

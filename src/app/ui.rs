@@ -1,0 +1,873 @@
+//! The viewer's panels: menu, status line, controls (camera, parameters,
+//! mask tools, progress, export), the 2-D image panels and the 3-D view.
+
+use std::path::{Path, PathBuf};
+
+use eframe::egui;
+
+use super::settings::{SurfaceColour, Tool};
+use super::{CameraSource, Gesture, Panel2d, ViewerApp, images};
+use crate::io;
+use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
+use crate::params::SolverParams;
+
+/// A file dialog (kept behind one function: headless tests never open one).
+fn pick_open(filters: &[(&str, &[&str])]) -> Option<PathBuf> {
+    let mut dialog = rfd::FileDialog::new();
+    for (name, extensions) in filters {
+        dialog = dialog.add_filter(*name, extensions);
+    }
+    dialog.pick_file()
+}
+
+/// A save dialog with a suggested file name.
+fn pick_save(name: &str, extension: &str) -> Option<PathBuf> {
+    rfd::FileDialog::new()
+        .set_file_name(name)
+        .add_filter(extension, &[extension])
+        .save_file()
+}
+
+const IMAGE_EXTENSIONS: &[&str] = &["png", "tif", "tiff", "jpg", "jpeg"];
+
+impl ViewerApp {
+    pub(super) fn menu_ui(&mut self, ui: &mut egui::Ui) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("Open image…").clicked()
+                    && let Some(path) = pick_open(&[("images", IMAGE_EXTENSIONS)])
+                {
+                    let ctx = ui.ctx().clone();
+                    self.open(&ctx, &path);
+                }
+                if ui.button("Open built-in sample").clicked()
+                    && let Some(path) = super::sample_image_path()
+                {
+                    let ctx = ui.ctx().clone();
+                    self.open(&ctx, &path);
+                }
+                if ui.button("Load camera file…").clicked()
+                    && let Some(path) = pick_open(&[("camera JSON", &["json"])])
+                {
+                    self.load_camera(&path);
+                }
+                ui.menu_button("Recent files", |ui| {
+                    let recent = self.settings.recent_files.clone();
+                    if recent.is_empty() {
+                        ui.label("none yet");
+                    }
+                    for path in recent {
+                        if ui.button(path.display().to_string()).clicked() {
+                            let ctx = ui.ctx().clone();
+                            self.open(&ctx, &path);
+                        }
+                    }
+                });
+                ui.separator();
+                self.export_menu_ui(ui);
+                ui.separator();
+                if ui.button("Quit").clicked() {
+                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let (can_undo, can_redo) = self
+                    .document
+                    .as_ref()
+                    .map_or((false, false), |d| (d.masks.can_undo(), d.masks.can_redo()));
+                if ui
+                    .add_enabled(can_undo, egui::Button::new("Undo mask edit (Ctrl+Z)"))
+                    .clicked()
+                    && let Some(doc) = &mut self.document
+                {
+                    doc.masks.undo();
+                }
+                if ui
+                    .add_enabled(can_redo, egui::Button::new("Redo (Ctrl+Shift+Z)"))
+                    .clicked()
+                    && let Some(doc) = &mut self.document
+                {
+                    doc.masks.redo();
+                }
+            });
+        });
+    }
+
+    fn export_menu_ui(&mut self, ui: &mut egui::Ui) {
+        let has_result = self.solve.finished.is_some();
+        let name = self
+            .document
+            .as_ref()
+            .and_then(|d| d.path.file_stem())
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| "result".into());
+        ui.add_enabled_ui(has_result, |ui| {
+            if ui.button("Export depth (.npy)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-depth.npy"), "npy")
+            {
+                self.export(&path, Export::DepthNpy);
+            }
+            if ui.button("Export depth (16-bit PNG)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-depth16.png"), "png")
+            {
+                self.export(&path, Export::DepthPng);
+            }
+            if ui.button("Export mesh (.ply)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}.ply"), "ply")
+            {
+                self.export(&path, Export::MeshPly);
+            }
+            if ui.button("Export mesh (.obj)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}.obj"), "obj")
+            {
+                self.export(&path, Export::MeshObj);
+            }
+            if ui.button("Export reprojection (16-bit PNG)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-reprojection.png"), "png")
+            {
+                self.export(&path, Export::Reprojection);
+            }
+        });
+        if ui.button("Save window screenshot…").clicked()
+            && let Some(path) = pick_save(&format!("{name}-screenshot.png"), "png")
+        {
+            let ctx = ui.ctx().clone();
+            self.request_screenshot(&ctx, path);
+        }
+        let has_doc = self.document.is_some();
+        ui.add_enabled_ui(has_doc, |ui| {
+            for (label, layer, file) in [
+                ("Save confidence mask…", Layer::Confidence, "confidence.png"),
+                ("Save object mask…", Layer::Object, "mask.png"),
+            ] {
+                if ui.button(label).clicked()
+                    && let Some(path) = pick_save(file, "png")
+                    && let Some(doc) = &self.document
+                    && let Err(e) = doc.masks.save_png(layer, &path)
+                {
+                    self.notice = Some(e.to_string());
+                }
+            }
+            for (label, layer) in [
+                ("Load confidence mask…", Layer::Confidence),
+                ("Load object mask…", Layer::Object),
+            ] {
+                if ui.button(label).clicked()
+                    && let Some(path) = pick_open(&[("mask PNG", &["png"])])
+                {
+                    self.load_mask(layer, &path);
+                }
+            }
+        });
+    }
+
+    /// Writes the finished result; errors go to the status line.
+    pub fn export(&mut self, path: &Path, what: Export) {
+        let (Some(solution), Some(doc)) = (&self.solve.finished, &self.document) else {
+            self.notice = Some("nothing to export yet: the solve has not finished".into());
+            return;
+        };
+        let camera = doc.camera.intrinsics();
+        let result = match what {
+            Export::DepthNpy => io::write_npy_f32(path, &solution.depth),
+            Export::DepthPng => io::write_depth_png16(path, &solution.depth).map(|_| ()),
+            Export::MeshPly => {
+                io::write_depth_ply(path, &solution.depth, &camera, Some(&solution.reprojection))
+            }
+            Export::MeshObj => io::write_depth_obj(path, &solution.depth, &camera),
+            Export::Reprojection => io::write_png16(path, &solution.reprojection),
+        };
+        self.notice = Some(match result {
+            Ok(()) => format!("wrote {}", path.display()),
+            Err(e) => e.to_string(),
+        });
+    }
+
+    pub(super) fn status_ui(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            if let Some(doc) = &self.document {
+                let (w, h) = doc.size();
+                ui.label(format!("{} ({w}x{h})", doc.path.display()));
+                ui.separator();
+            }
+            if let Some(hover) = &self.hover {
+                ui.monospace(hover);
+                ui.separator();
+            }
+            if let Some(notice) = self.notice.clone() {
+                ui.colored_label(ui.visuals().warn_fg_color, notice);
+                if ui.small_button("x").on_hover_text("dismiss").clicked() {
+                    self.notice = None;
+                }
+            }
+        });
+    }
+
+    pub(super) fn controls_ui(&mut self, ui: &mut egui::Ui) {
+        self.progress_ui(ui);
+        ui.separator();
+        egui::CollapsingHeader::new("Parameters")
+            .default_open(true)
+            .show(ui, |ui| self.params_ui(ui));
+        egui::CollapsingHeader::new("Mask")
+            .default_open(true)
+            .show(ui, |ui| self.mask_ui(ui));
+        egui::CollapsingHeader::new("Camera")
+            .default_open(true)
+            .show(ui, |ui| self.camera_ui(ui));
+        egui::CollapsingHeader::new("3-D view")
+            .default_open(true)
+            .show(ui, |ui| self.view_settings_ui(ui));
+    }
+
+    fn progress_ui(&mut self, ui: &mut egui::Ui) {
+        let s = &self.solve;
+        let running = s.running;
+        ui.horizontal(|ui| {
+            if s.running {
+                ui.spinner();
+                let p = &s.progress;
+                ui.label(format!(
+                    "level {} of {} ({}x{}), iteration {}",
+                    p.level + 1,
+                    p.levels.max(1),
+                    p.size.0,
+                    p.size.1,
+                    p.iteration + 1
+                ));
+            } else if let Some(done) = &s.finished {
+                ui.label(format!("done in {:.2} s", done.seconds));
+            } else if s.failure.is_some() {
+                ui.colored_label(ui.visuals().error_fg_color, "solve failed");
+            } else {
+                ui.label("idle");
+            }
+        });
+        if s.running {
+            ui.label(format!(
+                "energy {:.5}, {:.2} s",
+                s.progress.energy,
+                s.progress.elapsed.as_secs_f64()
+            ));
+        }
+        if let Some((rse, rie)) = s.errors {
+            ui.label(format!("against ground truth: RSE {rse:.5}, RIE {rie:.5}"));
+        }
+        if let Some(failure) = &s.failure {
+            ui.colored_label(ui.visuals().error_fg_color, failure.clone());
+        }
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(running, egui::Button::new("Cancel"))
+                .clicked()
+            {
+                self.cancel_solve();
+            }
+            if ui.button("Solve again").clicked() {
+                self.start_solve();
+            }
+        });
+        energy_plot(ui, &self.solve.energies);
+    }
+
+    fn params_ui(&mut self, ui: &mut egui::Ui) {
+        let defaults = SolverParams::default();
+        let p = &mut self.settings.params;
+        let mut changed = false;
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut p.alpha, 1e-3..=1e5)
+                    .logarithmic(true)
+                    .text("alpha"),
+            )
+            .on_hover_text(format!(
+                "Smoothness weight (second-order Charbonnier), per pixel units; larger = smoother. Default {}",
+                defaults.alpha
+            ))
+            .changed();
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut p.lambda, 1e-6..=1.0)
+                    .logarithmic(true)
+                    .text("lambda"),
+            )
+            .on_hover_text("Charbonnier contrast: below it smoothing is quadratic, above it edges are kept. Paper default 1e-3")
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut p.eta, 0.5..=0.98).text("eta"))
+            .on_hover_text("Pyramid factor between levels. Paper default 0.9")
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut p.kappa, 1..=20).text("kappa"))
+            .on_hover_text("Outer (Gauss-Newton) iterations per level. Paper default 5")
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut p.inner_iterations, 1..=30).text("inner iterations"))
+            .on_hover_text("Fixed-point iterations on the Charbonnier weights. Paper default 9")
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut p.sor_iterations, 1..=50).text("SOR sweeps"))
+            .on_hover_text("SOR sweeps per inner iteration. Paper default 10")
+            .changed();
+        changed |= ui
+            .add(egui::Slider::new(&mut p.omega, 0.1..=1.95).text("omega"))
+            .on_hover_text("SOR over-relaxation. Default 1.5")
+            .changed();
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut p.dz_limit, 1e-4..=0.1)
+                    .logarithmic(true)
+                    .text("dz limit"),
+            )
+            .on_hover_text(
+                "Largest depth change per outer iteration (scene units). Paper default 0.01",
+            )
+            .changed();
+        let mut from_image = p.initial_depth.is_none();
+        ui.horizontal(|ui| {
+            if ui
+                .checkbox(&mut from_image, "initial depth from image")
+                .on_hover_text("Estimate a constant initial depth from the brightest pixels (default), or set one")
+                .changed()
+            {
+                p.initial_depth = if from_image { None } else { Some(1.0) };
+                changed = true;
+            }
+            if let Some(z) = &mut p.initial_depth {
+                changed |= ui
+                    .add(egui::DragValue::new(z).range(1e-3..=1e6).speed(0.01))
+                    .changed();
+            }
+        });
+        if ui
+            .button("paper defaults")
+            .on_hover_text("Restore every parameter to its default")
+            .clicked()
+        {
+            *p = super::ParamSettings::default();
+            changed = true;
+        }
+        if changed {
+            self.request_solve();
+        }
+    }
+
+    fn mask_ui(&mut self, ui: &mut egui::Ui) {
+        let b = &mut self.settings.brush;
+        ui.horizontal(|ui| {
+            ui.label("paint into");
+            ui.selectable_value(&mut b.layer, Layer::Confidence, "confidence")
+                .on_hover_text("c = 0 where painted: the data term is not trusted there");
+            ui.selectable_value(&mut b.layer, Layer::Object, "object")
+                .on_hover_text("painted pixels are background: no surface there");
+        });
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut b.mode, Mode::Paint, "paint");
+            ui.selectable_value(&mut b.mode, Mode::Erase, "erase");
+        });
+        ui.horizontal(|ui| {
+            for (tool, name) in [
+                (Tool::Brush, "brush"),
+                (Tool::Rectangle, "rectangle"),
+                (Tool::Lasso, "lasso"),
+                (Tool::FloodFill, "flood fill"),
+            ] {
+                ui.selectable_value(&mut b.tool, tool, name);
+            }
+        });
+        ui.add(
+            egui::Slider::new(&mut b.radius_px, 0.5..=200.0)
+                .logarithmic(true)
+                .text("brush size (px)"),
+        );
+        ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"));
+        ui.add(egui::Slider::new(&mut b.flood_tolerance, 0.0..=0.5).text("flood tolerance"));
+        ui.add(egui::Slider::new(&mut b.overlay_opacity, 0.0..=1.0).text("overlay opacity"));
+        let layer = b.layer;
+        let threshold = &mut b.threshold;
+        let Some(doc) = &mut self.document else {
+            return;
+        };
+        ui.horizontal(|ui| {
+            if ui.button("clear").clicked() {
+                doc.masks.clear(layer);
+            }
+            if ui.button("invert").clicked() {
+                doc.masks.invert(layer);
+            }
+            if ui
+                .add_enabled(doc.masks.can_undo(), egui::Button::new("undo"))
+                .clicked()
+            {
+                doc.masks.undo();
+            }
+            if ui
+                .add_enabled(doc.masks.can_redo(), egui::Button::new("redo"))
+                .clicked()
+            {
+                doc.masks.redo();
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::Slider::new(threshold, 0.0..=0.5)
+                    .logarithmic(true)
+                    .text("threshold"),
+            );
+            if ui
+                .button("object = brighter")
+                .on_hover_text(
+                    "Set the object mask: pixels darker than the threshold are background",
+                )
+                .clicked()
+                && let Err(e) = doc.masks.threshold(&doc.image, *threshold)
+            {
+                self.notice = Some(e.to_string());
+            }
+        });
+    }
+
+    fn camera_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(doc) = &mut self.document else {
+            ui.label("no image");
+            return;
+        };
+        let (w, _) = doc.size();
+        let c = &mut doc.camera;
+        let mut changed = false;
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut c.focal_px, 1.0..=20000.0)
+                    .logarithmic(true)
+                    .text("focal (px)"),
+            )
+            .changed();
+        ui.label(format!(
+            "horizontal field of view {:.1}°",
+            c.horizontal_fov_deg(w)
+        ));
+        ui.horizontal(|ui| {
+            ui.label("principal point");
+            changed |= ui
+                .add(egui::DragValue::new(&mut c.cx_px).speed(0.5))
+                .changed();
+            changed |= ui
+                .add(egui::DragValue::new(&mut c.cy_px).speed(0.5))
+                .changed();
+        });
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut c.intensity_scale, 1e-3..=1e3)
+                    .logarithmic(true)
+                    .text("intensity scale"),
+            )
+            .changed();
+        if changed {
+            c.source = CameraSource::Manual;
+        }
+        ui.weak(c.source.describe());
+        let mut srgb = doc.srgb;
+        if ui
+            .checkbox(&mut srgb, "sRGB photograph (linearise)")
+            .changed()
+        {
+            match doc.set_srgb(srgb) {
+                Ok(()) => {
+                    changed = true;
+                    let ctx = ui.ctx().clone();
+                    self.upload_input(&ctx);
+                }
+                Err(e) => self.notice = Some(format!("{e:#}")),
+            }
+        }
+        if changed {
+            self.request_solve();
+        }
+    }
+
+    fn view_settings_ui(&mut self, ui: &mut egui::Ui) {
+        let v = &mut self.settings.view;
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut v.colour, SurfaceColour::Shaded, "shaded");
+            ui.selectable_value(&mut v.colour, SurfaceColour::Depth, "depth");
+            ui.selectable_value(&mut v.colour, SurfaceColour::Error, "error");
+        });
+        ui.checkbox(&mut v.wireframe, "wireframe");
+        ui.add(egui::Slider::new(&mut v.light_yaw_deg, -80.0..=80.0).text("light yaw (°)"));
+        ui.add(egui::Slider::new(&mut v.light_pitch_deg, -80.0..=80.0).text("light pitch (°)"));
+        if ui.button("reset view").clicked() {
+            self.surface.reset();
+        }
+    }
+
+    pub(super) fn view3d_ui(&mut self, ui: &mut egui::Ui) {
+        ui.heading("3-D surface");
+        ui.weak("drag: orbit · right-drag: pan · scroll: zoom · double-click: reset");
+        let range = self.error_range();
+        let prefs = self.settings.view.clone();
+        self.surface.ui(ui, &prefs, range);
+    }
+
+    pub(super) fn image_panel_ui(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal_wrapped(|ui| {
+            for (panel, name) in [
+                (Panel2d::Input, "input + mask"),
+                (Panel2d::Reprojection, "reprojection"),
+                (Panel2d::Difference, "difference"),
+                (Panel2d::Depth, "depth"),
+                (Panel2d::DepthError, "depth error"),
+            ] {
+                let enabled = panel != Panel2d::DepthError
+                    || self
+                        .document
+                        .as_ref()
+                        .is_some_and(|d| d.ground_truth.is_some());
+                ui.add_enabled_ui(enabled, |ui| {
+                    ui.selectable_value(&mut self.panel, panel, name);
+                });
+            }
+        });
+        let Some((w, h)) = self.document.as_ref().map(|d| d.size()) else {
+            ui.label("Open an image (File > Open or drop a file here).");
+            return;
+        };
+        let (texture, range, unit) = match self.panel {
+            Panel2d::Input => (self.textures.input.clone(), None, ""),
+            Panel2d::Reprojection => (self.textures.reprojection.clone(), None, ""),
+            Panel2d::Difference => split(&self.textures.difference, ""),
+            Panel2d::Depth => split(&self.textures.depth, ""),
+            Panel2d::DepthError => split(&self.textures.depth_error, ""),
+        };
+        let bar_width = if range.is_some() { 90.0 } else { 0.0 };
+        let available = ui.available_size() - egui::vec2(bar_width, 0.0);
+        let (rect, response) = ui.allocate_exact_size(
+            available.max(egui::vec2(32.0, 32.0)),
+            egui::Sense::click_and_drag(),
+        );
+        // image -> screen: fit, then the user's zoom and pan.
+        let fit = (rect.width() / w as f32).min(rect.height() / h as f32);
+        let scale = fit * self.zoom;
+        let origin = rect.center() - egui::vec2(w as f32, h as f32) * scale / 2.0 + self.pan;
+        let to_image = |p: egui::Pos2| -> ImagePoint {
+            let q = (p - origin) / scale;
+            [q.x, q.y]
+        };
+        // Zoom about the cursor, pan with the right or middle button.
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0
+                && let Some(cursor) = response.hover_pos()
+            {
+                let factor = (scroll * 0.002).exp();
+                let before = to_image(cursor);
+                self.zoom = (self.zoom * factor).clamp(0.1, 64.0);
+                let new_scale = fit * self.zoom;
+                let new_origin = rect.center() - egui::vec2(w as f32, h as f32) * new_scale / 2.0;
+                self.pan = cursor - new_origin - egui::vec2(before[0], before[1]) * new_scale;
+            }
+        }
+        if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+        {
+            self.pan += response.drag_delta();
+        }
+        if response.double_clicked_by(egui::PointerButton::Secondary) {
+            self.zoom = 1.0;
+            self.pan = egui::Vec2::ZERO;
+        }
+        let image_rect = egui::Rect::from_min_size(origin, egui::vec2(w as f32, h as f32) * scale);
+        let painter = ui.painter_at(rect);
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        if let Some(texture) = &texture {
+            painter.image(texture.id(), image_rect, uv, egui::Color32::WHITE);
+        } else {
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "waiting for the first level",
+                egui::FontId::proportional(14.0),
+                ui.visuals().weak_text_color(),
+            );
+        }
+        if self.panel == Panel2d::Input {
+            self.update_overlay(ui.ctx());
+            if let Some((_, overlay)) = &self.textures.overlay {
+                painter.image(overlay.id(), image_rect, uv, egui::Color32::WHITE);
+            }
+            self.paint_input(ui, &response, &to_image, scale, origin);
+        }
+        if let Some(range) = range {
+            let bar = egui::Rect::from_min_size(
+                egui::pos2(rect.right() + 8.0, rect.top() + 10.0),
+                egui::vec2(80.0, (rect.height() - 20.0).max(20.0)),
+            );
+            images::scale_bar(ui, bar, range, unit);
+        }
+        self.hover = response.hover_pos().and_then(|p| {
+            let [x, y] = to_image(p);
+            (x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h)
+                .then(|| self.describe_pixel(x as usize, y as usize))
+        });
+    }
+
+    /// Hover text: image, reprojection and depth at an image pixel.
+    fn describe_pixel(&self, c: usize, r: usize) -> String {
+        let mut text = format!("({c}, {r})");
+        let Some(doc) = &self.document else {
+            return text;
+        };
+        let (w, h) = doc.size();
+        text.push_str(&format!(" I {:.4}", doc.image.at(c, r)));
+        if let Some(level) = &self.solve.latest {
+            let (lw, lh) = level.depth.size();
+            let (lc, lr) = ((c * lw / w).min(lw - 1), (r * lh / h).min(lh - 1));
+            text.push_str(&format!(
+                "  R {:.4}  z {:.4}",
+                level.reprojection.at(lc, lr),
+                level.depth.at(lc, lr)
+            ));
+        }
+        if let Some(gt) = &doc.ground_truth {
+            text.push_str(&format!("  z_gt {:.4}", gt.at(c, r)));
+        }
+        if let Some(conf) = Some(doc.masks.confidence().at(c, r)) {
+            text.push_str(&format!("  c {conf:.2}"));
+        }
+        text
+    }
+
+    fn update_overlay(&mut self, ctx: &egui::Context) {
+        let Some(doc) = &self.document else {
+            return;
+        };
+        let key =
+            doc.masks.revision() ^ (self.settings.brush.overlay_opacity.to_bits() as u64) << 32;
+        if self
+            .textures
+            .overlay
+            .as_ref()
+            .is_some_and(|(k, _)| *k == key)
+        {
+            return;
+        }
+        let style = OverlayStyle {
+            opacity: self.settings.brush.overlay_opacity,
+            ..OverlayStyle::default()
+        };
+        let rgba = doc.masks.overlay_rgba(&style);
+        let (w, h) = doc.size();
+        let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
+        self.textures.overlay = Some((
+            key,
+            ctx.load_texture("overlay", image, egui::TextureOptions::NEAREST),
+        ));
+    }
+
+    /// Mask tools on the input panel.
+    fn paint_input(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        to_image: &dyn Fn(egui::Pos2) -> ImagePoint,
+        scale: f32,
+        origin: egui::Pos2,
+    ) {
+        let b = self.settings.brush.clone();
+        let Some(doc) = &mut self.document else {
+            return;
+        };
+        let pointer = response.interact_pointer_pos().or(response.hover_pos());
+        let primary = egui::PointerButton::Primary;
+        match b.tool {
+            Tool::Brush => {
+                if response.drag_started_by(primary)
+                    && let Some(p) = pointer
+                {
+                    let brush = Brush {
+                        radius_px: b.radius_px,
+                        hardness: b.hardness,
+                        mode: b.mode,
+                    };
+                    match doc.masks.begin_stroke(b.layer, brush, to_image(p)) {
+                        Ok(()) => self.gesture = Some(Gesture::Stroke),
+                        Err(e) => self.notice = Some(e.to_string()),
+                    }
+                }
+                if response.dragged_by(primary)
+                    && matches!(self.gesture, Some(Gesture::Stroke))
+                    && let Some(p) = pointer
+                {
+                    let d = response.drag_delta();
+                    doc.masks.stroke_segment(to_image(p - d), to_image(p));
+                }
+                if response.clicked_by(primary)
+                    && let Some(p) = pointer
+                {
+                    // A click is a single dab.
+                    let brush = Brush {
+                        radius_px: b.radius_px,
+                        hardness: b.hardness,
+                        mode: b.mode,
+                    };
+                    if doc.masks.begin_stroke(b.layer, brush, to_image(p)).is_ok() {
+                        doc.masks.end_stroke();
+                    }
+                }
+                if let Some(p) = response.hover_pos() {
+                    ui.painter().circle_stroke(
+                        p,
+                        b.radius_px * scale,
+                        egui::Stroke::new(1.0, egui::Color32::YELLOW),
+                    );
+                }
+            }
+            Tool::Rectangle => {
+                if response.drag_started_by(primary)
+                    && let Some(p) = pointer
+                {
+                    self.gesture = Some(Gesture::Rectangle(to_image(p)));
+                }
+                if let (Some(Gesture::Rectangle(start)), Some(p)) = (&self.gesture, pointer) {
+                    let a = origin + egui::vec2(start[0], start[1]) * scale;
+                    ui.painter().rect_stroke(
+                        egui::Rect::from_two_pos(a, p),
+                        0.0,
+                        egui::Stroke::new(1.0, egui::Color32::YELLOW),
+                        egui::StrokeKind::Middle,
+                    );
+                }
+            }
+            Tool::Lasso => {
+                if response.drag_started_by(primary)
+                    && let Some(p) = pointer
+                {
+                    self.gesture = Some(Gesture::Lasso(vec![to_image(p)]));
+                }
+                if let (Some(Gesture::Lasso(points)), Some(p)) = (&mut self.gesture, pointer) {
+                    if response.dragged_by(primary) {
+                        points.push(to_image(p));
+                    }
+                    let screen: Vec<egui::Pos2> = points
+                        .iter()
+                        .map(|q| origin + egui::vec2(q[0], q[1]) * scale)
+                        .collect();
+                    ui.painter().add(egui::Shape::line(
+                        screen,
+                        egui::Stroke::new(1.0, egui::Color32::YELLOW),
+                    ));
+                }
+            }
+            Tool::FloodFill => {
+                if response.clicked_by(primary)
+                    && let Some(p) = pointer
+                    && let Err(e) = doc.masks.flood_fill(
+                        b.layer,
+                        b.mode,
+                        &doc.image,
+                        to_image(p),
+                        b.flood_tolerance,
+                    )
+                {
+                    self.notice = Some(e.to_string());
+                }
+            }
+        }
+        if response.drag_stopped_by(primary) {
+            match self.gesture.take() {
+                Some(Gesture::Stroke) => {
+                    doc.masks.end_stroke();
+                }
+                Some(Gesture::Rectangle(start)) => {
+                    if let Some(p) = pointer {
+                        doc.masks.fill_rect(b.layer, b.mode, start, to_image(p));
+                    }
+                }
+                Some(Gesture::Lasso(points)) => {
+                    doc.masks.fill_lasso(b.layer, b.mode, &points);
+                }
+                None => {}
+            }
+        }
+    }
+}
+
+/// What [`ViewerApp::export`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Export {
+    /// Depth as float32 `.npy` (NaN = no surface).
+    DepthNpy,
+    /// Depth as 16-bit PNG (near = white).
+    DepthPng,
+    /// Triangle mesh, binary PLY with the reprojection as colour.
+    MeshPly,
+    /// Triangle mesh, Wavefront OBJ.
+    MeshObj,
+    /// Reprojected image, 16-bit linear PNG.
+    Reprojection,
+}
+
+fn split(
+    entry: &Option<(egui::TextureHandle, [f64; 2])>,
+    unit: &'static str,
+) -> (Option<egui::TextureHandle>, Option<[f64; 2]>, &'static str) {
+    match entry {
+        Some((t, r)) => (Some(t.clone()), Some(*r), unit),
+        None => (None, None, unit),
+    }
+}
+
+/// log10 of the energy over all outer iterations of the job.
+fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_stroke(
+        rect,
+        2.0,
+        ui.visuals().widgets.noninteractive.bg_stroke,
+        egui::StrokeKind::Inside,
+    );
+    let values: Vec<f64> = energies
+        .iter()
+        .filter(|e| e.is_finite() && **e > 0.0)
+        .map(|e| e.log10())
+        .collect();
+    if values.len() < 2 {
+        painter.text(
+            rect.center(),
+            egui::Align2::CENTER_CENTER,
+            "energy per iteration",
+            egui::FontId::proportional(11.0),
+            ui.visuals().weak_text_color(),
+        );
+        return;
+    }
+    let lo = values.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let span = (hi - lo).max(1e-12);
+    let n = values.len() - 1;
+    let points: Vec<egui::Pos2> = values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| {
+            egui::pos2(
+                egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32),
+                egui::lerp(
+                    rect.bottom() - 4.0..=rect.top() + 4.0,
+                    ((v - lo) / span) as f32,
+                ),
+            )
+        })
+        .collect();
+    painter.add(egui::Shape::line(
+        points,
+        egui::Stroke::new(1.5, ui.visuals().hyperlink_color),
+    ));
+    painter.text(
+        rect.left_top() + egui::vec2(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        format!("log10 energy {hi:.2} … {lo:.2}"),
+        egui::FontId::proportional(10.0),
+        ui.visuals().weak_text_color(),
+    );
+}

@@ -1,0 +1,95 @@
+//! `sfs-studio view` (and no subcommand): open the viewer.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, anyhow};
+use clap::Args;
+
+use crate::app::{APP_ID, ViewerApp, ViewerOptions};
+
+/// Options of `sfs-studio view`.
+#[derive(Debug, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct ViewArgs {
+    /// Image to open (8/16-bit PNG, TIFF, JPEG). A `scene.json`,
+    /// `mask.png` and `depth_gt.npy` beside it (a `synth` folder) are used.
+    #[arg(value_parser = super::parse_path)]
+    pub image: PathBuf,
+    /// Camera file (keys of `synth`'s scene.json).
+    #[arg(long, value_parser = super::parse_path)]
+    pub camera: Option<PathBuf>,
+    /// Object mask PNG (255 = object).
+    #[arg(long, value_parser = super::parse_path)]
+    pub mask: Option<PathBuf>,
+    /// Linearise an sRGB photograph.
+    #[arg(long)]
+    pub srgb: bool,
+    /// Smoothness weight alpha (else the remembered value; default 100).
+    #[arg(long)]
+    pub alpha: Option<f64>,
+    /// Save a screenshot here once the solve has finished, then exit.
+    #[arg(long, value_name = "PATH.png", value_parser = super::parse_path)]
+    pub screenshot: Option<PathBuf>,
+    /// Write UI frame-time statistics (JSON) here on exit.
+    #[arg(long, value_name = "PATH.json", value_parser = super::parse_path)]
+    pub stats: Option<PathBuf>,
+    /// With --stats: after the first solve, change alpha this many times and
+    /// time each change to the first new level on screen.
+    #[arg(long, default_value_t = 0)]
+    pub latency_trials: usize,
+    /// Window size in points, WIDTHxHEIGHT.
+    #[arg(long, value_parser = super::parse_size, default_value = "1280x800")]
+    pub window: (usize, usize),
+}
+
+/// Opens the viewer on `args.image`.
+pub fn run(args: &ViewArgs) -> Result<()> {
+    if let Some(alpha) = args.alpha
+        && !(alpha.is_finite() && alpha >= 0.0)
+    {
+        return Err(anyhow!("--alpha must be finite and >= 0 (got {alpha})"));
+    }
+    if !args.image.is_file() {
+        return Err(anyhow!("image {} does not exist", args.image.display()));
+    }
+    let options = ViewerOptions {
+        image: Some(args.image.clone()),
+        camera: args.camera.clone(),
+        mask: args.mask.clone(),
+        srgb: args.srgb,
+        alpha: args.alpha,
+        screenshot: args.screenshot.clone(),
+        stats: args.stats.clone(),
+        latency_trials: args.latency_trials,
+        ..ViewerOptions::default()
+    };
+    launch(options, args.window)
+}
+
+/// Opens the viewer on the built-in sample.
+pub fn run_sample(screenshot: Option<PathBuf>) -> Result<()> {
+    launch(
+        ViewerOptions {
+            screenshot,
+            ..ViewerOptions::default()
+        },
+        (1280, 800),
+    )
+}
+
+fn launch(options: ViewerOptions, window: (usize, usize)) -> Result<()> {
+    let native = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_title("sfs-studio")
+            .with_inner_size([window.0 as f32, window.1 as f32])
+            .with_drag_and_drop(true),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    eframe::run_native(
+        APP_ID,
+        native,
+        Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, options)))),
+    )
+    .map_err(|e| anyhow!("cannot open the viewer window: {e}"))
+}

@@ -1,0 +1,171 @@
+//! The real viewer under egui_kittest (wgpu on the CPU, no display): open the
+//! sample by path, set alpha through its slider, paint and undo, solve to
+//! completion with levels coarse to fine, bad input.
+#![cfg(feature = "gui")]
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use eframe::egui;
+use eframe::egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use sfs_studio::app::{ViewerApp, ViewerOptions, sample_image_path};
+
+fn options(data_dir: &std::path::Path) -> ViewerOptions {
+    ViewerOptions {
+        image: sample_image_path(),
+        data_dir: Some(data_dir.to_path_buf()),
+        fresh_settings: true,
+        ..ViewerOptions::default()
+    }
+}
+
+fn harness(options: ViewerOptions) -> Harness<'static, ViewerApp> {
+    Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .wgpu()
+        .build_eframe(move |cc| ViewerApp::new(cc, options))
+}
+
+/// Steps the harness (real time passes between steps, so the worker runs)
+/// until `done` or the deadline; a hang check, not a speed assertion.
+fn step_until(harness: &mut Harness<'_, ViewerApp>, done: impl Fn(&ViewerApp) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !done(harness.state()) {
+        assert!(
+            Instant::now() < deadline,
+            "the viewer did not get there in 120 s"
+        );
+        harness.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn solves_the_sample_coarse_to_fine_and_reports_errors() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    let app = harness.state();
+    let sizes = &app.solve_state().arrived;
+    assert!(sizes.len() > 10, "levels: {sizes:?}");
+    for pair in sizes.windows(2) {
+        assert!(
+            pair[0].0 <= pair[1].0 && pair[0].1 <= pair[1].1,
+            "{sizes:?}"
+        );
+        assert!(pair[0] != pair[1], "{sizes:?}");
+    }
+    assert_eq!(sizes.last(), Some(&(256, 256)));
+    let (rse, rie) = app
+        .solve_state()
+        .errors
+        .expect("the sample has ground truth");
+    assert!(rse < 0.02 && rie < 0.03, "rse {rse} rie {rie}");
+}
+
+#[test]
+fn alpha_slider_changes_the_parameter_and_starts_a_new_solve() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let first_job = harness.state().solve_state().job;
+    assert!(first_job.is_some());
+    harness
+        .get_by_role_and_label(Role::Slider, "alpha")
+        .set_value_accesskit(250.0);
+    harness.step();
+    assert_eq!(harness.state().params().alpha, 250.0);
+    // After the debounce a new job replaces the first one.
+    step_until(&mut harness, |app| app.solve_state().job != first_job);
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+}
+
+#[test]
+fn painting_changes_the_mask_and_undo_restores_it() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let before = harness
+        .state()
+        .document()
+        .expect("sample open")
+        .masks
+        .confidence()
+        .clone();
+    // A stroke across the middle of the image panel.
+    let tab = harness.get_by_label("input + mask").rect();
+    let start = egui::pos2(tab.left() + 120.0, tab.bottom() + 250.0);
+    let end = start + egui::vec2(120.0, 40.0);
+    harness.hover_at(start);
+    harness.step();
+    harness.drag_at(start);
+    harness.step();
+    for k in 1..=8 {
+        harness.hover_at(start + (end - start) * (k as f32 / 8.0));
+        harness.step();
+    }
+    harness.drop_at(end);
+    harness.step();
+    harness.step();
+    let doc = harness.state().document().expect("sample open");
+    let painted = doc
+        .masks
+        .confidence()
+        .as_slice()
+        .iter()
+        .filter(|&&c| c < 1.0)
+        .count();
+    assert!(painted > 50, "the stroke painted {painted} pixels");
+    assert!(doc.masks.can_undo());
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.step();
+    let after = harness
+        .state()
+        .document()
+        .expect("sample open")
+        .masks
+        .confidence()
+        .clone();
+    assert_eq!(after, before);
+    // Redo brings the stroke back.
+    harness.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    harness.step();
+    assert_ne!(
+        harness.state().document().expect("open").masks.confidence(),
+        &before
+    );
+}
+
+#[test]
+fn bad_files_leave_the_open_image_and_say_why() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let bad = dir.path().join("broken.png");
+    std::fs::write(&bad, b"not a png").expect("write");
+    let wrong_mask = dir.path().join("mask-small.png");
+    image::GrayImage::new(10, 10)
+        .save(&wrong_mask)
+        .expect("write mask");
+    let camera = dir.path().join("camera.json");
+    std::fs::write(&camera, br#"{"width": 256}"#).expect("write");
+    let ctx = harness.ctx.clone();
+    let app = harness.state_mut();
+    let sample: PathBuf = app.document().expect("open").path.clone();
+    for (path, expect) in [
+        (&bad, "broken.png"),
+        (&wrong_mask, "mask-small.png"),
+        (&camera, "camera.json"),
+    ] {
+        app.drop_file(&ctx, path);
+        let notice = app.notice().unwrap_or_default().to_string();
+        assert!(notice.contains(expect), "{expect}: {notice}");
+        assert_eq!(app.document().expect("still open").path, sample);
+    }
+    harness.step();
+}
