@@ -10,7 +10,7 @@ use eframe::egui;
 use eframe::egui::accesskit::Role;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
-use sfs_studio::app::{ViewerApp, ViewerOptions, sample_image_path};
+use sfs_studio::app::{Export, ViewerApp, ViewerOptions, sample_image_path};
 
 fn options(data_dir: &std::path::Path) -> ViewerOptions {
     ViewerOptions {
@@ -63,6 +63,31 @@ fn solves_the_sample_coarse_to_fine_and_reports_errors() {
         .errors
         .expect("the sample has ground truth");
     assert!(rse < 0.02 && rie < 0.03, "rse {rse} rie {rie}");
+    // Every export writes a readable file.
+    let app = harness.state_mut();
+    for (name, what) in [
+        ("depth.npy", Export::DepthNpy),
+        ("depth16.png", Export::DepthPng),
+        ("mesh.ply", Export::MeshPly),
+        ("mesh.obj", Export::MeshObj),
+        ("reprojection.png", Export::Reprojection),
+    ] {
+        let path = dir.path().join(name);
+        app.export(&path, what);
+        let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+        assert!(
+            size > 1000,
+            "{name}: {size} bytes, notice {:?}",
+            app.notice()
+        );
+    }
+    let depth = sfs_studio::io::read_npy(&dir.path().join("depth.npy")).expect("npy");
+    assert_eq!(depth.size(), (256, 256));
+    let obj = std::fs::read_to_string(dir.path().join("mesh.obj")).expect("obj");
+    assert_eq!(
+        obj.lines().filter(|l| l.starts_with("v ")).count(),
+        256 * 256
+    );
 }
 
 #[test]

@@ -22,6 +22,7 @@ use crate::worker::{Event, JobId, SolveRequest, Worker};
 
 pub use document::{CameraSource, CameraState, Document, exif_focal_35mm, sample_image_path};
 pub use settings::{ParamSettings, Settings, Tool};
+pub use ui::Export;
 
 /// eframe application id (storage folder name).
 pub const APP_ID: &str = "sfs-studio";
@@ -582,6 +583,7 @@ impl ViewerApp {
         // Screenshot once the first solve is over and its last mesh is shown.
         if self.options.screenshot.is_some() && !self.screenshot_requested {
             let done = self.solve.completed_jobs > 0
+                && !self.solve.running
                 && self.stats.trials_done >= self.options.latency_trials
                 && self.stats.trial_started.is_none()
                 && self.dirty_since.is_none()
@@ -743,6 +745,10 @@ impl eframe::App for ViewerApp {
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        // Measurement runs change alpha themselves: not the user's settings.
+        if self.options.stats.is_some() || self.options.fresh_settings {
+            return;
+        }
         eframe::set_value(storage, settings::STORAGE_KEY, &self.settings);
     }
 

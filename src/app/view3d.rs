@@ -139,6 +139,9 @@ fn decimate(
 struct SurfaceResources {
     renderer: SurfaceRenderer,
     uploaded_generation: Option<u64>,
+    /// What the offscreen target holds: it is re-rendered only when the
+    /// mesh, the view or the size changed, and blitted every frame.
+    rendered: Option<(Option<u64>, ViewSettings, [u32; 2])>,
 }
 
 /// Installs the renderer in the callback resources; returns false (and the
@@ -153,6 +156,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> Result<(), String> {
         .insert(SurfaceResources {
             renderer,
             uploaded_generation: None,
+            rendered: None,
         });
     Ok(())
 }
@@ -185,11 +189,16 @@ impl egui_wgpu::CallbackTrait for SurfaceCallback {
                 Err(e) => log_once(&format!("3-D view: upload failed: {e}")),
             }
         }
-        if let Err(e) = res
+        let key = (res.uploaded_generation, self.settings, self.size_px);
+        if res.rendered.as_ref() == Some(&key) {
+            return Vec::new();
+        }
+        match res
             .renderer
             .render(device, queue, encoder, self.size_px, &self.settings)
         {
-            log_once(&format!("3-D view: render failed: {e}"));
+            Ok(()) => res.rendered = Some(key),
+            Err(e) => log_once(&format!("3-D view: render failed: {e}")),
         }
         Vec::new()
     }
