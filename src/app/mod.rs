@@ -141,8 +141,13 @@ struct Stats {
     busy_frame_intervals_ms: Vec<f64>,
     latencies_ms: Vec<f64>,
     trial_started: Option<Instant>,
+    /// Preparation generation of the current job's first level.
+    first_level_generation: Option<u64>,
     trials_done: usize,
 }
+
+/// Full-size image and ground truth for preparing levels.
+type LevelInputs = (std::sync::Arc<Grid<f64>>, Option<std::sync::Arc<Grid<f64>>>);
 
 /// A screenshot that arrived, with where to save it.
 type Screenshot = (PathBuf, std::sync::Arc<egui::ColorImage>);
@@ -184,6 +189,9 @@ pub struct ViewerApp {
     surface: view3d::SurfaceView,
     meshes: Option<view3d::MeshBuilder>,
     mesh_generation: u64,
+    /// The image and ground truth of the running job, shared with the
+    /// level-preparation thread.
+    level_inputs: Option<LevelInputs>,
     notice: Option<String>,
     screenshot_requested: bool,
     screenshots: (
@@ -246,6 +254,7 @@ impl ViewerApp {
             surface: view3d::SurfaceView::new(available),
             meshes,
             mesh_generation: 0,
+            level_inputs: None,
             notice,
             screenshot_requested: false,
             screenshots: crossbeam_channel::unbounded(),
@@ -389,6 +398,10 @@ impl ViewerApp {
             confidence: doc.masks.confidence_for_solver(),
         };
         let params = self.settings.params.to_params();
+        self.level_inputs = Some((
+            std::sync::Arc::new(doc.image.clone()),
+            doc.ground_truth.clone().map(std::sync::Arc::new),
+        ));
         self.mask_revision_solved = doc.masks.revision();
         let job = worker.submit(SolveRequest { problem, params });
         self.solve.job = Some(job);
@@ -412,7 +425,7 @@ impl ViewerApp {
     }
 
     /// Drains worker events (a few milliseconds at most).
-    fn handle_events(&mut self, ctx: &egui::Context) {
+    fn handle_events(&mut self) {
         let Some(worker) = &mut self.worker else {
             return;
         };
@@ -435,7 +448,7 @@ impl ViewerApp {
                         elapsed: report.elapsed,
                     };
                 }
-                Event::Level { result, .. } => self.receive_level(ctx, result),
+                Event::Level { result, .. } => self.receive_level(result),
                 Event::Finished { solution, .. } => {
                     self.solve.errors = self.document.as_ref().and_then(|doc| {
                         let gt = doc.ground_truth.as_ref()?;
@@ -466,17 +479,13 @@ impl ViewerApp {
         }
     }
 
-    fn receive_level(&mut self, ctx: &egui::Context, result: LevelResult) {
+    fn receive_level(&mut self, result: LevelResult) {
         let size = result.depth.size();
         self.solve.arrived.push(size);
-        if let (Some(started), Some(submitted)) = (self.stats.trial_started, self.solve.submitted)
-            && self.solve.arrived.len() == 1
-        {
-            let from = started.max(submitted.min(started));
-            self.stats
-                .latencies_ms
-                .push(from.elapsed().as_secs_f64() * 1e3);
-            self.stats.trial_started = None;
+        if self.solve.arrived.len() == 1 {
+            // The first level of this job: it is on screen when this
+            // generation comes back from the preparation thread.
+            self.stats.first_level_generation = Some(self.mesh_generation + 1);
         }
         let Some(doc) = &self.document else {
             return;
@@ -487,47 +496,15 @@ impl ViewerApp {
             principal_x_px: (doc.camera.cx_px + 0.5) * scale - 0.5,
             principal_y_px: (doc.camera.cy_px + 0.5) * size.1 as f64 / doc.size().1 as f64 - 0.5,
         };
-        let difference = images::abs_difference(&result.reprojection, &doc.image);
-        let level_difference = images::abs_difference(&doc.image, &result.reprojection);
-        let options = egui::TextureOptions::NEAREST;
-        self.textures.reprojection = Some(ctx.load_texture(
-            "reprojection",
-            images::grey_image(&result.reprojection),
-            options,
-        ));
-        let diff_range = [0.0, images::finite_range(&difference).map_or(1.0, |r| r[1])];
-        self.textures.difference = Some((
-            ctx.load_texture(
-                "difference",
-                images::colour_mapped(&difference, diff_range),
-                options,
-            ),
-            diff_range,
-        ));
-        let depth_range = images::finite_range(&result.depth).unwrap_or([0.0, 1.0]);
-        self.textures.depth = Some((
-            ctx.load_texture(
-                "depth",
-                images::colour_mapped(&result.depth, depth_range),
-                options,
-            ),
-            depth_range,
-        ));
-        self.textures.depth_error = doc.ground_truth.as_ref().map(|gt| {
-            let error = images::abs_difference(&result.depth, gt);
-            let range = [0.0, images::finite_range(&error).map_or(1.0, |r| r[1])];
-            (
-                ctx.load_texture("depth-error", images::colour_mapped(&error, range), options),
-                range,
-            )
-        });
-        if let Some(meshes) = &self.meshes {
+        if let (Some(meshes), Some((image, ground_truth))) = (&self.meshes, &self.level_inputs) {
             self.mesh_generation += 1;
             meshes.submit(view3d::MeshJob {
                 generation: self.mesh_generation,
                 depth: result.depth.clone(),
+                reprojection: result.reprojection.clone(),
                 camera,
-                values: Some(level_difference),
+                image: image.clone(),
+                ground_truth: ground_truth.clone(),
             });
         }
         self.solve.latest = Some(LevelView {
@@ -536,6 +513,21 @@ impl ViewerApp {
             depth: result.depth,
             reprojection: result.reprojection,
         });
+    }
+
+    /// Uploads a prepared level's panel images.
+    fn show_panels(&mut self, ctx: &egui::Context, panels: view3d::LevelPanels) {
+        let options = egui::TextureOptions::NEAREST;
+        self.textures.reprojection =
+            Some(ctx.load_texture("reprojection", panels.reprojection, options));
+        let (difference, range) = panels.difference;
+        self.textures.difference =
+            Some((ctx.load_texture("difference", difference, options), range));
+        let (depth, range) = panels.depth;
+        self.textures.depth = Some((ctx.load_texture("depth", depth, options), range));
+        self.textures.depth_error = panels
+            .depth_error
+            .map(|(image, range)| (ctx.load_texture("depth-error", image, options), range));
     }
 
     fn error_range(&self) -> f32 {
@@ -577,7 +569,19 @@ impl ViewerApp {
             }
         }
         if let Some(built) = self.meshes.as_ref().and_then(|m| m.poll()) {
-            self.surface.set_mesh(built);
+            let generation = built.generation;
+            if let Some(panels) = self.surface.set_mesh(built) {
+                self.show_panels(ctx, panels);
+            }
+            if let (Some(started), Some(first)) =
+                (self.stats.trial_started, self.stats.first_level_generation)
+                && generation >= first
+            {
+                self.stats
+                    .latencies_ms
+                    .push(started.elapsed().as_secs_f64() * 1e3);
+                self.stats.trial_started = None;
+            }
         }
         self.latency_trials(ctx);
         // Screenshot once the first solve is over and its last mesh is shown.
@@ -617,6 +621,7 @@ impl ViewerApp {
         self.stats.trials_done += 1;
         self.settings.params.alpha *= 1.1;
         self.stats.trial_started = Some(Instant::now());
+        self.stats.first_level_generation = None;
         // As a slider release would: the debounce, then the solve.
         self.request_solve();
         ctx.request_repaint();
@@ -710,7 +715,7 @@ fn solver_leaving_a_core() -> crate::worker::SolveFn {
 
 impl eframe::App for ViewerApp {
     fn logic(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
-        self.handle_events(ctx);
+        self.handle_events();
         self.housekeeping(ctx);
     }
 

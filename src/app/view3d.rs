@@ -1,7 +1,7 @@
 //! The bridge between egui and the wgpu surface renderer: a paint callback
 //! that renders in `prepare` and blits in `paint`, orbit/pan/zoom input, and a
-//! background thread that turns depth maps into meshes so that a large level
-//! never stalls a frame.
+//! background thread that turns each level into a mesh and the 2-D panels'
+//! images, so that a large level never stalls a frame.
 
 use std::sync::Arc;
 use std::thread::JoinHandle;
@@ -18,24 +18,73 @@ use crate::render::{Bounds, ColourMode, OrbitCamera, SurfaceMesh, SurfaceRendere
 /// depth maps are point-sampled with a stride (display only).
 pub const MAX_VIEW_VERTICES: usize = 512 * 512;
 
-/// A depth map to turn into a mesh.
+/// A level to prepare for display: its mesh and its 2-D panel images.
 pub struct MeshJob {
     /// Increases with every job; the newest wins.
     pub generation: u64,
     /// Depth (NaN = no surface).
     pub depth: Grid<f64>,
+    /// Reprojection at the level's size.
+    pub reprojection: Grid<f64>,
     /// Camera at the depth map's resolution.
     pub camera: Intrinsics,
-    /// Per-pixel value for the error colouring.
-    pub values: Option<Grid<f64>>,
+    /// The full-size input image.
+    pub image: Arc<Grid<f64>>,
+    /// Ground-truth depth at full size.
+    pub ground_truth: Option<Arc<Grid<f64>>>,
 }
 
-/// A finished mesh.
+/// Images of the 2-D panels for one level, with the colour-map ranges.
+pub struct LevelPanels {
+    /// Reprojection, grey.
+    pub reprojection: egui::ColorImage,
+    /// |input - reprojection| at full size.
+    pub difference: (egui::ColorImage, [f64; 2]),
+    /// Depth.
+    pub depth: (egui::ColorImage, [f64; 2]),
+    /// |depth - ground truth| at full size.
+    pub depth_error: Option<(egui::ColorImage, [f64; 2])>,
+}
+
+/// A prepared level.
 pub struct BuiltMesh {
     /// Generation of the job.
     pub generation: u64,
     /// The mesh.
     pub mesh: Arc<SurfaceMesh>,
+    /// The panel images (absent for meshes made elsewhere, e.g. tests).
+    pub panels: Option<LevelPanels>,
+}
+
+/// The CPU work of a level: panel images, then the mesh (coloured by the
+/// reprojection error at the level's size).
+fn prepare_level(job: MeshJob) -> BuiltMesh {
+    use super::images;
+    let difference = images::abs_difference(&job.reprojection, &job.image);
+    let difference_range = [0.0, images::finite_range(&difference).map_or(1.0, |r| r[1])];
+    let depth_range = images::finite_range(&job.depth).unwrap_or([0.0, 1.0]);
+    let depth_error = job.ground_truth.as_ref().map(|gt| {
+        let error = images::abs_difference(&job.depth, gt);
+        let range = [0.0, images::finite_range(&error).map_or(1.0, |r| r[1])];
+        (images::colour_mapped(&error, range), range)
+    });
+    let panels = LevelPanels {
+        reprojection: images::grey_image(&job.reprojection),
+        difference: (
+            images::colour_mapped(&difference, difference_range),
+            difference_range,
+        ),
+        depth: (images::colour_mapped(&job.depth, depth_range), depth_range),
+        depth_error,
+    };
+    let level_difference = images::abs_difference(&job.image, &job.reprojection);
+    let (depth, camera, values) = decimate(job.depth, job.camera, Some(level_difference));
+    let mesh = SurfaceMesh::from_depth(&depth, &camera, values.as_ref());
+    BuiltMesh {
+        generation: job.generation,
+        mesh: Arc::new(mesh),
+        panels: Some(panels),
+    }
 }
 
 /// A named thread that builds meshes, newest job first.
@@ -48,7 +97,7 @@ pub struct MeshBuilder {
 impl MeshBuilder {
     /// Starts the thread; `waker` is called after every mesh.
     pub fn spawn(waker: impl Fn() + Send + 'static) -> std::io::Result<Self> {
-        let (job_tx, job_rx) = crossbeam_channel::bounded::<MeshJob>(4);
+        let (job_tx, job_rx) = crossbeam_channel::unbounded::<MeshJob>();
         let (mesh_tx, mesh_rx) = crossbeam_channel::bounded::<BuiltMesh>(4);
         let handle = std::thread::Builder::new()
             .name("sfs-mesh".into())
@@ -58,12 +107,7 @@ impl MeshBuilder {
                     while let Ok(newer) = job_rx.try_recv() {
                         job = newer;
                     }
-                    let (depth, camera, values) = decimate(job.depth, job.camera, job.values);
-                    let mesh = SurfaceMesh::from_depth(&depth, &camera, values.as_ref());
-                    let built = BuiltMesh {
-                        generation: job.generation,
-                        mesh: Arc::new(mesh),
-                    };
+                    let built = prepare_level(job);
                     if mesh_tx.send(built).is_err() {
                         return;
                     }
@@ -77,14 +121,13 @@ impl MeshBuilder {
         })
     }
 
-    /// Queues a job (never blocks the UI: when the queue is full the job is
-    /// dropped, and a newer one follows).
+    /// Queues a job; never blocks and never drops one (the thread skips to
+    /// the newest, so at most the levels that arrive during one preparation
+    /// wait here).
     pub fn submit(&self, job: MeshJob) {
         if let Some(jobs) = &self.jobs {
-            // Full: the thread is busy with older jobs; a dropped job is
-            // superseded by the next level anyway, except the last, which the
-            // caller re-submits when it sees an old generation (see `poll`).
-            let _ = jobs.try_send(job);
+            // Fails only when the thread has ended (it then has nothing to show).
+            let _ = jobs.send(job);
         }
     }
 
@@ -258,13 +301,14 @@ impl SurfaceView {
 
     /// Shows a new mesh; frames it the first time (later meshes keep the
     /// user's view).
-    pub fn set_mesh(&mut self, built: BuiltMesh) {
+    pub fn set_mesh(&mut self, built: BuiltMesh) -> Option<LevelPanels> {
         if self.framed_bounds.is_none() && !built.mesh.is_empty() {
             let bounds = built.mesh.bounds();
             self.camera = OrbitCamera::framing(&bounds);
             self.framed_bounds = Some(bounds);
         }
         self.mesh = Some((built.generation, built.mesh));
+        built.panels
     }
 
     /// Depth range of the mesh on screen.
@@ -383,6 +427,7 @@ mod tests {
                 view.set_mesh(BuiltMesh {
                     generation: 1,
                     mesh: Arc::new(mesh),
+                    panels: None,
                 });
                 ViewOnly {
                     view,
