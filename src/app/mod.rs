@@ -27,7 +27,7 @@ pub use ui::Export;
 /// eframe application id (storage folder name).
 pub const APP_ID: &str = "sfs-studio";
 
-/// Wait this long after the last parameter or mask change before solving.
+/// While a slider is dragged, solve after it rests this long.
 const DEBOUNCE: Duration = Duration::from_millis(200);
 /// Write the mask autosave this long after the last edit.
 const AUTOSAVE_DELAY: Duration = Duration::from_secs(1);
@@ -553,8 +553,10 @@ impl ViewerApp {
         }
         if let Some(since) = self.dirty_since {
             let waited = since.elapsed();
+            // A released slider, a typed value or a button starts at once;
+            // while a slider is dragged, a pause of DEBOUNCE starts a solve.
             let dragging = ctx.input(|i| i.pointer.any_down()) && self.gesture.is_none();
-            if waited >= DEBOUNCE && !dragging {
+            if !dragging || waited >= DEBOUNCE {
                 self.start_solve();
             } else {
                 ctx.request_repaint_after(DEBOUNCE.saturating_sub(waited));
