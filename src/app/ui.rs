@@ -630,9 +630,7 @@ impl ViewerApp {
         if let Some(gt) = &doc.ground_truth {
             text.push_str(&format!("  z_gt {:.4}", gt.at(c, r)));
         }
-        if let Some(conf) = Some(doc.masks.confidence().at(c, r)) {
-            text.push_str(&format!("  c {conf:.2}"));
-        }
+        text.push_str(&format!("  c {:.2}", doc.masks.confidence().at(c, r)));
         text
     }
 
