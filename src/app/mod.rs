@@ -139,6 +139,7 @@ struct Stats {
     frame_intervals_ms: Vec<f64>,
     ui_ms: Vec<f64>,
     busy_frame_intervals_ms: Vec<f64>,
+    idle_frame_intervals_ms: Vec<f64>,
     latencies_ms: Vec<f64>,
     trial_started: Option<Instant>,
     /// Preparation generation of the current job's first level.
@@ -597,7 +598,9 @@ impl ViewerApp {
                     || self.meshes.is_none());
             if done {
                 self.frames_after_finish += 1;
-                if self.frames_after_finish > 3 {
+                // With --stats, also time 40 frames with nothing to solve.
+                let wait = if self.options.stats.is_some() { 42 } else { 3 };
+                if self.frames_after_finish > wait {
                     self.screenshot_requested = true;
                     if let Some(path) = self.options.screenshot.clone() {
                         self.request_screenshot(ctx, path);
@@ -690,6 +693,7 @@ impl ViewerApp {
             "image_size": size,
             "frame_interval_ms_while_solving": summary(&self.stats.busy_frame_intervals_ms),
             "frame_interval_ms_all": summary(&self.stats.frame_intervals_ms),
+            "frame_interval_ms_idle": summary(&self.stats.idle_frame_intervals_ms),
             "ui_cpu_ms": summary(&self.stats.ui_ms),
             "change_to_first_level_ms": self.stats.latencies_ms,
         });
@@ -729,6 +733,9 @@ impl eframe::App for ViewerApp {
             self.stats.frame_intervals_ms.push(ms);
             if self.solve.running {
                 self.stats.busy_frame_intervals_ms.push(ms);
+            } else if self.frames_after_finish > 1 {
+                // Continuous repaints while nothing is solved: the baseline.
+                self.stats.idle_frame_intervals_ms.push(ms);
             }
         }
         self.stats.last_frame = Some(Instant::now());
