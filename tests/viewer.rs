@@ -107,18 +107,23 @@ fn alpha_slider_changes_the_parameter_and_starts_a_new_solve() {
     step_until(&mut harness, |app| app.solve_state().finished.is_some());
 }
 
-#[test]
-fn painting_changes_the_mask_and_undo_restores_it() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    harness.step();
-    let before = harness
+/// The open document's confidence mask.
+fn confidence(harness: &Harness<'_, ViewerApp>) -> sfs_studio::grid::Grid<f32> {
+    harness
         .state()
         .document()
         .expect("sample open")
         .masks
         .confidence()
-        .clone();
+        .clone()
+}
+
+#[test]
+fn painting_changes_the_mask_and_undo_restores_it() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let before = confidence(&harness);
     // A stroke across the middle of the image panel.
     let tab = harness.get_by_label("input + mask").rect();
     let start = egui::pos2(tab.left() + 120.0, tab.bottom() + 250.0);
@@ -146,13 +151,7 @@ fn painting_changes_the_mask_and_undo_restores_it() {
     assert!(doc.masks.can_undo());
     harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     harness.step();
-    let after = harness
-        .state()
-        .document()
-        .expect("sample open")
-        .masks
-        .confidence()
-        .clone();
+    let after = confidence(&harness);
     assert_eq!(after, before);
     // Redo brings the stroke back.
     harness.key_press_modifiers(

@@ -78,7 +78,7 @@ pub fn abs_difference(a: &Grid<f64>, b: &Grid<f64>) -> Grid<f64> {
 }
 
 /// Draws a vertical colour scale bar with its end values into `rect`.
-pub fn scale_bar(ui: &egui::Ui, rect: egui::Rect, range: [f64; 2], unit: &str) {
+pub fn scale_bar(ui: &egui::Ui, rect: egui::Rect, range: [f64; 2]) {
     let painter = ui.painter_at(rect.expand(2.0));
     let bar = egui::Rect::from_min_size(rect.min, egui::vec2(12.0, rect.height()));
     let steps = 64;
@@ -99,14 +99,14 @@ pub fn scale_bar(ui: &egui::Ui, rect: egui::Rect, range: [f64; 2], unit: &str) {
     painter.text(
         egui::pos2(bar.right() + 3.0, bar.top()),
         egui::Align2::LEFT_TOP,
-        format!("{:.4} {unit}", range[1]),
+        format!("{:.4}", range[1]),
         font.clone(),
         text,
     );
     painter.text(
         egui::pos2(bar.right() + 3.0, bar.bottom()),
         egui::Align2::LEFT_BOTTOM,
-        format!("{:.4} {unit}", range[0]),
+        format!("{:.4}", range[0]),
         font,
         text,
     );

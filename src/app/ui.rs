@@ -531,12 +531,12 @@ impl ViewerApp {
             ui.label("Open an image (File > Open or drop a file here).");
             return;
         };
-        let (texture, range, unit) = match self.panel {
-            Panel2d::Input => (self.textures.input.clone(), None, ""),
-            Panel2d::Reprojection => (self.textures.reprojection.clone(), None, ""),
-            Panel2d::Difference => split(&self.textures.difference, ""),
-            Panel2d::Depth => split(&self.textures.depth, ""),
-            Panel2d::DepthError => split(&self.textures.depth_error, ""),
+        let (texture, range) = match self.panel {
+            Panel2d::Input => (self.textures.input.clone(), None),
+            Panel2d::Reprojection => (self.textures.reprojection.clone(), None),
+            Panel2d::Difference => split(&self.textures.difference),
+            Panel2d::Depth => split(&self.textures.depth),
+            Panel2d::DepthError => split(&self.textures.depth_error),
         };
         let bar_width = if range.is_some() { 90.0 } else { 0.0 };
         let available = ui.available_size() - egui::vec2(bar_width, 0.0);
@@ -601,7 +601,7 @@ impl ViewerApp {
                 egui::pos2(rect.right() + 8.0, rect.top() + 10.0),
                 egui::vec2(80.0, (rect.height() - 20.0).max(20.0)),
             );
-            images::scale_bar(ui, bar, range, unit);
+            images::scale_bar(ui, bar, range);
         }
         self.hover = response.hover_pos().and_then(|p| {
             let [x, y] = to_image(p);
@@ -806,11 +806,10 @@ pub enum Export {
 
 fn split(
     entry: &Option<(egui::TextureHandle, [f64; 2])>,
-    unit: &'static str,
-) -> (Option<egui::TextureHandle>, Option<[f64; 2]>, &'static str) {
+) -> (Option<egui::TextureHandle>, Option<[f64; 2]>) {
     match entry {
-        Some((t, r)) => (Some(t.clone()), Some(*r), unit),
-        None => (None, None, unit),
+        Some((t, r)) => (Some(t.clone()), Some(*r)),
+        None => (None, None),
     }
 }
 

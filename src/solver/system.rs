@@ -277,13 +277,8 @@ impl LinearSystem {
             self.z_padded[start..start + w].copy_from_slice(&depth.as_slice()[r * w..(r + 1) * w]);
         }
         let z = &self.z_padded;
-        self.smooth
-            .par_chunks_mut(SMOOTH_PLANES * pw)
-            .skip(HALO)
-            .take(self.height)
-            .with_min_len(min_rows)
-            .enumerate()
-            .for_each(|(r, block)| {
+        image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows).for_each(
+            |(r, block)| {
                 let kz = &mut block[SMOOTH_KZ * pw..(SMOOTH_KZ + 3) * pw];
                 let (xx, rest) = kz.split_at_mut(pw);
                 let (yy, xy) = rest.split_at_mut(pw);
@@ -295,7 +290,8 @@ impl LinearSystem {
                     yy[c] = (z[i - pw] - 2.0 * z[i] + z[i + pw]) as f32;
                     xy[c] = (z[i + pw + 1] - z[i - pw + 1] - z[i + pw - 1] + z[i - pw - 1]) as f32;
                 }
-            });
+            },
+        );
         let geometry = level.geometry;
         let h = geometry.spacing;
         let ok = self
@@ -419,27 +415,18 @@ impl LinearSystem {
             dz: &self.dz_padded,
         };
         let simd = Simd::detect();
-        self.smooth
-            .par_chunks_mut(SMOOTH_PLANES * pw)
-            .skip(HALO)
-            .take(self.height)
-            .with_min_len(min_rows)
-            .enumerate()
-            .for_each(|(r, block)| {
+        image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows).for_each(
+            |(r, block)| {
                 simd.run(|| weight_row(&inputs, r, block));
-            });
+            },
+        );
         let smooth = &self.smooth;
         let data_forward = &self.data_forward;
         let data_diagonal = &self.data_diagonal;
         let data_rhs = &self.data_rhs;
         let domain = level.domain.as_slice();
-        self.coefficients
-            .par_chunks_mut(PLANES * pw)
-            .skip(HALO)
-            .take(self.height)
-            .with_min_len(min_rows)
-            .enumerate()
-            .for_each(|(r, block)| {
+        image_row_blocks(&mut self.coefficients, PLANES * pw, self.height, min_rows).for_each(
+            |(r, block)| {
                 let inputs = RowInputs {
                     row: r,
                     padded_width: pw,
@@ -451,7 +438,8 @@ impl LinearSystem {
                     smooth,
                 };
                 simd.run(|| assemble_row(&inputs, block));
-            });
+            },
+        );
     }
 }
 
@@ -663,6 +651,23 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
     fill!(f5, 5, |c| pm[c]);
     fill!(f6, 6, |c| down[c] - mm[c] - pm[c]);
     fill!(f7, 7, |c| mm[c]);
+}
+
+/// The blocks of image rows `0..height` of a buffer laid out as padded row
+/// blocks of `block_len` values (the halo rows skipped), with their image row
+/// index, in parallel tasks of at least `min_rows` rows.
+fn image_row_blocks<T: Send>(
+    buffer: &mut [T],
+    block_len: usize,
+    height: usize,
+    min_rows: usize,
+) -> impl IndexedParallelIterator<Item = (usize, &mut [T])> {
+    buffer
+        .par_chunks_mut(block_len)
+        .skip(HALO)
+        .take(height)
+        .with_min_len(min_rows)
+        .enumerate()
 }
 
 /// Rows per rayon task so that small levels run as one task.
