@@ -132,6 +132,11 @@ pub struct Solution {
     pub initial_depth: f64,
     /// Wall time.
     pub seconds: f64,
+    /// Outer iterations (linearised), gradient steps (explicit) or 1 (fast
+    /// marching).
+    pub iterations: usize,
+    /// True when a time or iteration budget stopped the scheme early.
+    pub budget_exhausted: bool,
 }
 
 fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
@@ -158,7 +163,7 @@ impl SolveObserver for () {}
 
 impl Problem {
     /// Checks sizes and values; returns the effective domain and confidence.
-    fn validate(&self, params: &SolverParams) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+    pub(crate) fn validate(&self, params: &SolverParams) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
         let (w, h) = self.image.size();
         let bad = |m: String| Err(SolveError::Input(m));
         if w < MIN_IMAGE_SIDE || h < MIN_IMAGE_SIDE {
@@ -311,13 +316,25 @@ pub fn solve_with_model<M: Reflectance>(
     rayon::scope(|_| solve_on_worker(problem, params, model, observer))
 }
 
-fn solve_on_worker<M: Reflectance>(
-    problem: &Problem,
-    params: &SolverParams,
-    model: &M,
-    observer: &mut dyn SolveObserver,
-) -> Result<Solution, SolveError> {
-    let start = Instant::now();
+/// A validated problem ready for a coarse-to-fine scheme: its pyramid
+/// (coarsest first), the initial depth on the coarsest level and the
+/// smoothness weights in pixel units. Shared by every variational scheme so
+/// that they minimise the same discrete energy on the same levels.
+pub(crate) struct Prepared {
+    /// Levels, coarsest first; the last one is the full image.
+    pub levels: Vec<PyramidLevel>,
+    /// Initial depth on the coarsest level.
+    pub depth: Grid<f64>,
+    /// The constant initial depth (or the warm start's mean).
+    pub initial_depth: f64,
+    /// `alpha` in pixel units.
+    pub alpha: f64,
+    /// `lambda` in pixel units.
+    pub lambda: f64,
+}
+
+/// Validates `problem` and `params` and builds the pyramid and initial depth.
+pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepared, SolveError> {
     params.validate()?;
     let (domain, confidence) = problem.validate(params)?;
     let (w, h) = problem.image.size();
@@ -353,10 +370,9 @@ fn solve_on_worker<M: Reflectance>(
         levels.push(next);
     }
     levels.reverse(); // coarsest first
-    let level_count = levels.len();
 
     let coarsest = &levels[0];
-    let (mut depth, initial_depth) = match &params.initial_depth {
+    let (depth, initial_depth) = match &params.initial_depth {
         InitialDepth::FromImage => {
             let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
             (
@@ -370,6 +386,32 @@ fn solve_on_worker<M: Reflectance>(
         ),
         InitialDepth::Map(map) => fill_warm_start(map),
     };
+    Ok(Prepared {
+        levels,
+        depth,
+        initial_depth,
+        alpha,
+        lambda,
+    })
+}
+
+fn solve_on_worker<M: Reflectance>(
+    problem: &Problem,
+    params: &SolverParams,
+    model: &M,
+    observer: &mut dyn SolveObserver,
+) -> Result<Solution, SolveError> {
+    let start = Instant::now();
+    let Prepared {
+        levels,
+        mut depth,
+        initial_depth,
+        alpha,
+        lambda,
+    } = prepare(problem, params)?;
+    let (w, h) = problem.image.size();
+    let level_count = levels.len();
+    let coarsest = &levels[0];
     let initial_energy = level_energy(model, coarsest, &depth, alpha, lambda);
     let z_floor = 1e-6 * initial_depth.abs().max(1e-9);
 
@@ -493,6 +535,7 @@ fn solve_on_worker<M: Reflectance>(
             0.0
         }
     });
+    let iterations = reports.iter().map(|l| l.energies.len()).sum();
     Ok(Solution {
         depth: masked(&depth, &object),
         reprojection,
@@ -502,6 +545,8 @@ fn solve_on_worker<M: Reflectance>(
         phases,
         initial_depth,
         seconds: start.elapsed().as_secs_f64(),
+        iterations,
+        budget_exhausted: false,
     })
 }
 
@@ -553,7 +598,7 @@ fn apply_update(
 }
 
 /// Energy of a level.
-fn level_energy<M: Reflectance>(
+pub(crate) fn level_energy<M: Reflectance>(
     model: &M,
     level: &PyramidLevel,
     depth: &Grid<f64>,
@@ -573,7 +618,7 @@ fn level_energy<M: Reflectance>(
 }
 
 /// The depth with NaN outside `domain`.
-fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
+pub(crate) fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
     Grid::from_fn(depth.width(), depth.height(), |c, r| {
         if *domain.at(c, r) {
             *depth.at(c, r)

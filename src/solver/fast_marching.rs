@@ -1,0 +1,562 @@
+//! Baseline: fast marching for perspective shape from shading with a point
+//! light at the optical centre and 1/r^2 fall-off (the Lambertian model of
+//! Prados and Faugeras, solved by fast marching as Vogel et al. do).
+//!
+//! ## Formulation
+//!
+//! References: E. Prados, O. Faugeras, "Shape from shading: a well-posed
+//! problem?", CVPR 2005 (the model and its Hamilton-Jacobi equation);
+//! O. Vogel, M. Breuss, J. Weickert, "Perspective shape from shading with
+//! non-Lambertian reflectance", DAGM 2008, and O. Vogel, M. Breuss,
+//! T. Leichtweis, J. Weickert, "Fast shape from shading for Phong-type
+//! surfaces", SSVM 2009 (upwind discretisation and fast marching); J. A.
+//! Sethian, "Level set methods and fast marching methods", 1999.
+//!
+//! With the conventions of METHOD.md, `I = s Q^3 / (z W)`,
+//! `W = sqrt(f^2 |grad z|^2 + (grad z . x + z)^2)`. Prados and Faugeras
+//! parametrise the surface by its distance from the light along each ray,
+//! `r = z / Q`, and write `r = e^v`. With `grad ln z = grad v - x / (|x|^2 +
+//! f^2)` the cross terms cancel and the model becomes the Hamilton-Jacobi
+//! equation
+//!
+//! ```text
+//! H(x, v, p) = I(x) e^{2v} sqrt(f^2 |p|^2 + (p . x)^2 + Q(x)^2) - s Q(x) = 0,  p = grad v.
+//! ```
+//!
+//! The square root is smallest, `Q`, at `p = 0`, where the surface faces the
+//! light, so every solution satisfies `v <= v_f = ln sqrt(s / I)` (the
+//! distance at which a light-facing patch has brightness `I`), with equality
+//! at the singular points (local minima of the distance). Parametrised by
+//! `ln z` instead, the root gains a term linear in `p`, the equation becomes
+//! strongly anisotropic and fast marching's neighbour ordering no longer
+//! follows its characteristics (a tilted plane came out 1% wrong at any
+//! resolution). The depth is `z = Q e^v`.
+//!
+//! ## Discretisation and ordering
+//!
+//! `p` is replaced by the upwind differences of the paper (Eqs. 9-11) taken
+//! towards the smaller neighbour along each axis, as in fast marching for the
+//! eikonal equation: a pixel's value depends only on neighbours with smaller
+//! values. Fast marching then accepts pixels in increasing order of `v` from
+//! a binary heap. Every object pixel starts as a trial pixel with its
+//! frontal value `v_f` (the state constraint above); so the singular points,
+//! whose frontal value no propagated value undercuts, are accepted first
+//! and the front marches outwards from them. When a pixel is accepted, each
+//! not yet accepted object neighbour gets the local solution of the
+//! discrete equation from its accepted neighbours (one axis with the
+//! smaller neighbour first; both axes if the one-axis value exceeds the other
+//! neighbour), found by safeguarded regula falsi (Illinois) on a bracket
+//! above the neighbours; where even a zero slope predicts a darker pixel
+//! than observed, the neighbour's value is kept.
+//!
+//! It relies entirely on the data: noise creates false brightest points
+//! (trial values that are accepted too early) and kinks propagate along the
+//! characteristics; it has no confidence mechanism (`c` is ignored) and no
+//! smoothness. Only object pixels are solved.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+use std::time::Instant;
+
+use crate::grid::Grid;
+use crate::model::{self, Lambertian, LevelGeometry};
+use crate::params::{DomainMode, SolverParams};
+
+use super::driver::{
+    IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
+    SolveObserver,
+};
+
+/// Settings of the fast marching baseline.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FastMarchingParams {
+    /// Image values below this fraction of the brightest object pixel are
+    /// raised to it (a black pixel has no finite solution); default 1e-3.
+    pub min_relative_intensity: f64,
+}
+
+impl Default for FastMarchingParams {
+    fn default() -> Self {
+        Self {
+            min_relative_intensity: 1e-3,
+        }
+    }
+}
+
+/// A heap entry: smallest `v` first.
+#[derive(Clone, Copy, PartialEq)]
+struct Trial {
+    value: f64,
+    index: usize,
+}
+
+impl Eq for Trial {}
+
+impl Ord for Trial {
+    fn cmp(&self, other: &Self) -> Ordering {
+        other
+            .value
+            .total_cmp(&self.value)
+            .then_with(|| other.index.cmp(&self.index))
+    }
+}
+
+impl PartialOrd for Trial {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// The data of one pixel's local equation.
+#[derive(Clone, Copy)]
+struct Pixel {
+    /// Image-plane coordinates, pixels.
+    x: f64,
+    y: f64,
+    /// `I` (clamped from below).
+    intensity: f64,
+    /// `Q^2`.
+    q2: f64,
+    /// `s Q`.
+    target: f64,
+}
+
+/// One upwind axis of a local update: the smaller accepted neighbour's value
+/// and the sign of the difference (`+1`: the neighbour is at `x - h`).
+#[derive(Clone, Copy)]
+struct Axis {
+    value: f64,
+    sign: f64,
+}
+
+/// `F(v) = I e^{2v} sqrt(f^2 (a^2 + b^2) + (a x + b y)^2 + Q^2) - s Q`.
+fn residual(p: &Pixel, f2: f64, v: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
+    let a = ax.map_or(0.0, |n| n.sign * (v - n.value));
+    let b = ay.map_or(0.0, |n| n.sign * (v - n.value));
+    let t = a * p.x + b * p.y;
+    p.intensity * (2.0 * v).exp() * (f2 * (a * a + b * b) + t * t + p.q2).sqrt() - p.target
+}
+
+/// The value `v >= lower` where the square root of `F` is smallest (the
+/// slope that faces the light most), from the quadratic `g(v)` under it.
+fn facing_value(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
+    // a = sa v + ba, b = sb v + bb.
+    let (sa, ba) = ax.map_or((0.0, 0.0), |n| (n.sign, -n.sign * n.value));
+    let (sb, bb) = ay.map_or((0.0, 0.0), |n| (n.sign, -n.sign * n.value));
+    let lin = sa * p.x + sb * p.y;
+    let off = ba * p.x + bb * p.y;
+    let quad = f2 * (sa * sa + sb * sb) + lin * lin;
+    let slope = 2.0 * f2 * (sa * ba + sb * bb) + 2.0 * lin * off;
+    if quad > 0.0 {
+        (-slope / (2.0 * quad)).max(lower)
+    } else {
+        lower
+    }
+}
+
+/// The root of the local equation `F(v) = 0` above the neighbours (`v >=
+/// lower`) where `F` crosses zero upwards.
+///
+/// The perspective term makes `F` dip below its value at `lower` before it
+/// grows (the slope first turns the surface towards the light), so there can
+/// be two roots: the larger one, past the dip, is taken, where `F` grows
+/// with `v` as a monotone scheme needs; it is the one that reproduces the
+/// surface near the singular points. Without any root (the pixel is brighter
+/// than any slope explains) the most light-facing value is returned.
+fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
+    let f = |v: f64| residual(p, f2, v, ax, ay);
+    let facing = facing_value(p, f2, lower, ax, ay);
+    let f_facing = f(facing);
+    let (mut a, mut fa) = if f_facing < 0.0 {
+        (facing, f_facing)
+    } else {
+        let f_lower = f(lower);
+        if f_lower < 0.0 {
+            (lower, f_lower)
+        } else {
+            return facing;
+        }
+    };
+    let lower = a;
+    // Bracket: F grows without bound as v grows.
+    let mut step = 1e-3;
+    let (mut b, mut fb) = (lower + step, f(lower + step));
+    let mut doublings = 0;
+    while fb < 0.0 && doublings < 80 {
+        a = b;
+        fa = fb;
+        step *= 2.0;
+        b = lower + step;
+        fb = f(b);
+        doublings += 1;
+    }
+    if fb < 0.0 || !fb.is_finite() {
+        return b;
+    }
+    // Illinois regula falsi on [a, b] with F(a) < 0 < F(b).
+    for _ in 0..100 {
+        let c = b - fb * (b - a) / (fb - fa);
+        let c = if c.is_finite() && c > a.min(b) && c < a.max(b) {
+            c
+        } else {
+            0.5 * (a + b)
+        };
+        let fc = f(c);
+        if fc == 0.0 || (b - a).abs() <= 1e-13 * (1.0 + c.abs()) {
+            return c;
+        }
+        if (fc > 0.0) == (fb > 0.0) {
+            fa *= 0.5;
+        } else {
+            a = b;
+            fa = fb;
+        }
+        b = c;
+        fb = fc;
+    }
+    b
+}
+
+/// Solves `problem` by fast marching on its object pixels. The confidence is
+/// ignored (the method has no use for it); `params` is used only to validate
+/// the problem.
+pub fn solve_fast_marching(
+    problem: &Problem,
+    settings: &FastMarchingParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<Solution, SolveError> {
+    let start = Instant::now();
+    if !(settings.min_relative_intensity > 0.0 && settings.min_relative_intensity < 1.0) {
+        return Err(SolveError::Input(
+            "fast marching: min_relative_intensity must lie in (0, 1)".into(),
+        ));
+    }
+    let validation = SolverParams {
+        domain: DomainMode::Object,
+        ..SolverParams::default()
+    };
+    let (domain, _) = problem.validate(&validation)?;
+    let (w, h) = problem.image.size();
+    let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
+    let f2 = problem.camera.focal_px * problem.camera.focal_px;
+    let s = problem.intensity_scale;
+    let brightest = (0..w * h)
+        .filter(|&q| domain.as_slice()[q])
+        .map(|q| problem.image.as_slice()[q])
+        .fold(0.0, f64::max);
+    let floor = settings.min_relative_intensity * brightest;
+    let pixels: Vec<Pixel> = (0..w * h)
+        .map(|q| {
+            let ray = geometry.ray(q % w, q / w);
+            let qv = ray.q();
+            Pixel {
+                x: ray.x_px,
+                y: ray.y_px,
+                intensity: problem.image.as_slice()[q].max(floor),
+                q2: qv * qv,
+                target: s * qv,
+            }
+        })
+        .collect();
+
+    let mut value = vec![f64::INFINITY; w * h];
+    let mut accepted = vec![false; w * h];
+    let mut heap = BinaryHeap::with_capacity(w * h);
+    for q in 0..w * h {
+        if domain.as_slice()[q] {
+            let p = &pixels[q];
+            // Frontal value: a light-facing patch at distance e^v has I = s e^{-2v}.
+            let frontal = 0.5 * (s / p.intensity).ln();
+            value[q] = frontal;
+            heap.push(Trial {
+                value: frontal,
+                index: q,
+            });
+        }
+    }
+    let axis = |value: &[f64], accepted: &[bool], minus: Option<usize>, plus: Option<usize>| {
+        let m = minus.filter(|&n| accepted[n]).map(|n| value[n]);
+        let p = plus.filter(|&n| accepted[n]).map(|n| value[n]);
+        match (m, p) {
+            (Some(a), Some(b)) if b < a => Some(Axis { value: b, sign: -1.0 }),
+            (Some(a), _) => Some(Axis { value: a, sign: 1.0 }),
+            (None, Some(b)) => Some(Axis { value: b, sign: -1.0 }),
+            (None, None) => None,
+        }
+    };
+    let mut done = 0usize;
+    while let Some(Trial { value: v, index }) = heap.pop() {
+        if accepted[index] || v > value[index] {
+            continue;
+        }
+        accepted[index] = true;
+        done += 1;
+        if done % 4096 == 0 && observer.is_cancelled() {
+            return Err(SolveError::Cancelled);
+        }
+        let (c, r) = (index % w, index / w);
+        let mut neighbours = [None; 4];
+        if c > 0 {
+            neighbours[0] = Some(index - 1);
+        }
+        if c + 1 < w {
+            neighbours[1] = Some(index + 1);
+        }
+        if r > 0 {
+            neighbours[2] = Some(index - w);
+        }
+        if r + 1 < h {
+            neighbours[3] = Some(index + w);
+        }
+        for q in neighbours.into_iter().flatten() {
+            if accepted[q] || !domain.as_slice()[q] {
+                continue;
+            }
+            let (qc, qr) = (q % w, q / w);
+            let inside = |n: usize| domain.as_slice()[n];
+            let left = (qc > 0).then(|| q - 1).filter(|&n| inside(n));
+            let right = (qc + 1 < w).then(|| q + 1).filter(|&n| inside(n));
+            let up = (qr > 0).then(|| q - w).filter(|&n| inside(n));
+            let down = (qr + 1 < h).then(|| q + w).filter(|&n| inside(n));
+            let ax = axis(&value, &accepted, left, right);
+            let ay = axis(&value, &accepted, up, down);
+            let p = &pixels[q];
+            let candidate = match (ax, ay) {
+                (Some(x), Some(y)) => {
+                    let (first, second, first_is_x) = if x.value <= y.value {
+                        (x, y, true)
+                    } else {
+                        (y, x, false)
+                    };
+                    let one = if first_is_x {
+                        local_root(p, f2, first.value, Some(first), None)
+                    } else {
+                        local_root(p, f2, first.value, None, Some(first))
+                    };
+                    if one <= second.value {
+                        one
+                    } else {
+                        local_root(p, f2, second.value, Some(x), Some(y))
+                    }
+                }
+                (Some(x), None) => local_root(p, f2, x.value, Some(x), None),
+                (None, Some(y)) => local_root(p, f2, y.value, None, Some(y)),
+                (None, None) => continue,
+            };
+            if candidate.is_finite() && candidate < value[q] {
+                value[q] = candidate;
+                heap.push(Trial {
+                    value: candidate,
+                    index: q,
+                });
+            }
+        }
+    }
+
+    let reached: Vec<f64> = (0..w * h)
+        .filter(|&q| domain.as_slice()[q] && value[q].is_finite())
+        .map(|q| pixels[q].q2.sqrt() * value[q].exp())
+        .collect();
+    let mean = reached.iter().sum::<f64>() / reached.len().max(1) as f64;
+    let solved = Grid::from_fn(w, h, |c, r| {
+        let q = r * w + c;
+        if !domain.as_slice()[q] {
+            mean
+        } else if value[q].is_finite() {
+            pixels[q].q2.sqrt() * value[q].exp()
+        } else {
+            mean
+        }
+    });
+    let model = Lambertian {
+        intensity_scale: s,
+    };
+    let reprojection = model::reproject(&model, &geometry, &domain, &solved);
+    let ones = Grid::filled(w, h, 1.0);
+    let energy = model::energy(
+        &model,
+        &geometry,
+        &problem.image,
+        problem.confidence.as_ref().unwrap_or(&ones),
+        &domain,
+        &solved,
+        0.0,
+        1e-3,
+    );
+    let depth = Grid::from_fn(w, h, |c, r| {
+        if *domain.at(c, r) {
+            *solved.at(c, r)
+        } else {
+            f64::NAN
+        }
+    });
+    let elapsed = start.elapsed();
+    observer.on_iteration(&IterationReport {
+        level: 0,
+        levels: 1,
+        width: w,
+        height: h,
+        iteration: 0,
+        energy,
+        max_step: 0.0,
+        elapsed,
+    });
+    observer.on_level(&LevelResult {
+        level: 0,
+        levels: 1,
+        depth: depth.clone(),
+        reprojection: reprojection.clone(),
+        energy,
+        elapsed,
+    });
+    Ok(Solution {
+        depth,
+        reprojection,
+        initial_energy: energy,
+        final_energy: energy,
+        levels: vec![LevelReport {
+            width: w,
+            height: h,
+            energies: vec![energy.total],
+            seconds: elapsed.as_secs_f64(),
+        }],
+        phases: PhaseTimes::default(),
+        initial_depth: mean,
+        seconds: start.elapsed().as_secs_f64(),
+        iterations: 1,
+        budget_exhausted: false,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::Intrinsics;
+
+    /// An exact image of the surface `depth` (NaN off the object) with unit
+    /// normals `normal(P)` facing the camera: `I = s (N . L) / |P|^2`.
+    fn render(
+        w: usize,
+        h: usize,
+        camera: Intrinsics,
+        depth: impl Fn(f64, f64) -> Option<f64>,
+        normal: impl Fn([f64; 3]) -> [f64; 3],
+    ) -> (Problem, Grid<f64>) {
+        let mut image = Grid::filled(w, h, 0.0);
+        let mut truth = Grid::filled(w, h, f64::NAN);
+        let mut mask = Grid::filled(w, h, false);
+        for r in 0..h {
+            for c in 0..w {
+                let (x, y) = camera.image_xy(c as f64, r as f64);
+                if let Some(z) = depth(x, y) {
+                    let p = camera.back_project(x, y, z);
+                    let n = normal(p);
+                    let d2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+                    let l = p.map(|v| -v / d2.sqrt());
+                    let cos = n[0] * l[0] + n[1] * l[1] + n[2] * l[2];
+                    *image.at_mut(c, r) = cos.max(0.0) / d2;
+                    *truth.at_mut(c, r) = z;
+                    *mask.at_mut(c, r) = true;
+                }
+            }
+        }
+        let problem = Problem {
+            image,
+            camera,
+            intensity_scale: 1.0,
+            object_mask: Some(mask),
+            confidence: None,
+        };
+        (problem, truth)
+    }
+
+    fn rse(problem: &Problem, truth: &Grid<f64>) -> f64 {
+        let solution = solve_fast_marching(problem, &FastMarchingParams::default(), &mut ())
+            .expect("fast marching solves an exact image");
+        assert!(
+            solution
+                .depth
+                .as_slice()
+                .iter()
+                .zip(truth.as_slice())
+                .all(|(z, t)| t.is_nan() || z.is_finite()),
+            "every object pixel gets a finite depth"
+        );
+        crate::metrics::rse(&solution.depth, truth).expect("sizes match")
+    }
+
+    #[test]
+    fn recovers_a_tilted_plane() {
+        // Plane n . P = d, its foot point (singular) inside the image.
+        let (w, h) = (128, 96);
+        let camera = Intrinsics::centred(120.0, w, h);
+        let n = {
+            let v = [0.15, -0.1, -1.0];
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) as f64;
+            v.map(|x: f64| x / len.sqrt())
+        };
+        let d = -1.5; // n . P = d with n_z < 0: the plane faces the camera
+        let f = camera.focal_px;
+        let (problem, truth) = render(
+            w,
+            h,
+            camera,
+            |x, y| Some(d / (n[0] * x / f + n[1] * y / f + n[2])),
+            |_| n,
+        );
+        let error = rse(&problem, &truth);
+        eprintln!("plane RSE {error}");
+        assert!(error < 2e-3, "plane RSE {error}");
+    }
+
+    /// RSE of fast marching on a sphere cap seen at `n` x `n` pixels (90
+    /// degrees field of view).
+    fn sphere_cap_rse(n: usize) -> f64 {
+        let camera = Intrinsics::centred(n as f64, n, n);
+        let (centre_z, radius) = (3.0, 1.0);
+        let f = camera.focal_px;
+        let hit = move |x: f64, y: f64| {
+            // Ray direction u = (x, y, f)/|.|; nearest intersection with the sphere.
+            let len = (x * x + y * y + f * f).sqrt();
+            let uz = f / len;
+            let b = uz * centre_z;
+            let disc = b * b - centre_z * centre_z + radius * radius;
+            // Keep a margin from the silhouette, where the cap turns away.
+            (disc > 0.2 * radius * radius).then(|| (b - disc.sqrt()) * uz)
+        };
+        let (problem, truth) = render(n, n, camera, hit, |p| {
+            [p[0] / radius, p[1] / radius, (p[2] - centre_z) / radius]
+        });
+        rse(&problem, &truth)
+    }
+
+    #[test]
+    fn recovers_a_sphere_cap_to_first_order() {
+        // Upwind differences are first order: the error of the curved cap
+        // halves with the pixel size.
+        let (coarse, fine) = (sphere_cap_rse(64), sphere_cap_rse(128));
+        eprintln!("sphere cap RSE {coarse} at 64 px, {fine} at 128 px");
+        assert!(fine < 4e-3, "sphere cap RSE {fine} at 128 px");
+        assert!(fine < 0.6 * coarse, "RSE {coarse} at 64 px, {fine} at 128 px");
+    }
+
+    #[test]
+    fn noise_makes_false_singular_points() {
+        // The method's known weakness: on a noisy plane the error grows by
+        // orders of magnitude.
+        let (w, h) = (64, 48);
+        let camera = Intrinsics::centred(60.0, w, h);
+        let f = camera.focal_px;
+        let (clean, truth) = render(w, h, camera, |x, _| Some(1.5 / (1.0 - 0.1 * x / f)), |_| {
+            let len = (1.0f64 + 0.01).sqrt();
+            [0.1 / len, 0.0, -1.0 / len]
+        });
+        let noisy = Problem {
+            image: crate::scene::add_noise(&clean.image, 20.0, 3),
+            ..clean.clone()
+        };
+        let (a, b) = (rse(&clean, &truth), rse(&noisy, &truth));
+        eprintln!("noisy plane RSE {b}, clean {a}");
+        assert!(b > 5.0 * a, "clean {a} noisy {b}");
+    }
+}
