@@ -14,6 +14,7 @@
 pub mod app;
 pub mod camera;
 pub mod cli;
+pub mod colour;
 pub mod filters;
 pub mod grid;
 pub mod io;
