@@ -21,8 +21,7 @@ pub fn estimate_noise_sigma(image: &Grid<f64>) -> f64 {
     let mut sum = 0.0;
     for r in 1..h - 1 {
         for c in 1..w - 1 {
-            let v = z(c - 1, r - 1) - 2.0 * z(c, r - 1) + z(c + 1, r - 1)
-                - 2.0 * z(c - 1, r)
+            let v = z(c - 1, r - 1) - 2.0 * z(c, r - 1) + z(c + 1, r - 1) - 2.0 * z(c - 1, r)
                 + 4.0 * z(c, r)
                 - 2.0 * z(c + 1, r)
                 + z(c - 1, r + 1)
@@ -56,8 +55,16 @@ pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64
         for r in 0..h {
             for c in 0..w {
                 let q = r * w + c;
-                let gx = if c + 1 < w { u_bar[q + 1] - u_bar[q] } else { 0.0 };
-                let gy = if r + 1 < h { u_bar[q + w] - u_bar[q] } else { 0.0 };
+                let gx = if c + 1 < w {
+                    u_bar[q + 1] - u_bar[q]
+                } else {
+                    0.0
+                };
+                let gy = if r + 1 < h {
+                    u_bar[q + w] - u_bar[q]
+                } else {
+                    0.0
+                };
                 let (nx, ny) = (px[q] + sigma * gx, py[q] + sigma * gy);
                 let scale = ((nx * nx + ny * ny).sqrt() / weight).max(1.0);
                 px[q] = nx / scale;
@@ -138,7 +145,13 @@ pub fn smooth_depth(
     }
     // Keep the "image" below 1 so that it is not mistaken for saturation.
     let scale = 2.0 * largest;
-    let image = depth.map(|&z| if z.is_finite() && z > 0.0 { z / scale } else { 0.0 });
+    let image = depth.map(|&z| {
+        if z.is_finite() && z > 0.0 {
+            z / scale
+        } else {
+            0.0
+        }
+    });
     let problem = Problem {
         image,
         camera,
@@ -155,12 +168,7 @@ pub fn smooth_depth(
         kappa: params.kappa.max(10),
         ..params.clone()
     };
-    let solution = solve_with_model(
-        &problem,
-        &smoothing,
-        &DepthFidelity { scale },
-        &mut (),
-    )?;
+    let solution = solve_with_model(&problem, &smoothing, &DepthFidelity { scale }, &mut ())?;
     Ok(Grid::from_fn(w, h, |c, r| {
         if *object.at(c, r) {
             *solution.depth.at(c, r)

@@ -163,7 +163,10 @@ impl SolveObserver for () {}
 
 impl Problem {
     /// Checks sizes and values; returns the effective domain and confidence.
-    pub(crate) fn validate(&self, params: &SolverParams) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+    pub(crate) fn validate(
+        &self,
+        params: &SolverParams,
+    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
         let (w, h) = self.image.size();
         let bad = |m: String| Err(SolveError::Input(m));
         if w < MIN_IMAGE_SIDE || h < MIN_IMAGE_SIDE {

@@ -32,7 +32,8 @@
 //! ## Stopping
 //!
 //! A level ends when the energy's relative decrease between two checks falls
-//! below [`ExplicitParams::tolerance`], or after
+//! below [`ExplicitParams::tolerance`] ([`ExplicitParams::finest_tolerance`]
+//! on the finest level), or after
 //! [`ExplicitParams::level_iterations`] steps on a coarse level. The whole
 //! solve stops when its time or iteration budget is spent: the current depth
 //! is then carried to full resolution and returned with
@@ -48,14 +49,12 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::grid::Grid;
-use crate::model::{
-    self, Energy, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot,
-};
+use crate::model::{self, Energy, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
 
 use super::driver::{
-    IterationReport, LevelReport, LevelResult, PhaseTimes, Prepared, Problem, Solution,
-    SolveError, SolveObserver, level_energy, masked, prepare,
+    IterationReport, LevelReport, LevelResult, PhaseTimes, Prepared, Problem, Solution, SolveError,
+    SolveObserver, level_energy, masked, prepare,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -69,9 +68,12 @@ pub struct ExplicitParams {
     pub max_iterations: Option<usize>,
     /// Most steps on each coarse level; default 5000.
     pub level_iterations: usize,
-    /// A level ends when the energy falls by less than this fraction between
-    /// two checks; default 1e-6.
+    /// A coarse level ends when the energy falls by less than this fraction
+    /// between two checks; default 1e-6.
     pub tolerance: f64,
+    /// The same for the finest level (0: run until the budget is spent);
+    /// default 1e-6.
+    pub finest_tolerance: f64,
     /// Steps between energy checks and progress reports; default 100.
     pub check_interval: usize,
     /// Seconds between snapshots of the finest level (`None`: only its end).
@@ -85,6 +87,7 @@ impl Default for ExplicitParams {
             max_iterations: None,
             level_iterations: 5000,
             tolerance: 1e-6,
+            finest_tolerance: 1e-6,
             check_interval: 100,
             snapshot_seconds: None,
         }
@@ -105,7 +108,11 @@ impl ExplicitParams {
         if self.level_iterations == 0 || self.check_interval == 0 {
             return bad("explicit level iterations and check interval must be > 0");
         }
-        if !(self.tolerance.is_finite() && self.tolerance >= 0.0) {
+        if !(self.tolerance.is_finite()
+            && self.tolerance >= 0.0
+            && self.finest_tolerance.is_finite()
+            && self.finest_tolerance >= 0.0)
+        {
             return bad("explicit tolerance must be finite and >= 0");
         }
         if let Some(s) = self.snapshot_seconds
@@ -344,8 +351,7 @@ fn components(
         && inside(c - 1, r + 1)
         && inside(c + 1, r + 1))
     .then(|| {
-        (z(c + 1, r + 1) - z(c + 1, r - 1) - z(c - 1, r + 1) + z(c - 1, r - 1))
-            / (4.0 * h.x * h.y)
+        (z(c + 1, r + 1) - z(c + 1, r - 1) - z(c - 1, r + 1) + z(c - 1, r - 1)) / (4.0 * h.x * h.y)
     });
     (xx, xy, yy)
 }
@@ -457,7 +463,7 @@ fn run<M: Reflectance>(
             }
             // Data half-step (its linearisation also refreshes the bound).
             linearise_data(model, level, &depth, &mut ws);
-            if steps % explicit.check_interval == 0 {
+            if steps.is_multiple_of(explicit.check_interval) {
                 let bound = data_lipschitz(w, h, &level.confidence, &ws).max(smooth_bound);
                 tau = if bound > 0.0 && bound.is_finite() {
                     shrink / bound
@@ -472,15 +478,14 @@ fn run<M: Reflectance>(
             descend(&mut depth, &level.domain, &ws.gradient, tau, z_floor);
             steps += 1;
             total_steps += 1;
-            if steps % explicit.check_interval != 0 {
+            if !steps.is_multiple_of(explicit.check_interval) {
                 continue;
             }
             let trial = level_energy(model, level, &depth, alpha, lambda);
-            if !(trial.total <= energy.total) {
+            let improved = trial.total <= energy.total; // false for NaN too
+            if !improved {
                 // Overshoot (or a non-finite energy): back to the last check.
-                depth
-                    .as_mut_slice()
-                    .copy_from_slice(checkpoint.as_slice());
+                depth.as_mut_slice().copy_from_slice(checkpoint.as_slice());
                 shrink *= 0.5;
                 if shrink < 1e-6 {
                     break;
@@ -505,10 +510,23 @@ fn run<M: Reflectance>(
                 && let Some(every) = explicit.snapshot_seconds
                 && last_snapshot.elapsed().as_secs_f64() >= every
             {
-                observer.on_level(&level_result(model, level, &depth, index, level_count, energy, start));
+                observer.on_level(&level_result(
+                    model,
+                    level,
+                    &depth,
+                    index,
+                    level_count,
+                    energy,
+                    start,
+                ));
                 last_snapshot = Instant::now();
             }
-            if decrease < explicit.tolerance {
+            let tolerance = if finest {
+                explicit.finest_tolerance
+            } else {
+                explicit.tolerance
+            };
+            if decrease < tolerance {
                 break;
             }
         }
@@ -528,8 +546,7 @@ fn run<M: Reflectance>(
             depth = pyramid::upsample_depth(&depth, &level.domain, &levels[last].domain);
             let fine = &levels[last];
             final_energy = level_energy(model, fine, &depth, alpha, lambda);
-            last_reprojection =
-                model::reproject(model, &fine.geometry, &fine.domain, &depth);
+            last_reprojection = model::reproject(model, &fine.geometry, &fine.domain, &depth);
             break;
         }
         index += 1;
@@ -653,11 +670,20 @@ mod tests {
         assert!(seen.0.len() > 20, "progress is streamed");
         for pair in seen.0.windows(2) {
             if pair[0].0 == pair[1].0 {
-                assert!(pair[1].1 <= pair[0].1, "energy rose within a level: {pair:?}");
+                assert!(
+                    pair[1].1 <= pair[0].1,
+                    "energy rose within a level: {pair:?}"
+                );
             }
         }
         assert!(solution.budget_exhausted && solution.iterations == 3000);
-        assert!(solution.depth.as_slice().iter().all(|z| z.is_finite() && *z > 0.0));
+        assert!(
+            solution
+                .depth
+                .as_slice()
+                .iter()
+                .all(|z| z.is_finite() && *z > 0.0)
+        );
         let constant = Grid::filled(48, 48, solution.initial_depth);
         let before = crate::metrics::rse(&constant, &scene.depth_gt).expect("sizes");
         let after = crate::metrics::rse(&solution.depth, &scene.depth_gt).expect("sizes");

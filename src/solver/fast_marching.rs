@@ -278,9 +278,18 @@ pub fn solve_fast_marching(
         let m = minus.filter(|&n| accepted[n]).map(|n| value[n]);
         let p = plus.filter(|&n| accepted[n]).map(|n| value[n]);
         match (m, p) {
-            (Some(a), Some(b)) if b < a => Some(Axis { value: b, sign: -1.0 }),
-            (Some(a), _) => Some(Axis { value: a, sign: 1.0 }),
-            (None, Some(b)) => Some(Axis { value: b, sign: -1.0 }),
+            (Some(a), Some(b)) if b < a => Some(Axis {
+                value: b,
+                sign: -1.0,
+            }),
+            (Some(a), _) => Some(Axis {
+                value: a,
+                sign: 1.0,
+            }),
+            (None, Some(b)) => Some(Axis {
+                value: b,
+                sign: -1.0,
+            }),
             (None, None) => None,
         }
     };
@@ -291,7 +300,7 @@ pub fn solve_fast_marching(
         }
         accepted[index] = true;
         done += 1;
-        if done % 4096 == 0 && observer.is_cancelled() {
+        if done.is_multiple_of(4096) && observer.is_cancelled() {
             return Err(SolveError::Cancelled);
         }
         let (c, r) = (index % w, index / w);
@@ -368,9 +377,7 @@ pub fn solve_fast_marching(
             mean
         }
     });
-    let model = Lambertian {
-        intensity_scale: s,
-    };
+    let model = Lambertian { intensity_scale: s };
     let reprojection = model::reproject(&model, &geometry, &domain, &solved);
     let ones = Grid::filled(w, h, 1.0);
     let energy = model::energy(
@@ -492,7 +499,7 @@ mod tests {
         let camera = Intrinsics::centred(120.0, w, h);
         let n = {
             let v = [0.15, -0.1, -1.0];
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) as f64;
+            let len: f64 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
             v.map(|x: f64| x / len.sqrt())
         };
         let d = -1.5; // n . P = d with n_z < 0: the plane faces the camera
@@ -537,7 +544,10 @@ mod tests {
         let (coarse, fine) = (sphere_cap_rse(64), sphere_cap_rse(128));
         eprintln!("sphere cap RSE {coarse} at 64 px, {fine} at 128 px");
         assert!(fine < 4e-3, "sphere cap RSE {fine} at 128 px");
-        assert!(fine < 0.6 * coarse, "RSE {coarse} at 64 px, {fine} at 128 px");
+        assert!(
+            fine < 0.6 * coarse,
+            "RSE {coarse} at 64 px, {fine} at 128 px"
+        );
     }
 
     #[test]
@@ -547,10 +557,16 @@ mod tests {
         let (w, h) = (64, 48);
         let camera = Intrinsics::centred(60.0, w, h);
         let f = camera.focal_px;
-        let (clean, truth) = render(w, h, camera, |x, _| Some(1.5 / (1.0 - 0.1 * x / f)), |_| {
-            let len = (1.0f64 + 0.01).sqrt();
-            [0.1 / len, 0.0, -1.0 / len]
-        });
+        let (clean, truth) = render(
+            w,
+            h,
+            camera,
+            |x, _| Some(1.5 / (1.0 - 0.1 * x / f)),
+            |_| {
+                let len = (1.0f64 + 0.01).sqrt();
+                [0.1 / len, 0.0, -1.0 / len]
+            },
+        );
         let noisy = Problem {
             image: crate::scene::add_noise(&clean.image, 20.0, 3),
             ..clean.clone()
