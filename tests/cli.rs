@@ -444,6 +444,16 @@ fn help_of_every_subcommand() {
             &["--size", "--noise", "--seed", "--inpaint-disc", "--out"][..],
         ),
         ("eval", &["--depth", "--gt"][..]),
+        (
+            "bench",
+            &[
+                "--meshes",
+                "--quick",
+                "--scenes",
+                "--explicit-seconds",
+                "--out",
+            ][..],
+        ),
     ] {
         let out = sfs([sub, "--help"]);
         assert_success(&out, &format!("{sub} --help"));
@@ -458,9 +468,87 @@ fn help_of_every_subcommand() {
     let out = sfs(["--help"]);
     assert_success(&out, "--help");
     let text = stdout(&out);
-    for sub in ["synth", "solve", "eval"] {
+    for sub in ["synth", "solve", "eval", "bench"] {
         assert!(text.contains(sub), "--help does not list {sub}:\n{text}");
     }
+}
+
+#[test]
+fn bench_quick_on_a_tiny_configuration_writes_a_report_that_parses() {
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("bench");
+    let run = sfs([
+        "bench",
+        "--quick",
+        "--scenes",
+        "sombrero",
+        "--explicit-seconds",
+        "0.5",
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "bench --quick");
+    let report = read_json(&out.join("report.json"));
+    let rows = report["rows"].as_array().expect("rows");
+    let methods: BTreeSet<&str> = rows
+        .iter()
+        .map(|r| r["method"].as_str().expect("method"))
+        .collect();
+    for method in [
+        "linearised",
+        "explicit",
+        "fast_marching",
+        "linearised+pre",
+        "linearised+post",
+        "fast_marching+pre",
+        "fast_marching+post",
+    ] {
+        assert!(methods.contains(method), "no row for {method}: {methods:?}");
+    }
+    for row in rows {
+        assert_eq!(row["scene"], "sombrero");
+        for key in ["noise", "rse", "rie", "seconds", "peak_mib"] {
+            let v = row[key].as_f64().unwrap_or(f64::NAN);
+            assert!(v.is_finite() && v >= 0.0, "{key} of {row}");
+        }
+        assert!(row.get("alpha").is_some(), "alpha in {row}");
+        // Every method recovers something better than garbage.
+        assert!(row["rse"].as_f64().unwrap_or(1.0) < 0.3, "{row}");
+    }
+    let noises: BTreeSet<u64> = rows
+        .iter()
+        .map(|r| r["noise"].as_f64().unwrap_or(-1.0) as u64)
+        .collect();
+    assert_eq!(noises, BTreeSet::from([0, 20]));
+    // The explicit budget was honoured and reported.
+    let explicit = rows
+        .iter()
+        .find(|r| r["method"] == "explicit")
+        .expect("explicit row");
+    assert_eq!(explicit["budget_exhausted"], true);
+    assert!(explicit["seconds"].as_f64().unwrap_or(0.0) < 5.0);
+    assert!(!report["speedups"].as_array().expect("speedups").is_empty());
+    assert!(report["machine"]["cores"].as_u64().unwrap_or(0) >= 1);
+    let md = fs::read_to_string(out.join("report.md")).expect("report.md");
+    for heading in ["Table 1", "Table 2", "Table 3", "Peak memory"] {
+        assert!(md.contains(heading), "report.md lacks {heading}");
+    }
+    let plot = image::open(out.join("rse_time_sombrero.png")).expect("RSE plot is a PNG");
+    assert!(plot.width() > 100 && plot.height() > 100);
+}
+
+#[test]
+fn bench_rejects_a_bad_budget_and_writes_nothing() {
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("bench");
+    let run = sfs(["bench", "--explicit-seconds", "0", "--out", &s(&out)]);
+    assert!(!run.status.success());
+    assert!(
+        stderr(&run).contains("--explicit-seconds"),
+        "{}",
+        stderr(&run)
+    );
+    assert!(!out.exists());
 }
 
 // ---------------------------------------------------------------------------

@@ -1,5 +1,5 @@
-//! The command line: `synth`, `solve`, `eval` and `view` (the viewer, which
-//! also opens when no subcommand is given), parsed with clap. Errors are `anyhow` chains that name the file or
+//! The command line: `synth`, `solve`, `eval`, `bench` and `view` (the
+//! viewer, which also opens when no subcommand is given), parsed with clap. Errors are `anyhow` chains that name the file or
 //! parameter at fault; nothing here panics on user input.
 
 use std::ffi::OsString;
@@ -8,12 +8,15 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
+mod bench;
 mod eval;
+mod figures;
 mod solve;
 mod synth;
 #[cfg(feature = "gui")]
 mod view;
 
+pub use bench::BenchArgs;
 pub use eval::EvalArgs;
 pub use solve::SolveArgs;
 pub use synth::SynthArgs;
@@ -44,6 +47,9 @@ pub enum Command {
     Solve(SolveArgs),
     /// Compare a depth map with a synthetic scene's ground truth (prints JSON).
     Eval(EvalArgs),
+    /// The paper's experiments side by side: every method on the test
+    /// scenes, clean and noisy; writes report.md, report.json and figures.
+    Bench(BenchArgs),
     /// Open the viewer on an image.
     #[cfg(feature = "gui")]
     View(ViewArgs),
@@ -70,6 +76,7 @@ pub fn run(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> Resul
         Some(Command::Synth(args)) => synth::run(&args),
         Some(Command::Solve(args)) => solve::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
+        Some(Command::Bench(args)) => bench::run(&args),
         #[cfg(feature = "gui")]
         Some(Command::View(args)) => view::run(&args),
         #[cfg(feature = "gui")]
