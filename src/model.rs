@@ -417,9 +417,41 @@ pub fn neighbourhood(
     }
 }
 
+/// The second derivatives `(z_xx, z_xy, z_yy)` at a pixel (central
+/// differences), each only where its stencil lies entirely in `domain`
+/// (natural boundary conditions); `None` where it does not.
+#[inline]
+pub fn second_derivatives(
+    depth: &Grid<f64>,
+    domain: &Grid<bool>,
+    column: usize,
+    row: usize,
+    h: Spacing,
+) -> (Option<f64>, Option<f64>, Option<f64>) {
+    let (w, hgt) = depth.size();
+    let (c, r) = (column, row);
+    let inside = |c: usize, r: usize| *domain.at(c, r);
+    let z = |c: usize, r: usize| *depth.at(c, r);
+    let xx = (c > 0 && c + 1 < w && inside(c - 1, r) && inside(c + 1, r))
+        .then(|| (z(c - 1, r) - 2.0 * z(c, r) + z(c + 1, r)) / (h.x * h.x));
+    let yy = (r > 0 && r + 1 < hgt && inside(c, r - 1) && inside(c, r + 1))
+        .then(|| (z(c, r - 1) - 2.0 * z(c, r) + z(c, r + 1)) / (h.y * h.y));
+    let xy = (c > 0
+        && c + 1 < w
+        && r > 0
+        && r + 1 < hgt
+        && inside(c - 1, r - 1)
+        && inside(c + 1, r - 1)
+        && inside(c - 1, r + 1)
+        && inside(c + 1, r + 1))
+    .then(|| {
+        (z(c + 1, r + 1) - z(c + 1, r - 1) - z(c - 1, r + 1) + z(c - 1, r - 1)) / (4.0 * h.x * h.y)
+    });
+    (xx, xy, yy)
+}
+
 /// Squared second-order smoothness `S^2 = z_xx^2 + 2 z_xy^2 + z_yy^2` at a
-/// pixel (central differences), using only the components whose stencil lies
-/// entirely in `domain` (natural boundary conditions).
+/// pixel, from the components of [`second_derivatives`] that exist.
 pub fn smoothness_squared(
     depth: &Grid<f64>,
     domain: &Grid<bool>,
@@ -427,35 +459,9 @@ pub fn smoothness_squared(
     row: usize,
     h: Spacing,
 ) -> f64 {
-    let (w, hgt) = depth.size();
-    let (c, r) = (column, row);
-    let inside = |c: usize, r: usize| *domain.at(c, r);
-    let z = |c: usize, r: usize| *depth.at(c, r);
-    let mut s2 = 0.0;
-    let has_x = c > 0 && c + 1 < w && inside(c - 1, r) && inside(c + 1, r);
-    let has_y = r > 0 && r + 1 < hgt && inside(c, r - 1) && inside(c, r + 1);
-    if has_x {
-        let zxx = (z(c - 1, r) - 2.0 * z(c, r) + z(c + 1, r)) / (h.x * h.x);
-        s2 += zxx * zxx;
-    }
-    if has_y {
-        let zyy = (z(c, r - 1) - 2.0 * z(c, r) + z(c, r + 1)) / (h.y * h.y);
-        s2 += zyy * zyy;
-    }
-    if c > 0
-        && c + 1 < w
-        && r > 0
-        && r + 1 < hgt
-        && inside(c - 1, r - 1)
-        && inside(c + 1, r - 1)
-        && inside(c - 1, r + 1)
-        && inside(c + 1, r + 1)
-    {
-        let zxy = (z(c + 1, r + 1) - z(c + 1, r - 1) - z(c - 1, r + 1) + z(c - 1, r - 1))
-            / (4.0 * h.x * h.y);
-        s2 += 2.0 * zxy * zxy;
-    }
-    s2
+    let (xx, xy, yy) = second_derivatives(depth, domain, column, row, h);
+    let square = |v: Option<f64>| v.map_or(0.0, |v| v * v);
+    square(xx) + 2.0 * square(xy) + square(yy)
 }
 
 /// The two parts of the energy `E = sum c D^2 + alpha sum Psi(S^2)`.

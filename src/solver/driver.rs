@@ -412,7 +412,6 @@ fn solve_on_worker<M: Reflectance>(
         alpha,
         lambda,
     } = prepare(problem, params)?;
-    let (w, h) = problem.image.size();
     let level_count = levels.len();
     let coarsest = &levels[0];
     let initial_energy = level_energy(model, coarsest, &depth, alpha, lambda);
@@ -527,20 +526,10 @@ fn solve_on_worker<M: Reflectance>(
             seconds: level_start.elapsed().as_secs_f64(),
         });
     }
-    let object = problem
-        .object_mask
-        .clone()
-        .unwrap_or_else(|| Grid::filled(w, h, true));
-    let reprojection = Grid::from_fn(w, h, |c, r| {
-        if *object.at(c, r) {
-            *last_reprojection.at(c, r)
-        } else {
-            0.0
-        }
-    });
+    let (depth, reprojection) = on_object(problem, &depth, &last_reprojection);
     let iterations = reports.iter().map(|l| l.energies.len()).sum();
     Ok(Solution {
-        depth: masked(&depth, &object),
+        depth,
         reprojection,
         initial_energy,
         final_energy,
@@ -551,6 +540,28 @@ fn solve_on_worker<M: Reflectance>(
         iterations,
         budget_exhausted: false,
     })
+}
+
+/// The full-resolution depth (NaN) and reprojection (0) outside the
+/// problem's object mask, as a [`Solution`] holds them.
+pub(crate) fn on_object(
+    problem: &Problem,
+    depth: &Grid<f64>,
+    reprojection: &Grid<f64>,
+) -> (Grid<f64>, Grid<f64>) {
+    let (w, h) = problem.image.size();
+    let object = problem
+        .object_mask
+        .clone()
+        .unwrap_or_else(|| Grid::filled(w, h, true));
+    let reprojection = Grid::from_fn(w, h, |c, r| {
+        if *object.at(c, r) {
+            *reprojection.at(c, r)
+        } else {
+            0.0
+        }
+    });
+    (masked(depth, &object), reprojection)
 }
 
 /// Replaces non-finite or non-positive values of a warm start by the mean.

@@ -54,7 +54,7 @@ use crate::params::SolverParams;
 
 use super::driver::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Prepared, Problem, Solution, SolveError,
-    SolveObserver, level_energy, masked, prepare,
+    SolveObserver, level_energy, masked, on_object, prepare,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -267,8 +267,8 @@ fn smoothness_lipschitz(alpha: f64, h: Spacing) -> f64 {
 }
 
 /// `grad (alpha sum Psi(S^2))`: per pixel `Psi' z_xx`, `Psi' z_xy`, `Psi' z_yy`
-/// (only the components whose stencil lies in the domain, as in
-/// [`model::smoothness_squared`]), then the transposed stencils gathered.
+/// (only the components whose stencil lies in the domain,
+/// [`model::second_derivatives`]), then the transposed stencils gathered.
 fn smoothness_gradient(
     level: &PyramidLevel,
     depth: &Grid<f64>,
@@ -287,7 +287,7 @@ fn smoothness_gradient(
         .for_each(|(r, ((axx, axy), ayy))| {
             for c in 0..w {
                 let (xx, xy, yy) = if *domain.at(c, r) {
-                    components(depth, domain, c, r, sp)
+                    model::second_derivatives(depth, domain, c, r, sp)
                 } else {
                     (None, None, None)
                 };
@@ -324,36 +324,6 @@ fn smoothness_gradient(
                 *gq = alpha * (2.0 * xx + 4.0 * xy + 2.0 * yy);
             }
         });
-}
-
-/// `(z_xx, z_xy, z_yy)` at a pixel, each only where its stencil lies in the
-/// domain (the rule of [`model::smoothness_squared`]).
-fn components(
-    depth: &Grid<f64>,
-    domain: &Grid<bool>,
-    c: usize,
-    r: usize,
-    h: Spacing,
-) -> (Option<f64>, Option<f64>, Option<f64>) {
-    let (w, hgt) = depth.size();
-    let inside = |c: usize, r: usize| *domain.at(c, r);
-    let z = |c: usize, r: usize| *depth.at(c, r);
-    let xx = (c > 0 && c + 1 < w && inside(c - 1, r) && inside(c + 1, r))
-        .then(|| (z(c - 1, r) - 2.0 * z(c, r) + z(c + 1, r)) / (h.x * h.x));
-    let yy = (r > 0 && r + 1 < hgt && inside(c, r - 1) && inside(c, r + 1))
-        .then(|| (z(c, r - 1) - 2.0 * z(c, r) + z(c, r + 1)) / (h.y * h.y));
-    let xy = (c > 0
-        && c + 1 < w
-        && r > 0
-        && r + 1 < hgt
-        && inside(c - 1, r - 1)
-        && inside(c + 1, r - 1)
-        && inside(c - 1, r + 1)
-        && inside(c + 1, r + 1))
-    .then(|| {
-        (z(c + 1, r + 1) - z(c + 1, r - 1) - z(c - 1, r + 1) + z(c - 1, r - 1)) / (4.0 * h.x * h.y)
-    });
-    (xx, xy, yy)
 }
 
 /// The gradient of a level's energy at `depth` (data plus smoothness), for
@@ -551,20 +521,9 @@ fn run<M: Reflectance>(
         }
         index += 1;
     }
-    let (w, h) = problem.image.size();
-    let object = problem
-        .object_mask
-        .clone()
-        .unwrap_or_else(|| Grid::filled(w, h, true));
-    let reprojection = Grid::from_fn(w, h, |c, r| {
-        if *object.at(c, r) {
-            *last_reprojection.at(c, r)
-        } else {
-            0.0
-        }
-    });
+    let (depth, reprojection) = on_object(problem, &depth, &last_reprojection);
     Ok(Solution {
-        depth: masked(&depth, &object),
+        depth,
         reprojection,
         initial_energy,
         final_energy,
