@@ -131,7 +131,6 @@ pub fn smooth_depth(
     weight: f64,
     params: &SolverParams,
 ) -> Result<Grid<f64>, SolveError> {
-    let (w, h) = depth.size();
     let object = depth.map(|z| z.is_finite() && *z > 0.0);
     let largest = depth
         .as_slice()
@@ -168,14 +167,9 @@ pub fn smooth_depth(
         kappa: params.kappa.max(10),
         ..params.clone()
     };
+    // The solution's depth is already NaN off the object mask.
     let solution = solve_with_model(&problem, &smoothing, &DepthFidelity { scale }, &mut ())?;
-    Ok(Grid::from_fn(w, h, |c, r| {
-        if *object.at(c, r) {
-            *solution.depth.at(c, r)
-        } else {
-            f64::NAN
-        }
-    }))
+    Ok(solution.depth)
 }
 
 #[cfg(test)]

@@ -244,13 +244,7 @@ impl SolveObserver for CurveRecorder<'_> {
         let started = Instant::now();
         let level_domain = result.depth.map(|z| z.is_finite());
         let full = pyramid::upsample_depth(&result.depth, &level_domain, &self.full_domain);
-        let full = Grid::from_fn(full.width(), full.height(), |c, r| {
-            if *self.full_domain.at(c, r) {
-                *full.at(c, r)
-            } else {
-                f64::NAN
-            }
-        });
+        let full = crate::solver::driver::masked(&full, &self.full_domain);
         if let Ok(rse) = metrics::rse(&full, self.truth) {
             let t = result.elapsed.saturating_sub(self.overhead).as_secs_f64();
             self.points.push((t, rse));

@@ -509,14 +509,15 @@ fn solve_on_worker<M: Reflectance>(
                 elapsed: start.elapsed(),
             });
         }
-        let result = LevelResult {
-            level: index,
-            levels: level_count,
-            depth: masked(&depth, &level.domain),
-            reprojection: model::reproject(model, &level.geometry, &level.domain, &depth),
-            energy: final_energy,
-            elapsed: start.elapsed(),
-        };
+        let result = level_result(
+            model,
+            level,
+            &depth,
+            index,
+            level_count,
+            final_energy,
+            start,
+        );
         observer.on_level(&result);
         last_reprojection = result.reprojection;
         reports.push(LevelReport {
@@ -540,6 +541,26 @@ fn solve_on_worker<M: Reflectance>(
         iterations,
         budget_exhausted: false,
     })
+}
+
+/// A level's depth (NaN off its domain) and reprojection, as observers get them.
+pub(crate) fn level_result<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    index: usize,
+    levels: usize,
+    energy: Energy,
+    start: Instant,
+) -> LevelResult {
+    LevelResult {
+        level: index,
+        levels,
+        depth: masked(depth, &level.domain),
+        reprojection: model::reproject(model, &level.geometry, &level.domain, depth),
+        energy,
+        elapsed: start.elapsed(),
+    }
 }
 
 /// The full-resolution depth (NaN) and reprojection (0) outside the

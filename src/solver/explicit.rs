@@ -49,12 +49,12 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::grid::Grid;
-use crate::model::{self, Energy, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot};
+use crate::model::{self, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
 
 use super::driver::{
-    IterationReport, LevelReport, LevelResult, PhaseTimes, Prepared, Problem, Solution, SolveError,
-    SolveObserver, level_energy, masked, on_object, prepare,
+    IterationReport, LevelReport, PhaseTimes, Prepared, Problem, Solution, SolveError,
+    SolveObserver, level_energy, level_result, on_object, prepare,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -534,25 +534,6 @@ fn run<M: Reflectance>(
         iterations: total_steps,
         budget_exhausted,
     })
-}
-
-fn level_result<M: Reflectance>(
-    model: &M,
-    level: &PyramidLevel,
-    depth: &Grid<f64>,
-    index: usize,
-    levels: usize,
-    energy: Energy,
-    start: Instant,
-) -> LevelResult {
-    LevelResult {
-        level: index,
-        levels,
-        depth: masked(depth, &level.domain),
-        reprojection: model::reproject(model, &level.geometry, &level.domain, depth),
-        energy,
-        elapsed: start.elapsed(),
-    }
 }
 
 #[cfg(test)]

@@ -64,7 +64,7 @@ use crate::params::{DomainMode, SolverParams};
 
 use super::driver::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver,
+    SolveObserver, masked,
 };
 
 /// Settings of the fast marching baseline.
@@ -390,13 +390,7 @@ pub fn solve_fast_marching(
         0.0,
         1e-3,
     );
-    let depth = Grid::from_fn(w, h, |c, r| {
-        if *domain.at(c, r) {
-            *solved.at(c, r)
-        } else {
-            f64::NAN
-        }
-    });
+    let depth = masked(&solved, &domain);
     let elapsed = start.elapsed();
     observer.on_iteration(&IterationReport {
         level: 0,
