@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use sfs_studio::grid::Grid;
 use sfs_studio::metrics;
-use sfs_studio::params::SolverParams;
+use sfs_studio::params::{Alpha, SolverParams};
 use sfs_studio::scene::{self, Scene, mesh, sombrero::sombrero};
 use sfs_studio::solver::{Problem, pyramid::PyramidLevel, solve, sor, system::LinearSystem};
 
@@ -19,7 +19,7 @@ struct Case {
     label: String,
     scene: Scene,
     image: Grid<f64>,
-    alpha: f64,
+    alpha: Alpha,
     paper_rse: Option<f64>,
 }
 
@@ -79,7 +79,7 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .map(PathBuf::from)
         .unwrap_or_else(|| PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/meshes")));
-    let paper = SolverParams::default();
+    let paper = SolverParams::paper(0.0);
     println!(
         "sfs-studio accuracy and speed ({} threads)",
         rayon::current_num_threads()
@@ -104,7 +104,7 @@ fn main() {
         label: "Sombrero 256x256".into(),
         image: s.image.clone(),
         scene: s.clone(),
-        alpha: 300.0,
+        alpha: Alpha::Value(300.0),
         paper_rse: Some(0.00768),
     });
     let seeds: &[u64] = if quick { &[1] } else { &[1, 2, 3] };
@@ -113,7 +113,7 @@ fn main() {
             label: format!("Sombrero noisy (sigma 20, seed {seed})"),
             image: scene::add_noise(&s.image, 20.0, seed),
             scene: s.clone(),
-            alpha: 2000.0,
+            alpha: Alpha::Value(2000.0),
             paper_rse: Some(0.01542),
         });
     }
@@ -133,8 +133,8 @@ fn main() {
             .and_then(|m| mesh::render(&m, w, h, &mesh::Placement::default(), label))
         {
             Ok(scene) => {
-                // The paper's alpha (in its units) and this project's default.
-                for alpha in [alpha, SolverParams::default().alpha] {
+                // The paper's alpha (in its units) and the automatic one.
+                for alpha in [Alpha::Value(alpha), Alpha::Auto] {
                     cases.push(Case {
                         label: label.into(),
                         image: scene.image.clone(),
@@ -178,7 +178,7 @@ fn main() {
             scene: big,
             // alpha in pixel units as at 256x256: the f^4 "normalised" scaling
             // (9.5e5 here) keeps the energy's balance but reached RSE 0.058.
-            alpha: 300.0,
+            alpha: Alpha::Value(300.0),
             paper_rse: None,
         };
         let (rse, rie, seconds) = run(&case, &paper);
@@ -212,7 +212,7 @@ fn main() {
         sfs_studio::model::Derivatives::Exact,
     );
     system.add_smoothness(&level, 1.0, 1e-3);
-    let rows = sor::explicit_rows(&system);
+    let rows = system.explicit_rows();
     let rhs: Vec<f64> = (0..n * n)
         .map(|q| f64::from(system.row(q % n, q / n).rhs))
         .collect();

@@ -2,7 +2,8 @@
 //! optical centre (Maurer, Ju, Breuss, Bruhn, GCPR 2015).
 //!
 //! Layers (see ARCHITECTURE.md): [`grid`], [`camera`], [`params`] are core
-//! types; [`model`] and [`metrics`] the image formation and error measures;
+//! types; [`model`] and [`metrics`] the image formation and error measures,
+//! [`denoise`] image noise and its removal;
 //! [`solver`] the linearised coarse-to-fine Gauss-Newton scheme; [`scene`] and
 //! [`io`] synthetic scenes and files; [`worker`] the viewer's solver thread
 //! and [`mask_edit`] its mask editing model (both without egui); `render`
@@ -15,6 +16,7 @@ pub mod app;
 pub mod camera;
 pub mod cli;
 pub mod colour;
+pub mod denoise;
 pub mod filters;
 pub mod grid;
 pub mod io;

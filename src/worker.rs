@@ -355,8 +355,11 @@ fn planned_level_sizes(problem: &Problem, params: &SolverParams) -> Vec<(usize, 
         return Vec::new();
     }
     let (width, height) = problem.image.size();
-    if matches!(params.initial_depth, InitialDepth::Map(_)) {
-        return vec![(width, height)];
+    match params.initial_depth {
+        InitialDepth::Map(_) => return vec![(width, height)],
+        // The fast-marching start arrives as a level of its own.
+        InitialDepth::FastMarching => return vec![(width, height); 2],
+        _ => {}
     }
     let mut sizes = pyramid::level_sizes(width, height, params.eta, params.min_level_side);
     sizes.reverse();
@@ -560,7 +563,11 @@ mod tests {
             object_mask: Some(scene.object_mask),
             confidence: None,
         };
-        let params = SolverParams::default();
+        // The paper's constant start: the whole pyramid, many levels.
+        let params = SolverParams {
+            initial_depth: InitialDepth::FromImage,
+            ..SolverParams::default()
+        };
         SolveRequest { problem, params }
     }
 

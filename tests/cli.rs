@@ -249,9 +249,9 @@ fn synth_solve_eval_round_trip() {
     assert_eq!(camera["height"], 40);
     assert!(camera["focal"].as_f64().unwrap() > 0.0);
 
-    // Solve against the ground truth.
+    // Solve against the ground truth, through the paper's whole pyramid.
     let r = fx.path("result");
-    let mut args = fx.solve_args(&r, &[]);
+    let mut args = fx.solve_args(&r, &["--init-depth", "from-image"]);
     args.extend(["--gt".into(), s(&fx.scene)]);
     assert_success(&sfs(&args), "solve");
     let mut expected: Vec<String> = SOLVE_FILES.iter().map(|f| f.to_string()).collect();
@@ -286,9 +286,13 @@ fn synth_solve_eval_round_trip() {
         "level widths do not grow: {widths:?}"
     );
     assert_eq!(*widths.last().unwrap(), 40);
+    assert_eq!(report["parameters"]["alpha"], "auto");
+    assert_eq!(report["parameters"]["units"], "relative");
+    let chosen = report["alpha_used"].as_f64().expect("alpha_used");
+    assert!(chosen > 0.0 && chosen < 1e-3, "auto alpha {chosen}");
     assert_eq!(
-        report["parameters"]["alpha"].as_f64(),
-        Some(SolverParams::default().alpha)
+        report["parameters"]["lambda"].as_f64(),
+        Some(SolverParams::default().lambda)
     );
 
     // The depth map has the image's size and positive depth on the object.
@@ -323,7 +327,7 @@ fn synth_solve_eval_round_trip() {
     let levels = report["levels"].as_array().unwrap();
     assert_eq!(levels.len(), 1, "a warm start skips the coarse levels");
     assert_eq!(levels[0]["width"], 40);
-    assert_eq!(report["parameters"]["initial_depth"], depth_path.as_str());
+    assert_eq!(report["parameters"]["init_depth"], depth_path.as_str());
     assert!(report["rse"].is_null(), "no --gt, no rse");
 }
 
@@ -377,12 +381,14 @@ fn solve_with_mask_confidence_and_every_parameter() {
     let report = read_json(&r.join("report.json"));
     let p = &report["parameters"];
     assert_eq!(p["alpha"].as_f64(), Some(0.01));
+    assert_eq!(report["alpha_used"].as_f64(), Some(0.01));
     assert_eq!(p["kappa"], 2);
-    assert_eq!(p["inner_iterations"], 2);
-    assert_eq!(p["sor_iterations"], 3);
+    assert_eq!(p["inner-iters"], 2);
+    assert_eq!(p["sor-iters"], 3);
     assert_eq!(p["omega"].as_f64(), Some(1.2));
-    assert_eq!(p["dz_limit"].as_f64(), Some(0.02));
+    assert_eq!(p["dz-limit"].as_f64(), Some(0.02));
     assert_eq!(p["eta"].as_f64(), Some(0.8));
+    assert_eq!(p["init_depth"], "1.8");
     assert_eq!(report["initial_depth"].as_f64(), Some(1.8));
     for level in report["levels"].as_array().unwrap() {
         assert_eq!(level["energies"].as_array().unwrap().len(), 2, "kappa = 2");
@@ -529,8 +535,33 @@ fn bench_quick_on_a_tiny_configuration_writes_a_report_that_parses() {
     assert!(explicit["seconds"].as_f64().unwrap_or(0.0) < 5.0);
     assert!(!report["speedups"].as_array().expect("speedups").is_empty());
     assert!(report["machine"]["cores"].as_u64().unwrap_or(0) >= 1);
+    // The robustness table: the defaults clean and noisy at two sizes, each
+    // beside the best alpha of its sweep, and the size series.
+    let robustness = &report["robustness"];
+    let table = robustness["rows"].as_array().expect("robustness rows");
+    assert_eq!(table.len(), 4, "2 sizes x clean/noisy: {table:?}");
+    for row in table {
+        for key in [
+            "default_rse",
+            "chosen_alpha",
+            "best_rse",
+            "best_alpha",
+            "truth_start_rse",
+            "fast_marching_rse",
+            "seconds",
+        ] {
+            let v = row[key].as_f64().unwrap_or(f64::NAN);
+            assert!(v.is_finite() && v >= 0.0, "{key} of {row}");
+        }
+        let (default, best) = (
+            row["default_rse"].as_f64().unwrap_or(1.0),
+            row["best_rse"].as_f64().unwrap_or(0.0),
+        );
+        assert!(best <= default && default < 0.1, "{row}");
+    }
+    assert!(!robustness["sizes"].as_array().expect("sizes").is_empty());
     let md = fs::read_to_string(out.join("report.md")).expect("report.md");
-    for heading in ["Table 1", "Table 2", "Table 3", "Peak memory"] {
+    for heading in ["Table 1", "Table 2", "Table 3", "Peak memory", "Robustness"] {
         assert!(md.contains(heading), "report.md lacks {heading}");
     }
     let plot = image::open(out.join("rse_time_sombrero.png")).expect("RSE plot is a PNG");

@@ -9,7 +9,7 @@ use proptest::test_runner::{Config, TestCaseError, TestRunner};
 use sfs_studio::camera::Intrinsics;
 use sfs_studio::grid::Grid;
 use sfs_studio::model::Derivatives;
-use sfs_studio::params::{DomainMode, SolverParams, StepControl};
+use sfs_studio::params::{Alpha, DomainMode, InitialDepth, SolverParams, StepControl, Units};
 use sfs_studio::solver::{Problem, SolveError, solve};
 
 /// A random problem with its parameters.
@@ -59,6 +59,7 @@ fn params() -> impl Strategy<Value = SolverParams> {
         (1..=3usize, 1..=3usize, 1..=4usize),
         (0.2..=1.95f64, 1e-3..=0.5f64, 3..=8usize),
         (any::<bool>(), any::<bool>(), any::<bool>(), any::<bool>()),
+        (any::<bool>(), any::<bool>(), any::<bool>()),
     )
         .prop_map(
             |(
@@ -66,8 +67,24 @@ fn params() -> impl Strategy<Value = SolverParams> {
                 (kappa, inner_iterations, sor_iterations),
                 (omega, dz_limit, min_level_side),
                 (paper, crop, anti_alias, numeric),
+                (relative, auto, fast_marching),
             )| SolverParams {
-                alpha,
+                // Relative units: alpha scaled into their useful range.
+                alpha: match (auto, relative) {
+                    (true, _) => Alpha::Auto,
+                    (false, true) => Alpha::Value(alpha * 1e-5),
+                    (false, false) => Alpha::Value(alpha),
+                },
+                units: if relative {
+                    Units::Relative
+                } else {
+                    Units::Paper
+                },
+                initial_depth: if fast_marching {
+                    InitialDepth::FastMarching
+                } else {
+                    InitialDepth::FromImage
+                },
                 lambda,
                 eta,
                 kappa,

@@ -7,13 +7,18 @@ use sfs_studio::params::{InitialDepth, SolverParams};
 use sfs_studio::scene::sombrero::{sombrero, sombrero_depth};
 use sfs_studio::solver::{IterationReport, LevelResult, Problem, SolveError, SolveObserver, solve};
 
-/// alpha for these small scenes: alpha is in pixel units, and at 64x64 the
-/// same shape has 16x larger second derivatives than at 256x256, so the
-/// default (chosen at 256x256) is too stiff here.
+/// The paper's set-up (pixel units, constant start, whole pyramid) with an
+/// alpha for these small scenes: at 64x64 the same shape has 16x larger
+/// second derivatives per pixel than at 256x256.
 fn small_params() -> SolverParams {
+    SolverParams::paper(0.3)
+}
+
+/// The default parameters with the paper's constant start (whole pyramid).
+fn pyramid_params() -> SolverParams {
     SolverParams {
-        alpha: 0.3,
-        ..Default::default()
+        initial_depth: InitialDepth::FromImage,
+        ..SolverParams::default()
     }
 }
 
@@ -91,8 +96,8 @@ fn final_energy_is_well_below_the_initial_one() {
             &Grid::filled(48, 48, 1.0),
             &scene.object_mask,
             depth,
-            params.alpha,
-            params.lambda,
+            solution.alpha_px,
+            solution.lambda_px,
         )
         .total
     };
@@ -206,7 +211,7 @@ impl SolveObserver for Recorder {
 fn levels_arrive_coarse_to_fine_with_growing_sizes() {
     let scene = sombrero(64, 48);
     let mut recorder = Recorder::default();
-    let params = SolverParams::default();
+    let params = pyramid_params();
     let solution = solve(&problem(&scene), &params, &mut recorder).expect("solves");
     let levels = &recorder.levels;
     assert!(levels.len() > 3);
@@ -236,7 +241,7 @@ fn cancel_stops_within_one_sweep() {
             cancel_at_poll: Some(cancel_at),
             ..Default::default()
         };
-        let result = solve(&problem(&scene), &SolverParams::default(), &mut recorder);
+        let result = solve(&problem(&scene), &pyramid_params(), &mut recorder);
         assert!(matches!(result, Err(SolveError::Cancelled)), "{result:?}");
         // The poll that said "cancelled" was the last thing the solver did.
         assert_eq!(recorder.polls.get(), cancel_at);

@@ -17,11 +17,12 @@ use crate::grid::Grid;
 use crate::io;
 use crate::mask_edit::{self, ImagePoint, Layer, Masks};
 use crate::metrics;
+use crate::params::Alpha;
 use crate::solver::{LevelResult, Problem, Solution};
 use crate::worker::{Event, JobId, SolveRequest, Worker};
 
 pub use document::{CameraSource, CameraState, Document, exif_focal_35mm, sample_image_path};
-pub use settings::{ParamSettings, Settings, Tool};
+pub use settings::{InitialChoice, ParamSettings, Settings, Tool};
 pub use ui::Export;
 
 /// eframe application id (storage folder name).
@@ -46,7 +47,7 @@ pub struct ViewerOptions {
     /// Read the image as sRGB.
     pub srgb: bool,
     /// Alpha override.
-    pub alpha: Option<f64>,
+    pub alpha: Option<Alpha>,
     /// Save a screenshot here when the first solve has finished, then exit.
     pub screenshot: Option<PathBuf>,
     /// Write frame-time statistics here on exit (JSON); with
@@ -216,7 +217,7 @@ impl ViewerApp {
                 .unwrap_or_default()
         };
         if let Some(alpha) = options.alpha {
-            settings.params.alpha = alpha;
+            settings.params.update(|p| p.alpha = alpha);
         }
         let ctx = cc.egui_ctx.clone();
         let waker = move || ctx.request_repaint();
@@ -624,7 +625,13 @@ impl ViewerApp {
             return;
         }
         self.stats.trials_done += 1;
-        self.settings.params.alpha *= 1.1;
+        let chosen = self.solve.finished.as_ref().map_or(1e-7, |s| s.alpha);
+        self.settings.params.update(|p| {
+            p.alpha = match p.alpha {
+                Alpha::Value(v) => Alpha::Value(v * 1.1),
+                Alpha::Auto => Alpha::Value(chosen * 1.1),
+            }
+        });
         self.stats.trial_started = Some(Instant::now());
         self.stats.first_level_generation = None;
         // As a slider release would: the debounce, then the solve.

@@ -6,7 +6,9 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::mask_edit::{Layer, Mode};
-use crate::params::{DomainMode, SmoothnessUnits, SolverParams};
+use std::collections::BTreeMap;
+
+use crate::params::{InitialDepth, PARAMS, SolverParams};
 
 /// Key of the settings in eframe's storage.
 pub const STORAGE_KEY: &str = "sfs-studio-settings";
@@ -14,81 +16,73 @@ pub const STORAGE_KEY: &str = "sfs-studio-settings";
 /// Most recent files kept.
 pub const RECENT_FILES: usize = 10;
 
-/// The solver parameters the viewer exposes, serialisable (the initial depth
-/// is a constant or "from the image"; a depth file is a CLI feature).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+/// The solver parameters, stored by their names in the parameter table
+/// ([`crate::params::PARAMS`]) in the table's text form, so that a renamed,
+/// removed or out-of-range stored value falls back to its default instead of
+/// failing the whole settings file. The initial depth is fast marching,
+/// "from the image" or a constant (a depth file is a CLI feature).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ParamSettings {
-    /// Smoothness weight (see `SolverParams::alpha`).
-    pub alpha: f64,
-    /// Charbonnier contrast (see `SolverParams::lambda`).
-    pub lambda: f64,
-    /// Units of alpha and lambda.
-    pub smoothness_units: SmoothnessUnits,
-    /// Pyramid factor.
-    pub eta: f64,
-    /// Outer (Gauss-Newton) iterations per level.
-    pub kappa: usize,
-    /// Inner fixed-point iterations on Psi'.
-    pub inner_iterations: usize,
-    /// SOR sweeps per inner iteration.
-    pub sor_iterations: usize,
-    /// SOR relaxation.
-    pub omega: f64,
-    /// Largest depth change per outer iteration.
-    pub dz_limit: f64,
-    /// Initial depth: `None` estimates it from the image.
-    pub initial_depth: Option<f64>,
-    /// Domain handling at the silhouette.
-    pub domain: DomainMode,
+    /// Table name -> value as text; parameters not here take their defaults.
+    pub values: BTreeMap<String, String>,
+    /// Initial depth.
+    pub initial_depth: InitialChoice,
 }
 
-impl Default for ParamSettings {
-    fn default() -> Self {
-        Self::from_params(&SolverParams::default())
-    }
+/// The viewer's choice of initial depth.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub enum InitialChoice {
+    /// Fast marching, refined at full resolution (the default).
+    #[default]
+    FastMarching,
+    /// The paper's constant depth from the brightest pixel, whole pyramid.
+    FromImage,
+    /// A constant depth (depth units), whole pyramid.
+    Constant(f64),
 }
 
 impl ParamSettings {
-    /// The subset of `params` the viewer shows.
+    /// The table parameters of `params` that differ from the defaults (so
+    /// that a later, better default reaches users who never changed the
+    /// value) and its initial depth (a map becomes the default).
     pub fn from_params(params: &SolverParams) -> Self {
+        let defaults = SolverParams::for_units(params.units);
         Self {
-            alpha: params.alpha,
-            lambda: params.lambda,
-            smoothness_units: params.smoothness_units,
-            eta: params.eta,
-            kappa: params.kappa,
-            inner_iterations: params.inner_iterations,
-            sor_iterations: params.sor_iterations,
-            omega: params.omega,
-            dz_limit: params.dz_limit,
+            values: PARAMS
+                .iter()
+                .filter(|s| (s.get)(params) != (s.get)(&defaults) || s.name == "units")
+                .map(|s| (s.name.to_string(), (s.get)(params).to_string()))
+                .collect(),
             initial_depth: match params.initial_depth {
-                crate::params::InitialDepth::Constant(z) => Some(z),
-                _ => None,
+                InitialDepth::Constant(z) => InitialChoice::Constant(z),
+                InitialDepth::FromImage => InitialChoice::FromImage,
+                _ => InitialChoice::FastMarching,
             },
-            domain: params.domain,
         }
     }
 
-    /// Full solver parameters (the rest at their defaults).
+    /// Full solver parameters: the stored values that parse and fit their
+    /// range over the defaults of the stored units.
     pub fn to_params(&self) -> SolverParams {
-        SolverParams {
-            alpha: self.alpha,
-            lambda: self.lambda,
-            smoothness_units: self.smoothness_units,
-            eta: self.eta,
-            kappa: self.kappa,
-            inner_iterations: self.inner_iterations,
-            sor_iterations: self.sor_iterations,
-            omega: self.omega,
-            dz_limit: self.dz_limit,
-            initial_depth: match self.initial_depth {
-                Some(z) => crate::params::InitialDepth::Constant(z),
-                None => crate::params::InitialDepth::FromImage,
-            },
-            domain: self.domain,
-            ..SolverParams::default()
-        }
+        let mut params = crate::params::table::params_from(
+            PARAMS
+                .iter()
+                .filter_map(|s| Some((s, s.parse(self.values.get(s.name)?).ok()?))),
+        );
+        params.initial_depth = match self.initial_depth {
+            InitialChoice::FastMarching => InitialDepth::FastMarching,
+            InitialChoice::FromImage => InitialDepth::FromImage,
+            InitialChoice::Constant(z) => InitialDepth::Constant(z),
+        };
+        params
+    }
+
+    /// Applies `change` to the parameters (through [`Self::to_params`]).
+    pub fn update(&mut self, change: impl FnOnce(&mut SolverParams)) {
+        let mut params = self.to_params();
+        change(&mut params);
+        *self = Self::from_params(&params);
     }
 }
 
@@ -209,12 +203,18 @@ mod tests {
 
     #[test]
     fn params_round_trip_and_recent_files_are_bounded() {
-        let p = ParamSettings {
-            alpha: 42.0,
-            initial_depth: Some(1.5),
-            ..ParamSettings::default()
-        };
+        let mut p = ParamSettings::default();
+        p.update(|params| {
+            params.alpha = crate::params::Alpha::Value(4.2e-7);
+            params.kappa = 7;
+            params.initial_depth = InitialDepth::Constant(1.5);
+        });
         assert_eq!(ParamSettings::from_params(&p.to_params()), p);
+        assert_eq!(p.to_params().kappa, 7);
+        // A stored value out of range or of a removed parameter is dropped.
+        p.values.insert("eta".into(), "7".into());
+        p.values.insert("gone".into(), "1".into());
+        assert_eq!(p.to_params().eta, SolverParams::default().eta);
         let mut s = Settings::default();
         for i in 0..15 {
             s.remember(PathBuf::from(format!("{i}.png")));

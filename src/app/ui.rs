@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use eframe::egui;
 
-use super::settings::{SurfaceColour, Tool};
+use super::settings::{InitialChoice, SurfaceColour, Tool};
 use super::{CameraSource, Gesture, Panel2d, ViewerApp, images};
 use crate::io;
 use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
-use crate::params::SolverParams;
+use crate::params::{PARAMS, ParamKind, ParamValue, SolverParams};
 
 /// A file dialog (kept behind one function: headless tests never open one).
 fn pick_open(filters: &[(&str, &[&str])]) -> Option<PathBuf> {
@@ -272,82 +272,99 @@ impl ViewerApp {
 
     fn params_ui(&mut self, ui: &mut egui::Ui) {
         let defaults = SolverParams::default();
-        let p = &mut self.settings.params;
+        let mut p = self.settings.params.to_params();
+        let chosen_alpha = self.solve.finished.as_ref().map(|s| s.alpha);
         let mut changed = false;
-        changed |= ui
-            .add(
-                egui::Slider::new(&mut p.alpha, 1e-3..=1e5)
-                    .logarithmic(true)
-                    .text("alpha"),
-            )
-            .on_hover_text(format!(
-                "Smoothness weight (second-order Charbonnier), per pixel units; larger = smoother. Default {}",
-                defaults.alpha
-            ))
-            .changed();
-        changed |= ui
-            .add(
-                egui::Slider::new(&mut p.lambda, 1e-6..=1.0)
-                    .logarithmic(true)
-                    .text("lambda"),
-            )
-            .on_hover_text("Charbonnier contrast: below it smoothing is quadratic, above it edges are kept. Paper default 1e-3")
-            .changed();
-        changed |= ui
-            .add(egui::Slider::new(&mut p.eta, 0.5..=0.98).text("eta"))
-            .on_hover_text("Pyramid factor between levels. Paper default 0.9")
-            .changed();
-        changed |= ui
-            .add(egui::Slider::new(&mut p.kappa, 1..=20).text("kappa"))
-            .on_hover_text("Outer (Gauss-Newton) iterations per level. Paper default 5")
-            .changed();
-        changed |= ui
-            .add(egui::Slider::new(&mut p.inner_iterations, 1..=30).text("inner iterations"))
-            .on_hover_text("Fixed-point iterations on the Charbonnier weights. Paper default 9")
-            .changed();
-        changed |= ui
-            .add(egui::Slider::new(&mut p.sor_iterations, 1..=50).text("SOR sweeps"))
-            .on_hover_text("SOR sweeps per inner iteration. Paper default 10")
-            .changed();
-        changed |= ui
-            .add(egui::Slider::new(&mut p.omega, 0.1..=1.95).text("omega"))
-            .on_hover_text("SOR over-relaxation. Default 1.5")
-            .changed();
-        changed |= ui
-            .add(
-                egui::Slider::new(&mut p.dz_limit, 1e-4..=0.1)
-                    .logarithmic(true)
-                    .text("dz limit"),
-            )
-            .on_hover_text(
-                "Largest depth change per outer iteration (scene units). Paper default 0.01",
-            )
-            .changed();
-        let mut from_image = p.initial_depth.is_none();
-        ui.horizontal(|ui| {
-            if ui
-                .checkbox(&mut from_image, "initial depth from image")
-                .on_hover_text("Estimate a constant initial depth from the brightest pixels (default), or set one")
-                .changed()
-            {
-                p.initial_depth = if from_image { None } else { Some(1.0) };
-                changed = true;
+        for spec in PARAMS {
+            let Some((low, high)) = spec.slider else {
+                continue;
+            };
+            let tooltip = format!("{} Default: {}.", spec.help, (spec.get)(&defaults));
+            let value = (spec.get)(&p);
+            match (spec.kind, value) {
+                (ParamKind::Real { log, auto, .. }, value) => {
+                    let mut number = match value {
+                        ParamValue::Real(v) => v,
+                        // Auto shows the value the last solve chose.
+                        _ => chosen_alpha.filter(|a| a.is_finite()).unwrap_or(low),
+                    };
+                    ui.horizontal(|ui| {
+                        if auto {
+                            let mut is_auto = value == ParamValue::Auto;
+                            if ui
+                                .checkbox(&mut is_auto, "auto")
+                                .on_hover_text("Let the solver choose from the image's noise level; the slider shows its choice")
+                                .changed()
+                            {
+                                let new = if is_auto {
+                                    ParamValue::Auto
+                                } else {
+                                    ParamValue::Real(number)
+                                };
+                                (spec.set)(&mut p, new);
+                                changed = true;
+                            }
+                        }
+                        if ui
+                            .add(
+                                egui::Slider::new(&mut number, low..=high)
+                                    .logarithmic(log)
+                                    .text(spec.label),
+                            )
+                            .on_hover_text(tooltip.as_str())
+                            .changed()
+                        {
+                            (spec.set)(&mut p, ParamValue::Real(number));
+                            changed = true;
+                        }
+                    });
+                }
+                (ParamKind::Count { .. }, ParamValue::Count(mut count)) => {
+                    let range = (low as usize)..=(high as usize);
+                    if ui
+                        .add(egui::Slider::new(&mut count, range).text(spec.label))
+                        .on_hover_text(tooltip.as_str())
+                        .changed()
+                    {
+                        (spec.set)(&mut p, ParamValue::Count(count));
+                        changed = true;
+                    }
+                }
+                _ => {}
             }
-            if let Some(z) = &mut p.initial_depth {
-                changed |= ui
-                    .add(egui::DragValue::new(z).range(1e-3..=1e6).speed(0.01))
-                    .changed();
+        }
+        let initial = &mut self.settings.params.initial_depth;
+        let before = *initial;
+        ui.horizontal(|ui| {
+            ui.label("start")
+                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver");
+            ui.selectable_value(initial, InitialChoice::FastMarching, "fast marching");
+            ui.selectable_value(initial, InitialChoice::FromImage, "from image");
+            if ui
+                .selectable_label(matches!(initial, InitialChoice::Constant(_)), "constant")
+                .clicked()
+                && !matches!(initial, InitialChoice::Constant(_))
+            {
+                *initial = InitialChoice::Constant(1.0);
+            }
+            if let InitialChoice::Constant(z) = initial {
+                ui.add(egui::DragValue::new(z).range(1e-3..=1e6).speed(0.01));
             }
         });
+        if *initial != before {
+            p.initial_depth = self.settings.params.to_params().initial_depth;
+            changed = true;
+        }
         if ui
-            .button("paper defaults")
-            .on_hover_text("Restore every parameter to its default")
+            .button("defaults")
+            .on_hover_text("Restore every parameter to its default (alpha auto)")
             .clicked()
         {
-            *p = super::ParamSettings::default();
+            p = SolverParams::default();
             changed = true;
         }
         if changed {
+            self.settings.params = super::ParamSettings::from_params(&p);
             self.request_solve();
         }
     }

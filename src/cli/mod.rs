@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod eval;
 mod figures;
+mod params;
 mod solve;
 mod synth;
 #[cfg(feature = "gui")]
@@ -18,6 +19,7 @@ mod view;
 
 pub use bench::BenchArgs;
 pub use eval::EvalArgs;
+pub use params::ParamArgs;
 pub use solve::SolveArgs;
 pub use synth::SynthArgs;
 #[cfg(feature = "gui")]

@@ -12,18 +12,8 @@ use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::io::{self, OutputStage};
 use crate::metrics;
-use crate::model::Derivatives;
-use crate::params::{DomainMode, InitialDepth, SmoothnessUnits, SolverParams, StepControl};
+use crate::params::{self as parameters, InitialDepth, SolverParams};
 use crate::solver::{self, IterationReport, Problem, SolveObserver};
-
-/// How dD/dz is computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum DerivativesArg {
-    /// Exact (analytic) derivatives.
-    Exact,
-    /// Central differences with step --h-z (the paper's).
-    Numeric,
-}
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
 #[derive(Debug, Args)]
@@ -57,63 +47,22 @@ pub struct SolveArgs {
     /// Linearise an sRGB-encoded photograph before solving.
     #[arg(long)]
     pub srgb: bool,
-    /// Smoothness weight alpha, in --smoothness-units (pixel units: 30 to 300
-    /// suited clean 256x256 images, about 2000 noisy ones; the paper used
-    /// 0.003 to 3).
-    #[arg(long, default_value_t = SolverParams::default().alpha)]
-    pub alpha: f64,
-    /// Charbonnier contrast lambda (paper: 1e-3).
-    #[arg(long, default_value_t = SolverParams::default().lambda)]
-    pub lambda: f64,
-    /// Units of alpha and lambda: `pixel` (the paper's) or `normalized` (the
-    /// same values give the same smoothness at any image size; they refer to
-    /// a 256 px focal length: alpha_px = alpha (f/256)^4, lambda_px = lambda (256/f)^2).
-    #[arg(long, value_enum, default_value = "pixel")]
-    pub smoothness_units: SmoothnessUnitsArg,
-    /// Pyramid downsampling factor eta in (0, 1) (paper: 0.9).
-    #[arg(long, default_value_t = SolverParams::default().eta)]
-    pub eta: f64,
-    /// Outer Gauss-Newton iterations kappa per level (paper: 5).
-    #[arg(long, default_value_t = SolverParams::default().kappa)]
-    pub kappa: usize,
-    /// Inner fixed-point iterations l_max on Psi' (paper: 9).
-    #[arg(long, default_value_t = SolverParams::default().inner_iterations)]
-    pub inner_iters: usize,
-    /// SOR sweeps per inner iteration (paper: 10).
-    #[arg(long, default_value_t = SolverParams::default().sor_iterations)]
-    pub sor_iters: usize,
-    /// SOR relaxation omega in (0, 2).
-    #[arg(long, default_value_t = SolverParams::default().omega)]
-    pub omega: f64,
-    /// Largest depth change per pixel and outer iteration, depth units (paper: 0.01).
-    #[arg(long, default_value_t = SolverParams::default().dz_limit)]
-    pub dz_limit: f64,
-    /// Initial depth: a number (constant depth, depth units) or a .npy depth
-    /// map to refine at full resolution [default: from the brightest pixel].
-    #[arg(long, value_name = "Z|FILE.npy")]
+    /// Initial depth: `fast-marching` (default: fast marching on the image,
+    /// denoised when noisy, then refined at full resolution), `from-image`
+    /// (the paper's constant depth from the brightest pixel, then the whole
+    /// pyramid), a number (a constant depth, depth units), or a `.npy` depth
+    /// map to refine at full resolution.
+    #[arg(long, value_name = "fast-marching|from-image|Z|FILE.npy")]
     pub init_depth: Option<String>,
-    /// Derivatives of the residual.
-    #[arg(long, value_enum, default_value = "exact")]
-    pub derivatives: DerivativesArg,
-    /// Perturbation h_z of numeric derivatives, depth units (paper: 1e-12).
-    #[arg(long, default_value_t = 1e-12)]
-    pub h_z: f64,
-    /// Smallest side of the coarsest pyramid level, pixels.
-    #[arg(long, default_value_t = SolverParams::default().min_level_side)]
-    pub min_level_side: usize,
-    /// `paper`: every pixel carries depth, the background only has
-    /// confidence 0 (lowest RSE at the default alpha); `object`: only mask
-    /// pixels do (better image fit, faster).
-    #[arg(long, value_enum, default_value = "paper")]
-    pub domain: DomainArg,
-    /// `crop` (the paper's) or `backtracking` (crop, then halve the step
-    /// until the energy does not increase).
-    #[arg(long, value_enum, default_value = "backtracking")]
-    pub step_control: StepControlArg,
-    /// Pyramid anti-aliasing sigma_0 (0: sample every level from the full
-    /// image, keeping bright peaks).
-    #[arg(long, default_value_t = SolverParams::default().anti_alias_sigma)]
-    pub anti_alias: f64,
+    /// The scheme: `linearised` (the paper's, default), `explicit` (Ju et
+    /// al.'s gradient descent on the same energy) or `fast-marching`
+    /// (Prados-Faugeras by fast marching; ignores the confidence and the
+    /// energy's parameters).
+    #[arg(long, value_enum, default_value = "linearised")]
+    pub method: MethodArg,
+    /// Solver parameters (one option per entry of the parameter table).
+    #[command(flatten)]
+    pub params: super::ParamArgs,
     /// Ground-truth folder written by `synth`: adds rse and rie to the report.
     #[arg(long)]
     pub gt: Option<PathBuf>,
@@ -126,85 +75,66 @@ pub struct SolveArgs {
     pub out: PathBuf,
 }
 
-/// `--smoothness-units`.
+/// `--method`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum SmoothnessUnitsArg {
-    /// Per full-resolution pixel (the paper's).
-    Pixel,
-    /// Resolution independent.
-    Normalized,
+pub enum MethodArg {
+    /// The linearised coarse-to-fine Gauss-Newton scheme (the paper's).
+    Linearised,
+    /// Gradient descent on the same energy (Ju et al.).
+    Explicit,
+    /// Fast marching for the Prados-Faugeras equation.
+    FastMarching,
 }
 
-/// `--domain`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum DomainArg {
-    /// Object pixels only.
-    Object,
-    /// Every pixel, background with confidence 0.
-    Paper,
-}
-
-/// `--step-control`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum StepControlArg {
-    /// Per-pixel crop.
-    Crop,
-    /// Crop and backtrack on the energy.
-    Backtracking,
+impl MethodArg {
+    /// The solver's method.
+    pub fn method(self) -> solver::Method {
+        match self {
+            MethodArg::Linearised => solver::Method::Linearised,
+            MethodArg::Explicit => solver::Method::Explicit(solver::ExplicitParams::default()),
+            MethodArg::FastMarching => {
+                solver::Method::FastMarching(solver::FastMarchingParams::default())
+            }
+        }
+    }
 }
 
 impl SolveArgs {
     /// Solver parameters from the arguments (validated by the solver).
     pub fn params(&self, image_size: (usize, usize)) -> Result<SolverParams> {
-        let initial_depth = match &self.init_depth {
-            None => InitialDepth::FromImage,
-            Some(text) => match text.parse::<f64>() {
-                Ok(z) => InitialDepth::Constant(z),
-                Err(_) => {
-                    let map = io::read_npy(Path::new(text))?;
-                    if map.size() != image_size {
-                        bail!(
-                            "initial depth {text} is {}x{} but the image is {}x{}",
-                            map.width(),
-                            map.height(),
-                            image_size.0,
-                            image_size.1
-                        );
-                    }
-                    InitialDepth::Map(map)
-                }
-            },
-        };
-        Ok(SolverParams {
-            alpha: self.alpha,
-            lambda: self.lambda,
-            smoothness_units: match self.smoothness_units {
-                SmoothnessUnitsArg::Pixel => SmoothnessUnits::Pixel,
-                SmoothnessUnitsArg::Normalized => SmoothnessUnits::Normalized,
-            },
-            eta: self.eta,
-            kappa: self.kappa,
-            inner_iterations: self.inner_iters,
-            sor_iterations: self.sor_iters,
-            omega: self.omega,
-            dz_limit: self.dz_limit,
-            derivatives: match self.derivatives {
-                DerivativesArg::Exact => Derivatives::Exact,
-                DerivativesArg::Numeric => Derivatives::Numeric { h_z: self.h_z },
-            },
-            min_level_side: self.min_level_side,
-            domain: match self.domain {
-                DomainArg::Object => DomainMode::Object,
-                DomainArg::Paper => DomainMode::Paper,
-            },
-            initial_depth,
-            step_control: match self.step_control {
-                StepControlArg::Crop => StepControl::Crop,
-                StepControlArg::Backtracking => StepControl::Backtracking,
-            },
-            anti_alias_sigma: self.anti_alias,
-        })
+        let mut params = self.params.to_params()?;
+        params.initial_depth = parse_initial_depth(self.init_depth.as_deref(), image_size)?;
+        Ok(params)
     }
+}
+
+/// `--init-depth`: a method, a number or a `.npy` file of the image's size.
+pub fn parse_initial_depth(text: Option<&str>, image_size: (usize, usize)) -> Result<InitialDepth> {
+    let Some(text) = text else {
+        return Ok(InitialDepth::FastMarching);
+    };
+    if text.eq_ignore_ascii_case("fast-marching") {
+        return Ok(InitialDepth::FastMarching);
+    }
+    if text.eq_ignore_ascii_case("from-image") {
+        return Ok(InitialDepth::FromImage);
+    }
+    if let Ok(z) = text.parse::<f64>() {
+        return Ok(InitialDepth::Constant(z));
+    }
+    let map = io::read_npy(Path::new(text)).with_context(|| {
+        format!("--init-depth {text}: not a method, a number or a readable .npy")
+    })?;
+    if map.size() != image_size {
+        bail!(
+            "--init-depth {text} is {}x{} but the image is {}x{}",
+            map.width(),
+            map.height(),
+            image_size.0,
+            image_size.1
+        );
+    }
+    Ok(InitialDepth::Map(map))
 }
 
 /// Ground truth of a synth folder.
@@ -348,7 +278,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         bar,
         kappa: params.kappa,
     };
-    let solution = solver::solve(&problem, &params, &mut progress);
+    let solution = solver::solve_method(&problem, &params, &args.method.method(), &mut progress);
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
@@ -390,6 +320,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             },
         },
         "parameters": params_json(&params, args),
+        "alpha_used": solution.alpha,
+        "alpha_px": solution.alpha_px,
+        "lambda_px": solution.lambda_px,
+        "scales": solution.scales,
         "initial_depth": solution.initial_depth,
         "levels": solution.levels,
         "phases": solution.phases,
@@ -419,23 +353,20 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     Ok(())
 }
 
-/// Every parameter as JSON, for the report.
+/// Every parameter as JSON, for the report: the table's, the method and
+/// the initial depth as given.
 fn params_json(params: &SolverParams, args: &SolveArgs) -> serde_json::Value {
-    json!({
-        "alpha": params.alpha,
-        "lambda": params.lambda,
-        "smoothness_units": params.smoothness_units,
-        "eta": params.eta,
-        "kappa": params.kappa,
-        "inner_iterations": params.inner_iterations,
-        "sor_iterations": params.sor_iterations,
-        "omega": params.omega,
-        "dz_limit": params.dz_limit,
-        "derivatives": params.derivatives,
-        "min_level_side": params.min_level_side,
-        "domain": params.domain,
-        "step_control": params.step_control,
-        "anti_alias_sigma": params.anti_alias_sigma,
-        "initial_depth": args.init_depth.clone().unwrap_or_else(|| "from_image".into()),
-    })
+    let mut json = parameters::table::to_json(params);
+    if let Some(object) = json.as_object_mut() {
+        object.insert("method".into(), json!(args.method.method().name()));
+        object.insert(
+            "init_depth".into(),
+            json!(
+                args.init_depth
+                    .clone()
+                    .unwrap_or_else(|| "fast-marching".into())
+            ),
+        );
+    }
+    json
 }

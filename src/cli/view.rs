@@ -24,9 +24,10 @@ pub struct ViewArgs {
     /// Linearise an sRGB photograph.
     #[arg(long)]
     pub srgb: bool,
-    /// Smoothness weight alpha (else the remembered value; default 100).
+    /// Smoothness weight alpha in relative units, or `auto` (else the
+    /// remembered value; default auto).
     #[arg(long)]
-    pub alpha: Option<f64>,
+    pub alpha: Option<String>,
     /// Save a screenshot here once the solve has finished, then exit.
     #[arg(long, value_name = "PATH.png", value_parser = super::parse_path)]
     pub screenshot: Option<PathBuf>,
@@ -44,11 +45,17 @@ pub struct ViewArgs {
 
 /// Opens the viewer on `args.image`.
 pub fn run(args: &ViewArgs) -> Result<()> {
-    if let Some(alpha) = args.alpha
-        && !(alpha.is_finite() && alpha >= 0.0)
-    {
-        return Err(anyhow!("--alpha must be finite and >= 0 (got {alpha})"));
-    }
+    let alpha = match &args.alpha {
+        Some(text) => {
+            let spec = crate::params::table::spec("alpha")
+                .ok_or_else(|| anyhow!("no alpha in the parameter table"))?;
+            Some(match spec.parse(text)? {
+                crate::params::ParamValue::Real(v) => crate::params::Alpha::Value(v),
+                _ => crate::params::Alpha::Auto,
+            })
+        }
+        None => None,
+    };
     if !args.image.is_file() {
         return Err(anyhow!("image {} does not exist", args.image.display()));
     }
@@ -57,7 +64,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         camera: args.camera.clone(),
         mask: args.mask.clone(),
         srgb: args.srgb,
-        alpha: args.alpha,
+        alpha,
         screenshot: args.screenshot.clone(),
         stats: args.stats.clone(),
         latency_trials: args.latency_trials,

@@ -3,7 +3,7 @@
 //!
 //! Same model, same upwind data term, same second-order Charbonnier
 //! smoothness, same pyramid and initial depth as [`super::driver`] (both use
-//! [`super::driver::prepare`]). On every level the depth evolves by gradient
+//! [`super::prepare::prepare`]). On every level the depth evolves by gradient
 //! descent on the level's energy `E = sum c D^2 + alpha sum Psi(S^2)`,
 //! alternating (Lie splitting, as in Ju et al.'s alternating scheme) a data
 //! half-step `z <- z - tau grad E_data` and a smoothness half-step
@@ -52,9 +52,10 @@ use crate::grid::Grid;
 use crate::model::{self, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
 
-use super::driver::{
-    IterationReport, LevelReport, PhaseTimes, Prepared, Problem, Solution, SolveError,
-    SolveObserver, level_energy, level_result, on_object, prepare,
+use super::prepare::{Prepared, level_energy, level_result, prepare};
+use super::problem::{
+    IterationReport, LevelReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver,
+    on_object,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -387,6 +388,9 @@ fn run<M: Reflectance>(
         initial_depth,
         alpha,
         lambda,
+        scales,
+        alpha_used,
+        ..
     } = prepare(problem, params)?;
     let level_count = levels.len();
     let z_floor = 1e-6 * initial_depth.abs().max(1e-9);
@@ -533,6 +537,10 @@ fn run<M: Reflectance>(
         seconds: start.elapsed().as_secs_f64(),
         iterations: total_steps,
         budget_exhausted,
+        alpha: alpha_used,
+        alpha_px: alpha,
+        lambda_px: lambda,
+        scales,
     })
 }
 
@@ -594,10 +602,7 @@ mod tests {
             object_mask: None,
             confidence: None,
         };
-        let params = SolverParams {
-            alpha: 50.0,
-            ..SolverParams::default()
-        };
+        let params = SolverParams::paper(50.0);
         let explicit = ExplicitParams {
             max_iterations: Some(3000),
             level_iterations: 300,

@@ -62,7 +62,7 @@ use crate::grid::Grid;
 use crate::model::{self, Lambertian, LevelGeometry};
 use crate::params::{DomainMode, SolverParams};
 
-use super::driver::{
+use super::problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
     SolveObserver, masked,
 };
@@ -235,7 +235,8 @@ pub fn solve_fast_marching(
         domain: DomainMode::Object,
         ..SolverParams::default()
     };
-    let (domain, _) = problem.validate(&validation)?;
+    let (domain, confidence) = problem.validate(&validation)?;
+    let scales = super::prepare::problem_scales(problem, &confidence);
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let f2 = problem.camera.focal_px * problem.camera.focal_px;
@@ -426,6 +427,10 @@ pub fn solve_fast_marching(
         seconds: start.elapsed().as_secs_f64(),
         iterations: 1,
         budget_exhausted: false,
+        alpha: f64::NAN,
+        alpha_px: f64::NAN,
+        lambda_px: f64::NAN,
+        scales,
     })
 }
 

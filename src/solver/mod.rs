@@ -6,19 +6,24 @@
 //! ([`fast_marching`]). It reports through [`SolveObserver`] and knows
 //! nothing of threads, files or windows.
 
+pub mod auto_alpha;
 pub mod driver;
 pub mod explicit;
 pub mod fast_marching;
+pub mod prepare;
+pub mod problem;
 pub mod pyramid;
 pub mod sor;
 pub mod system;
 
-pub use driver::{
-    IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver, initial_depth_from_image, solve, solve_with_model,
-};
+pub use driver::{solve, solve_with_model};
 pub use explicit::{ExplicitParams, solve_explicit};
 pub use fast_marching::{FastMarchingParams, solve_fast_marching};
+pub use prepare::initial_depth_from_image;
+pub use problem::{
+    IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
+    SolveObserver,
+};
 
 /// A shape-from-shading scheme: the paper's method or a baseline.
 #[derive(Clone, Debug, PartialEq)]

@@ -11,7 +11,7 @@
 
 use rayon::prelude::*;
 
-use super::system::{FORWARD, HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES};
+use super::system::{HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES};
 
 /// Rows per band (at least 2, the stencil's reach).
 pub const BAND_ROWS: usize = 8;
@@ -78,6 +78,12 @@ pub fn sweep(system: &mut LinearSystem, omega: f64) {
     let parallel = system.width * system.height >= PARALLEL_MIN_PIXELS;
     let kernel = RowKernel::detect();
     let coefficients = &system.coefficients[..];
+    // Three rows of work per band, sized here so the system needs no
+    // knowledge of the sweep's band layout.
+    let needed = band_count(height) * 3 * pw;
+    if system.sweep_scratch.len() < needed {
+        system.sweep_scratch.resize(needed, 0.0);
+    }
     let scratch = &mut system.sweep_scratch[..];
     let shape = Shape {
         width: system.width,
@@ -369,49 +375,6 @@ pub fn reference_sweep(
     }
 }
 
-/// The system as explicit sparse rows over unpadded indices (for tests and
-/// debugging). Rows of pixels that are not solved for are empty.
-pub fn explicit_rows(system: &LinearSystem) -> Vec<Vec<(usize, f64)>> {
-    let (w, h) = (system.width, system.height);
-    let record = |c: isize, r: isize| system.row(c as usize, r as usize);
-    let solved = |c: isize, r: isize| {
-        c >= 0
-            && r >= 0
-            && (c as usize) < w
-            && (r as usize) < h
-            && record(c, r).inverse_diagonal != 0.0
-    };
-    (0..w * h)
-        .map(|q| {
-            let (c, r) = ((q % w) as isize, (q / w) as isize);
-            if !solved(c, r) {
-                return Vec::new();
-            }
-            let mut row = vec![(q, 1.0 / f64::from(record(c, r).inverse_diagonal))];
-            for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
-                // Forward coupling stored here, backward one stored there.
-                for (cc, rr, a) in [
-                    (c + dx, r + dy, record(c, r).forward[k]),
-                    (
-                        c - dx,
-                        r - dy,
-                        if solved(c - dx, r - dy) {
-                            record(c - dx, r - dy).forward[k]
-                        } else {
-                            0.0
-                        },
-                    ),
-                ] {
-                    if a != 0.0 && solved(cc, rr) {
-                        row.push((rr as usize * w + cc as usize, a as f64));
-                    }
-                }
-            }
-            row
-        })
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -450,7 +413,7 @@ mod tests {
         // 160 x 120 = 19200 pixels: the parallel path, 15 bands.
         for (w, h) in [(23, 11), (160, 120)] {
             let mut fast = system(w, h);
-            let rows = explicit_rows(&fast);
+            let rows = fast.explicit_rows();
             let rhs: Vec<f64> = (0..w * h)
                 .map(|q| f64::from(fast.row(q % w, q / w).rhs))
                 .collect();
@@ -481,7 +444,7 @@ mod tests {
     fn sweeps_converge_to_the_solution() {
         let (w, h) = (40, 30);
         let mut s = system(w, h);
-        let rows = explicit_rows(&s);
+        let rows = s.explicit_rows();
         let rhs: Vec<f64> = (0..w * h)
             .map(|q| f64::from(s.row(q % w, q / w).rhs))
             .collect();

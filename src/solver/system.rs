@@ -131,7 +131,8 @@ pub struct LinearSystem {
     /// dz crop, and f32 vectors halve the sweep's traffic and double its SIMD
     /// width.
     pub dz_padded: Vec<f32>,
-    /// Per-band work rows of the fast sweep (3 padded rows per band).
+    /// Work rows of the fast sweep, sized by `sor::sweep` on its first use
+    /// (the system does not know the sweep's band layout).
     pub(crate) sweep_scratch: Vec<f32>,
     /// Data part (per outer iteration): the forward coefficients as 8 planes
     /// per image row (row `r` owns `[8 r w, 8 (r + 1) w)`), the diagonal and
@@ -198,7 +199,7 @@ impl LinearSystem {
             height: h,
             coefficients: vec![0.0; padded * PLANES],
             dz_padded: vec![0.0; padded],
-            sweep_scratch: vec![0.0; crate::solver::sor::band_count(h) * 3 * (w + 2 * HALO)],
+            sweep_scratch: Vec::new(),
             data_forward: vec![0.0; 8 * n],
             data_diagonal: vec![0.0; n],
             data_rhs: vec![0.0; n],
@@ -245,6 +246,50 @@ impl LinearSystem {
         Grid::from_fn(self.width, self.height, |c, r| {
             f64::from(self.dz_padded[self.padded_index(c, r)])
         })
+    }
+
+    /// The system as explicit sparse rows over unpadded indices (for tests and
+    /// debugging). Rows of pixels that are not solved for are empty.
+    pub fn explicit_rows(&self) -> Vec<Vec<(usize, f64)>> {
+        let system = self;
+        let (w, h) = (system.width, system.height);
+        let record = |c: isize, r: isize| system.row(c as usize, r as usize);
+        let solved = |c: isize, r: isize| {
+            c >= 0
+                && r >= 0
+                && (c as usize) < w
+                && (r as usize) < h
+                && record(c, r).inverse_diagonal != 0.0
+        };
+        (0..w * h)
+            .map(|q| {
+                let (c, r) = ((q % w) as isize, (q / w) as isize);
+                if !solved(c, r) {
+                    return Vec::new();
+                }
+                let mut row = vec![(q, 1.0 / f64::from(record(c, r).inverse_diagonal))];
+                for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
+                    // Forward coupling stored here, backward one stored there.
+                    for (cc, rr, a) in [
+                        (c + dx, r + dy, record(c, r).forward[k]),
+                        (
+                            c - dx,
+                            r - dy,
+                            if solved(c - dx, r - dy) {
+                                record(c - dx, r - dy).forward[k]
+                            } else {
+                                0.0
+                            },
+                        ),
+                    ] {
+                        if a != 0.0 && solved(cc, rr) {
+                            row.push((rr as usize * w + cc as usize, a as f64));
+                        }
+                    }
+                }
+                row
+            })
+            .collect()
     }
 
     /// The row of `(column, row)`, gathered from the planes.
@@ -748,7 +793,7 @@ mod tests {
                     -2.0 * f64::from(system.row(q % w, q / w).rhs)
                 );
             }
-            let rows = super::super::sor::explicit_rows(&system);
+            let rows = system.explicit_rows();
             for (i, row) in rows.iter().enumerate() {
                 for &(j, a) in row {
                     let back = rows[j].iter().find(|(k, _)| *k == i).map(|(_, v)| *v);

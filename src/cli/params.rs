@@ -1,0 +1,95 @@
+//! The solver parameters on the command line, generated from the one table
+//! [`crate::params::PARAMS`]: one `--NAME VALUE` option per entry, with the
+//! entry's help; values are parsed and range-checked by the table.
+
+use clap::{Arg, ArgMatches, Args, Command, FromArgMatches};
+
+use crate::params::{PARAMS, ParamError, ParamSpec, SolverParams};
+
+/// The parameter options given on the command line, as written.
+#[derive(Clone, Debug, Default)]
+pub struct ParamArgs {
+    given: Vec<(&'static ParamSpec, String)>,
+}
+
+impl Args for ParamArgs {
+    fn augment_args(cmd: Command) -> Command {
+        PARAMS.iter().fold(cmd, |cmd, spec| {
+            cmd.arg(
+                Arg::new(spec.name)
+                    .long(spec.name)
+                    .value_name("VALUE")
+                    .allow_negative_numbers(true)
+                    .help(spec.help)
+                    .help_heading("Solver parameters"),
+            )
+        })
+    }
+
+    fn augment_args_for_update(cmd: Command) -> Command {
+        Self::augment_args(cmd)
+    }
+}
+
+impl FromArgMatches for ParamArgs {
+    fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
+        let given = PARAMS
+            .iter()
+            .filter_map(|spec| {
+                matches
+                    .get_one::<String>(spec.name)
+                    .map(|text| (spec, text.clone()))
+            })
+            .collect();
+        Ok(Self { given })
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &ArgMatches) -> Result<(), clap::Error> {
+        *self = Self::from_arg_matches(matches)?;
+        Ok(())
+    }
+}
+
+impl ParamArgs {
+    /// Parameters from the given options over the defaults of the chosen
+    /// `--units` (the defaults of lambda and dz-limit depend on them). The
+    /// error names the first bad option.
+    pub fn to_params(&self) -> Result<SolverParams, ParamError> {
+        let mut values = Vec::with_capacity(self.given.len());
+        for (spec, text) in &self.given {
+            values.push((*spec, spec.parse(text)?));
+        }
+        Ok(crate::params::table::params_from(values))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Probe {
+        #[command(flatten)]
+        params: ParamArgs,
+    }
+
+    #[test]
+    fn options_come_from_the_table_and_units_set_the_defaults() {
+        let probe = Probe::try_parse_from(["x", "--alpha", "3e-7", "--kappa", "7"]).expect("parse");
+        let p = probe.params.to_params().expect("params");
+        assert_eq!(p.alpha, crate::params::Alpha::Value(3e-7));
+        assert_eq!(p.kappa, 7);
+        assert_eq!(p.lambda, SolverParams::default().lambda);
+        let paper = Probe::try_parse_from(["x", "--units", "paper"]).expect("parse");
+        let p = paper.params.to_params().expect("params");
+        assert_eq!((p.lambda, p.dz_limit), (1e-3, 0.01));
+        let bad = Probe::try_parse_from(["x", "--eta", "1.5"]).expect("parse");
+        assert_eq!(bad.params.to_params().map_err(|e| e.name), Err("eta"));
+        let negative = Probe::try_parse_from(["x", "--alpha", "-1"]).expect("parse");
+        assert_eq!(
+            negative.params.to_params().map_err(|e| e.name),
+            Err("alpha")
+        );
+    }
+}

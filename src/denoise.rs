@@ -1,0 +1,322 @@
+//! Image noise and its removal: Immerkaer's noise estimate (whole image, or
+//! robust over trusted pixels), TV (ROF) denoising by primal-dual, and the
+//! filling of untrusted pixels by diffusion. Pure functions over [`Grid`];
+//! used by the solver (the fast-marching start, the automatic alpha) and by
+//! the benchmark's pre-processing.
+
+use crate::grid::Grid;
+
+/// Noise standard deviation of an image (same units as its values), by
+/// Immerkaer's estimator ("Fast noise variance estimation", CVIU 1996): the
+/// mean absolute response to the Laplacian difference mask
+/// `[1 -2 1; -2 4 -2; 1 -2 1]`, which cancels smooth content, times
+/// `sqrt(pi/2) / 6`.
+pub fn estimate_noise_sigma(image: &Grid<f64>) -> f64 {
+    let (w, h) = image.size();
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    let z = |c: usize, r: usize| *image.at(c, r);
+    let mut sum = 0.0;
+    for r in 1..h - 1 {
+        for c in 1..w - 1 {
+            let v = z(c - 1, r - 1) - 2.0 * z(c, r - 1) + z(c + 1, r - 1) - 2.0 * z(c - 1, r)
+                + 4.0 * z(c, r)
+                - 2.0 * z(c + 1, r)
+                + z(c - 1, r + 1)
+                - 2.0 * z(c, r + 1)
+                + z(c + 1, r + 1);
+            sum += v.abs();
+        }
+    }
+    (std::f64::consts::PI / 2.0).sqrt() * sum / (6.0 * ((w - 2) * (h - 2)) as f64)
+}
+
+/// TV (ROF) denoising: the minimiser of
+/// `1/2 sum (u - f)^2 + weight sum |grad u|` (isotropic TV, forward
+/// differences, Neumann boundary), by the accelerated primal-dual algorithm of
+/// Chambolle and Pock (2011, Algorithm 2, the data term being 1-strongly
+/// convex). `weight <= 0` returns the image unchanged.
+pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64> {
+    let (w, h) = image.size();
+    if !(weight > 0.0 && weight.is_finite()) || w == 0 || h == 0 {
+        return image.clone();
+    }
+    let f = image.as_slice();
+    let n = w * h;
+    let mut u = f.to_vec();
+    let mut u_bar = u.clone();
+    let (mut px, mut py) = (vec![0.0; n], vec![0.0; n]);
+    // ||grad||^2 <= 8.
+    let (mut tau, mut sigma) = (0.25f64, 0.5f64);
+    for _ in 0..iterations {
+        // Dual ascent and projection onto |p| <= weight.
+        for r in 0..h {
+            for c in 0..w {
+                let q = r * w + c;
+                let gx = if c + 1 < w {
+                    u_bar[q + 1] - u_bar[q]
+                } else {
+                    0.0
+                };
+                let gy = if r + 1 < h {
+                    u_bar[q + w] - u_bar[q]
+                } else {
+                    0.0
+                };
+                let (nx, ny) = (px[q] + sigma * gx, py[q] + sigma * gy);
+                let scale = ((nx * nx + ny * ny).sqrt() / weight).max(1.0);
+                px[q] = nx / scale;
+                py[q] = ny / scale;
+            }
+        }
+        // Primal descent: u = (u + tau div p + tau f) / (1 + tau).
+        let theta = 1.0 / (1.0 + 2.0 * tau).sqrt();
+        for r in 0..h {
+            for c in 0..w {
+                let q = r * w + c;
+                let dx = if c + 1 < w { px[q] } else { 0.0 } - if c > 0 { px[q - 1] } else { 0.0 };
+                let dy = if r + 1 < h { py[q] } else { 0.0 } - if r > 0 { py[q - w] } else { 0.0 };
+                let new = (u[q] + tau * (dx + dy) + tau * f[q]) / (1.0 + tau);
+                u_bar[q] = new + theta * (new - u[q]);
+                u[q] = new;
+            }
+        }
+        tau *= theta;
+        sigma /= theta;
+    }
+    Grid::from_vec(w, h, u).unwrap_or_else(|| image.clone())
+}
+
+/// The default TV weight for an image: its estimated noise level
+/// ([`estimate_noise_sigma`]).
+pub fn default_tv_weight(image: &Grid<f64>) -> f64 {
+    estimate_noise_sigma(image)
+}
+
+/// Noise standard deviation of the trusted pixels of `image` (image units):
+/// the lower quartile of the absolute responses to Immerkaer's mask
+/// `[1 -2 1; -2 4 -2; 1 -2 1]` (standard deviation `6 sigma` on pure noise)
+/// over pixels whose 3x3 neighbourhood is trusted, divided by the lower
+/// quartile of `|N(0, 36)|`. A low quantile keeps silhouettes, creases and
+/// fine detail (large responses on part of the image) from counting as
+/// noise: on a clean 128x64 Suzanne the median read 5.2/255, the quartile
+/// 1.8/255. 0 when no such pixel exists.
+pub fn robust_noise_sigma(image: &Grid<f64>, trusted: &Grid<bool>) -> f64 {
+    quantile_noise_sigma(image, trusted, 0.25)
+}
+
+/// [`robust_noise_sigma`] with the `quantile` (in (0, 1)) of the absolute
+/// responses instead of the median: lower quantiles read less of the
+/// image's own fine structure as noise.
+pub fn quantile_noise_sigma(image: &Grid<f64>, trusted: &Grid<bool>, quantile: f64) -> f64 {
+    let (w, h) = image.size();
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    const MASK: [[f64; 3]; 3] = [[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]];
+    let mut responses = Vec::new();
+    for r in 1..h - 1 {
+        'pixel: for c in 1..w - 1 {
+            let mut sum = 0.0;
+            for (dr, row) in MASK.iter().enumerate() {
+                for (dc, weight) in row.iter().enumerate() {
+                    let (cc, rr) = (c + dc - 1, r + dr - 1);
+                    if !trusted.at(cc, rr) {
+                        continue 'pixel;
+                    }
+                    sum += weight * image.at(cc, rr);
+                }
+            }
+            responses.push(sum.abs());
+        }
+    }
+    if responses.is_empty() {
+        return 0.0;
+    }
+    let rank = ((responses.len() as f64 * quantile) as usize).min(responses.len() - 1);
+    let value = *responses.select_nth_unstable_by(rank, f64::total_cmp).1;
+    // |N(0, 1)| has this quantile at sqrt(2) erfinv(quantile).
+    value / (6.0 * std::f64::consts::SQRT_2 * erf_inverse(quantile))
+}
+
+/// The inverse error function (Giles' single-precision approximation,
+/// relative error below 1e-6 on (0, 1)), enough for a noise estimate.
+fn erf_inverse(x: f64) -> f64 {
+    let w = -((1.0 - x) * (1.0 + x)).ln();
+    if w < 5.0 {
+        let w = w - 2.5;
+        let mut p = 2.810_226_36e-08;
+        for c in [
+            3.432_739_39e-07,
+            -3.523_387_7e-06,
+            -4.391_506_54e-06,
+            0.000_218_580_87,
+            -0.001_253_725_03,
+            -0.004_177_681_64,
+            0.246_640_727,
+            1.501_409_41,
+        ] {
+            p = c + p * w;
+        }
+        p * x
+    } else {
+        let w = w.sqrt() - 3.0;
+        let mut p = -0.000_200_214_257;
+        for c in [
+            0.000_100_950_558,
+            0.001_349_343_22,
+            -0.003_673_428_44,
+            0.005_739_507_73,
+            -0.007_622_461_3,
+            0.009_438_870_47,
+            1.001_674_06,
+            2.832_976_82,
+        ] {
+            p = c + p * w;
+        }
+        p * x
+    }
+}
+
+/// Fills the pixels where `known` is false by diffusion from the known ones
+/// (Jacobi iterations of Laplace's equation on a coarse-to-fine schedule, so
+/// large holes fill in `O(log)` passes); known pixels keep their values.
+/// With no known pixel the image is returned unchanged.
+pub fn fill_unknown(image: &Grid<f64>, known: &Grid<bool>) -> Grid<f64> {
+    let (w, h) = image.size();
+    let count = known.as_slice().iter().filter(|&&k| k).count();
+    if count == 0 || count == w * h {
+        return image.clone();
+    }
+    let mean = image
+        .as_slice()
+        .iter()
+        .zip(known.as_slice())
+        .filter(|(_, k)| **k)
+        .map(|(v, _)| v)
+        .sum::<f64>()
+        / count as f64;
+    let mut u = Grid::from_fn(w, h, |c, r| {
+        if *known.at(c, r) {
+            *image.at(c, r)
+        } else {
+            mean
+        }
+    });
+    // Jacobi sweeps with strides from coarse to fine: each stride spreads
+    // values that far per sweep.
+    let mut stride = w.max(h).next_power_of_two() / 2;
+    while stride >= 1 {
+        for _ in 0..8 {
+            let previous = u.clone();
+            for r in 0..h {
+                for c in 0..w {
+                    if *known.at(c, r) {
+                        continue;
+                    }
+                    let mut sum = 0.0;
+                    let mut n = 0.0;
+                    if c >= stride {
+                        sum += previous.at(c - stride, r);
+                        n += 1.0;
+                    }
+                    if c + stride < w {
+                        sum += previous.at(c + stride, r);
+                        n += 1.0;
+                    }
+                    if r >= stride {
+                        sum += previous.at(c, r - stride);
+                        n += 1.0;
+                    }
+                    if r + stride < h {
+                        sum += previous.at(c, r + stride);
+                        n += 1.0;
+                    }
+                    if n > 0.0 {
+                        *u.at_mut(c, r) = sum / n;
+                    }
+                }
+            }
+        }
+        stride /= 2;
+    }
+    u
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{add_noise, sombrero::sombrero};
+
+    #[test]
+    fn noise_estimate_finds_the_added_noise() {
+        let scene = sombrero(128, 128);
+        let noisy = add_noise(&scene.image, 20.0, 5);
+        let sigma = estimate_noise_sigma(&noisy) * 255.0;
+        assert!((sigma - 20.0).abs() < 2.0, "estimated {sigma}");
+        assert!(estimate_noise_sigma(&scene.image) * 255.0 < 1.0);
+    }
+
+    #[test]
+    fn tv_denoising_brings_a_noisy_image_closer_to_the_clean_one() {
+        let scene = sombrero(96, 96);
+        let noisy = add_noise(&scene.image, 20.0, 9);
+        let error = |g: &Grid<f64>| {
+            g.as_slice()
+                .iter()
+                .zip(scene.image.as_slice())
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let denoised = tv_denoise(&noisy, default_tv_weight(&noisy), 200);
+        assert!(
+            error(&denoised) < 0.5 * error(&noisy),
+            "{} -> {}",
+            error(&noisy),
+            error(&denoised)
+        );
+        assert_eq!(tv_denoise(&noisy, 0.0, 10), noisy);
+    }
+
+    #[test]
+    fn robust_estimate_ignores_shading_and_finds_added_noise() {
+        let scene = sombrero(128, 128);
+        let all = Grid::filled(128, 128, true);
+        let clean = robust_noise_sigma(&scene.image, &all) * 255.0;
+        let noisy = robust_noise_sigma(&add_noise(&scene.image, 20.0, 3), &all) * 255.0;
+        assert!(clean < 0.5, "clean {clean}");
+        assert!((noisy - 20.0).abs() < 2.0, "noisy {noisy}");
+        // Only trusted pixels count: noise outside them is not seen.
+        let half = Grid::from_fn(128, 128, |c, _| c < 64);
+        let mixed = Grid::from_fn(128, 128, |c, r| {
+            if c < 64 {
+                *scene.image.at(c, r)
+            } else {
+                0.5 + if (c + r) % 2 == 0 { 0.3 } else { -0.3 }
+            }
+        });
+        assert!(robust_noise_sigma(&mixed, &half) * 255.0 < 0.5);
+    }
+
+    #[test]
+    fn filling_keeps_known_pixels_and_interpolates_a_ramp() {
+        let ramp = Grid::from_fn(40, 30, |c, _| c as f64 / 39.0);
+        let known = Grid::from_fn(40, 30, |c, r| {
+            !(10..30).contains(&c) || !(5..25).contains(&r)
+        });
+        let holed = Grid::from_fn(
+            40,
+            30,
+            |c, r| if *known.at(c, r) { *ramp.at(c, r) } else { 7.0 },
+        );
+        let filled = fill_unknown(&holed, &known);
+        for r in 0..30 {
+            for c in 0..40 {
+                let error = (filled.at(c, r) - ramp.at(c, r)).abs();
+                assert!(error < 0.02, "({c}, {r}): {error}");
+            }
+        }
+    }
+}

@@ -1,0 +1,550 @@
+//! The one table of solver parameters: name, label, help, kind and range,
+//! and how to read and write each in [`SolverParams`]. The command line
+//! (`cli::params`), the viewer's sliders and tooltips, the viewer's stored
+//! settings, the solve report and [`SolverParams::validate`] all read it, so
+//! a parameter is added in one place.
+
+use super::{Alpha, DomainMode, SolverParams, StepControl, Units};
+use crate::model::Derivatives;
+
+/// What values a parameter takes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ParamKind {
+    /// A real number in `[min, max]`; `log`: shown on a logarithmic slider;
+    /// `auto`: the word `auto` is accepted too.
+    Real {
+        /// Smallest accepted value.
+        min: f64,
+        /// Largest accepted value.
+        max: f64,
+        /// Logarithmic slider.
+        log: bool,
+        /// Accepts `auto`.
+        auto: bool,
+    },
+    /// A whole number in `[min, max]`.
+    Count {
+        /// Smallest accepted value.
+        min: usize,
+        /// Largest accepted value.
+        max: usize,
+    },
+    /// One of these words.
+    Choice(&'static [&'static str]),
+}
+
+/// A parameter's value, as the table reads and writes it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ParamValue {
+    /// A real number.
+    Real(f64),
+    /// A whole number.
+    Count(usize),
+    /// One of the parameter's words.
+    Choice(&'static str),
+    /// Chosen by the solver.
+    Auto,
+}
+
+impl std::fmt::Display for ParamValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ParamValue::Real(v) => write!(f, "{v}"),
+            ParamValue::Count(v) => write!(f, "{v}"),
+            ParamValue::Choice(w) => write!(f, "{w}"),
+            ParamValue::Auto => write!(f, "auto"),
+        }
+    }
+}
+
+impl ParamValue {
+    /// The value as JSON (numbers as numbers, words as strings).
+    pub fn to_json(self) -> serde_json::Value {
+        match self {
+            ParamValue::Real(v) => serde_json::json!(v),
+            ParamValue::Count(v) => serde_json::json!(v),
+            ParamValue::Choice(w) => serde_json::json!(w),
+            ParamValue::Auto => serde_json::json!("auto"),
+        }
+    }
+}
+
+/// One parameter.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamSpec {
+    /// Name on the command line (`--NAME`), in reports and stored settings.
+    pub name: &'static str,
+    /// Short label in the viewer.
+    pub label: &'static str,
+    /// What it does, its unit, its default and the paper's value.
+    pub help: &'static str,
+    /// Values and range (why the bounds: in `help`).
+    pub kind: ParamKind,
+    /// Slider range in the viewer (relative units), `None`: not a slider.
+    pub slider: Option<(f64, f64)>,
+    /// Reads the value.
+    pub get: fn(&SolverParams) -> ParamValue,
+    /// Writes a value already checked against `kind`.
+    pub set: fn(&mut SolverParams, ParamValue),
+}
+
+/// A value that does not fit a parameter.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("invalid parameter {name} = {value}: {reason}")]
+pub struct ParamError {
+    /// The parameter's name as the command line spells it.
+    pub name: &'static str,
+    /// The rejected value.
+    pub value: String,
+    /// What a valid value is.
+    pub reason: String,
+}
+
+impl ParamSpec {
+    /// What the kind accepts, in words.
+    pub fn accepted(&self) -> String {
+        match self.kind {
+            ParamKind::Real { min, max, auto, .. } => format!(
+                "must be {}a finite number in [{min:e}, {max:e}]",
+                if auto { "'auto' or " } else { "" }
+            ),
+            ParamKind::Count { min, max } => format!("must be a whole number in [{min}, {max}]"),
+            ParamKind::Choice(words) => format!("must be one of {}", words.join(", ")),
+        }
+    }
+
+    fn error(&self, value: impl ToString) -> ParamError {
+        ParamError {
+            name: self.name,
+            value: value.to_string(),
+            reason: self.accepted(),
+        }
+    }
+
+    /// Checks a value against the kind and range.
+    pub fn check(&self, value: ParamValue) -> Result<(), ParamError> {
+        let ok = match (self.kind, value) {
+            (ParamKind::Real { auto, .. }, ParamValue::Auto) => auto,
+            (ParamKind::Real { min, max, .. }, ParamValue::Real(v)) => {
+                v.is_finite() && (min..=max).contains(&v)
+            }
+            (ParamKind::Count { min, max }, ParamValue::Count(v)) => (min..=max).contains(&v),
+            (ParamKind::Choice(words), ParamValue::Choice(w)) => words.contains(&w),
+            _ => false,
+        };
+        if ok { Ok(()) } else { Err(self.error(value)) }
+    }
+
+    /// Parses and checks a value written as text (the command line's form).
+    pub fn parse(&self, text: &str) -> Result<ParamValue, ParamError> {
+        let text = text.trim();
+        let value = match self.kind {
+            ParamKind::Real { auto, .. } if auto && text.eq_ignore_ascii_case("auto") => {
+                ParamValue::Auto
+            }
+            ParamKind::Real { .. } => ParamValue::Real(text.parse().map_err(|_| self.error(text))?),
+            ParamKind::Count { .. } => {
+                ParamValue::Count(text.parse().map_err(|_| self.error(text))?)
+            }
+            ParamKind::Choice(words) => ParamValue::Choice(
+                words
+                    .iter()
+                    .find(|w| w.eq_ignore_ascii_case(text))
+                    .ok_or_else(|| self.error(text))?,
+            ),
+        };
+        self.check(value)?;
+        Ok(value)
+    }
+
+    /// Reads a value from JSON (stored settings); `None` if it does not fit.
+    pub fn from_json(&self, json: &serde_json::Value) -> Option<ParamValue> {
+        let text = match json {
+            serde_json::Value::String(s) => s.clone(),
+            serde_json::Value::Number(n) => n.to_string(),
+            _ => return None,
+        };
+        self.parse(&text).ok()
+    }
+}
+
+fn real(value: ParamValue) -> f64 {
+    match value {
+        ParamValue::Real(v) => v,
+        ParamValue::Count(v) => v as f64,
+        _ => f64::NAN,
+    }
+}
+
+fn count(value: ParamValue) -> usize {
+    match value {
+        ParamValue::Count(v) => v,
+        _ => 0,
+    }
+}
+
+fn word(value: ParamValue) -> &'static str {
+    match value {
+        ParamValue::Choice(w) => w,
+        _ => "",
+    }
+}
+
+/// Every parameter of [`SolverParams`] but the initial depth (a map or a
+/// method, given separately). Bounds keep every solve finite and its size
+/// sane: no parameter accepted here can make the solver hang, overflow or
+/// allocate without bound.
+pub const PARAMS: &[ParamSpec] = &[
+    ParamSpec {
+        name: "alpha",
+        label: "alpha",
+        help: "Smoothness weight, in --units, or 'auto' (default): chosen from the image's \
+               estimated noise, see README \"Choosing alpha\". Larger = smoother. In relative \
+               units 1e-8 to 1e-5 suit most images; the paper used 0.003 to 3 in its own units.",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: 1e15,
+            log: true,
+            auto: true,
+        },
+        slider: Some((1e-10, 1e-3)),
+        get: |p| match p.alpha {
+            Alpha::Auto => ParamValue::Auto,
+            Alpha::Value(v) => ParamValue::Real(v),
+        },
+        set: |p, v| {
+            p.alpha = match v {
+                ParamValue::Auto => Alpha::Auto,
+                v => Alpha::Value(real(v)),
+            }
+        },
+    },
+    ParamSpec {
+        name: "lambda",
+        label: "lambda",
+        help: "Charbonnier contrast of the smoothness term, in --units: below it smoothing is \
+               quadratic, above it creases are kept. Default 30 relative (the paper's 1e-3 \
+               pixel units on its Sombrero).",
+        kind: ParamKind::Real {
+            min: 1e-12,
+            max: 1e12,
+            log: true,
+            auto: false,
+        },
+        slider: Some((0.1, 1e4)),
+        get: |p| ParamValue::Real(p.lambda),
+        set: |p, v| p.lambda = real(v),
+    },
+    ParamSpec {
+        name: "units",
+        label: "units",
+        help: "Units of alpha, lambda, dz-limit and h-z: 'relative' (default; dimensionless, \
+               the same values give the same result at any image size, exposure and unit of \
+               depth) or 'paper' (per full-resolution pixel and depth units, as in the paper).",
+        kind: ParamKind::Choice(&["relative", "paper"]),
+        slider: None,
+        get: |p| {
+            ParamValue::Choice(match p.units {
+                Units::Relative => "relative",
+                Units::Paper => "paper",
+            })
+        },
+        set: |p, v| {
+            p.units = if word(v) == "paper" {
+                Units::Paper
+            } else {
+                Units::Relative
+            }
+        },
+    },
+    ParamSpec {
+        name: "eta",
+        label: "eta",
+        help: "Pyramid factor between levels (paper 0.9). Bounded by 0.99: the number of \
+               levels grows as 1/(1 - eta).",
+        kind: ParamKind::Real {
+            min: 0.1,
+            max: 0.99,
+            log: false,
+            auto: false,
+        },
+        slider: Some((0.5, 0.98)),
+        get: |p| ParamValue::Real(p.eta),
+        set: |p, v| p.eta = real(v),
+    },
+    ParamSpec {
+        name: "kappa",
+        label: "kappa",
+        help: "Outer (Gauss-Newton) iterations per level, at least (paper 5).",
+        kind: ParamKind::Count { min: 1, max: 1000 },
+        slider: Some((1.0, 20.0)),
+        get: |p| ParamValue::Count(p.kappa),
+        set: |p, v| p.kappa = count(v),
+    },
+    ParamSpec {
+        name: "kappa-max",
+        label: "kappa max",
+        help: "Outer iterations per level at most: after kappa a level goes on while its \
+               energy falls by more than level-tolerance per iteration. Default 5 (= kappa, \
+               the paper's fixed count: converging every coarse level was measured worse).",
+        kind: ParamKind::Count { min: 1, max: 1000 },
+        slider: None,
+        get: |p| ParamValue::Count(p.kappa_max),
+        set: |p, v| p.kappa_max = count(v),
+    },
+    ParamSpec {
+        name: "level-tolerance",
+        label: "level tolerance",
+        help: "Relative energy decrease per outer iteration below which a level stops \
+               (after kappa iterations). Default 1e-3.",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: 1.0,
+            log: false,
+            auto: false,
+        },
+        slider: None,
+        get: |p| ParamValue::Real(p.level_tolerance),
+        set: |p, v| p.level_tolerance = real(v),
+    },
+    ParamSpec {
+        name: "inner-iters",
+        label: "inner iterations",
+        help: "Fixed-point iterations l_max on the Charbonnier weights Psi' (paper 9).",
+        kind: ParamKind::Count { min: 1, max: 1000 },
+        slider: Some((1.0, 30.0)),
+        get: |p| ParamValue::Count(p.inner_iterations),
+        set: |p, v| p.inner_iterations = count(v),
+    },
+    ParamSpec {
+        name: "sor-iters",
+        label: "SOR sweeps",
+        help: "SOR sweeps per inner iteration (paper 10).",
+        kind: ParamKind::Count { min: 1, max: 1000 },
+        slider: Some((1.0, 50.0)),
+        get: |p| ParamValue::Count(p.sor_iterations),
+        set: |p, v| p.sor_iterations = count(v),
+    },
+    ParamSpec {
+        name: "omega",
+        label: "omega",
+        help: "SOR over-relaxation, in (0, 2) (not given in the paper; default 1.5).",
+        kind: ParamKind::Real {
+            min: 0.01,
+            max: 1.99,
+            log: false,
+            auto: false,
+        },
+        slider: Some((0.1, 1.95)),
+        get: |p| ParamValue::Real(p.omega),
+        set: |p, v| p.omega = real(v),
+    },
+    ParamSpec {
+        name: "dz-limit",
+        label: "dz limit",
+        help: "Largest depth change per pixel and outer iteration: a fraction of the pixel's \
+               depth in relative units (default 0.005), depth units in paper units (paper \
+               0.01).",
+        kind: ParamKind::Real {
+            min: 1e-9,
+            max: 1e9,
+            log: true,
+            auto: false,
+        },
+        slider: Some((1e-4, 0.1)),
+        get: |p| ParamValue::Real(p.dz_limit),
+        set: |p, v| p.dz_limit = real(v),
+    },
+    ParamSpec {
+        name: "derivatives",
+        label: "derivatives",
+        help: "Derivatives of the residual: 'exact' (default) or 'numeric' (central \
+               differences with h-z, the paper's; both agree to about 1e-4).",
+        kind: ParamKind::Choice(&["exact", "numeric"]),
+        slider: None,
+        get: |p| {
+            ParamValue::Choice(match p.derivatives {
+                Derivatives::Exact => "exact",
+                Derivatives::Numeric { .. } => "numeric",
+            })
+        },
+        set: |p, v| {
+            p.derivatives = match (word(v), p.derivatives) {
+                ("numeric", Derivatives::Numeric { h_z }) => Derivatives::Numeric { h_z },
+                ("numeric", Derivatives::Exact) => Derivatives::Numeric { h_z: 1e-12 },
+                _ => Derivatives::Exact,
+            }
+        },
+    },
+    ParamSpec {
+        name: "h-z",
+        label: "h_z",
+        help: "Perturbation of numeric derivatives (with derivatives = numeric): a fraction \
+               of the depth scale in relative units, depth units in paper units (paper \
+               1e-12).",
+        kind: ParamKind::Real {
+            min: 1e-15,
+            max: 1.0,
+            log: true,
+            auto: false,
+        },
+        slider: None,
+        get: |p| match p.derivatives {
+            Derivatives::Numeric { h_z } => ParamValue::Real(h_z),
+            Derivatives::Exact => ParamValue::Real(1e-12),
+        },
+        set: |p, v| {
+            if let Derivatives::Numeric { h_z } = &mut p.derivatives {
+                *h_z = real(v);
+            }
+        },
+    },
+    ParamSpec {
+        name: "min-level-side",
+        label: "coarsest side",
+        help: "Smallest side of the coarsest pyramid level, pixels (default 16).",
+        kind: ParamKind::Count {
+            min: 3,
+            max: 1 << 20,
+        },
+        slider: None,
+        get: |p| ParamValue::Count(p.min_level_side),
+        set: |p, v| p.min_level_side = count(v),
+    },
+    ParamSpec {
+        name: "domain",
+        label: "domain",
+        help: "'paper' (default): every pixel carries depth, the background only has \
+               confidence 0; 'object': only object-mask pixels do (README, \"Object mask \
+               versus confidence\").",
+        kind: ParamKind::Choice(&["paper", "object"]),
+        slider: None,
+        get: |p| {
+            ParamValue::Choice(match p.domain {
+                DomainMode::Paper => "paper",
+                DomainMode::Object => "object",
+            })
+        },
+        set: |p, v| {
+            p.domain = if word(v) == "object" {
+                DomainMode::Object
+            } else {
+                DomainMode::Paper
+            }
+        },
+    },
+    ParamSpec {
+        name: "step-control",
+        label: "step control",
+        help: "'backtracking' (default): crop, then halve the step until the energy does not \
+               rise; 'crop': the paper's per-pixel crop alone.",
+        kind: ParamKind::Choice(&["backtracking", "crop"]),
+        slider: None,
+        get: |p| {
+            ParamValue::Choice(match p.step_control {
+                StepControl::Backtracking => "backtracking",
+                StepControl::Crop => "crop",
+            })
+        },
+        set: |p, v| {
+            p.step_control = if word(v) == "crop" {
+                StepControl::Crop
+            } else {
+                StepControl::Backtracking
+            }
+        },
+    },
+    ParamSpec {
+        name: "anti-alias",
+        label: "anti-alias",
+        help: "Pyramid anti-aliasing sigma_0 (0, the default: point-sample every level from \
+               the full image, keeping bright peaks). Bounded by 10: the blur's kernel grows \
+               with it.",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: 10.0,
+            log: false,
+            auto: false,
+        },
+        slider: None,
+        get: |p| ParamValue::Real(p.anti_alias_sigma),
+        set: |p, v| p.anti_alias_sigma = real(v),
+    },
+];
+
+/// The table entry called `name`.
+pub fn spec(name: &str) -> Option<&'static ParamSpec> {
+    PARAMS.iter().find(|s| s.name == name)
+}
+
+/// Parameters from checked values over the defaults of the units among them
+/// (the defaults of lambda and dz-limit depend on the units), the initial
+/// depth at its default.
+pub fn params_from<'a>(
+    values: impl IntoIterator<Item = (&'a ParamSpec, ParamValue)>,
+) -> SolverParams {
+    let values: Vec<_> = values.into_iter().collect();
+    let units = match values.iter().find(|(spec, _)| spec.name == "units") {
+        Some((_, ParamValue::Choice("paper"))) => Units::Paper,
+        _ => Units::Relative,
+    };
+    let mut params = SolverParams::for_units(units);
+    for (spec, value) in values {
+        (spec.set)(&mut params, value);
+    }
+    params
+}
+
+/// Every parameter's value as a JSON object (the report's `parameters`).
+pub fn to_json(params: &SolverParams) -> serde_json::Value {
+    serde_json::Value::Object(
+        PARAMS
+            .iter()
+            .map(|s| (s.name.to_string(), (s.get)(params).to_json()))
+            .collect(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_default_passes_its_own_check_and_round_trips_as_text() {
+        for params in [SolverParams::default(), SolverParams::paper(100.0)] {
+            for s in PARAMS {
+                let value = (s.get)(&params);
+                s.check(value).unwrap_or_else(|e| panic!("{e}"));
+                assert_eq!(s.parse(&value.to_string()), Ok(value), "{}", s.name);
+                let mut copy = params.clone();
+                (s.set)(&mut copy, value);
+                assert_eq!(copy, params, "{}", s.name);
+            }
+        }
+    }
+
+    #[test]
+    fn names_are_unique_and_bad_text_is_named() {
+        for (i, a) in PARAMS.iter().enumerate() {
+            assert!(
+                PARAMS[i + 1..].iter().all(|b| b.name != a.name),
+                "{}",
+                a.name
+            );
+        }
+        let alpha = spec("alpha").expect("alpha");
+        assert_eq!(alpha.parse("auto"), Ok(ParamValue::Auto));
+        assert_eq!(alpha.parse("-1").map_err(|e| e.name), Err("alpha"));
+        assert_eq!(alpha.parse("abc").map_err(|e| e.name), Err("alpha"));
+        let eta = spec("eta").expect("eta");
+        assert!(eta.parse("0.999999999999").is_err());
+        assert!(
+            spec("anti-alias")
+                .expect("anti-alias")
+                .parse("1e20")
+                .is_err()
+        );
+        assert!(spec("lambda").expect("lambda").parse("1e300").is_err());
+        assert!(spec("domain").expect("domain").parse("OBJECT").is_ok());
+    }
+}

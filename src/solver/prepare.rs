@@ -1,0 +1,318 @@
+//! The preparation every variational scheme shares: the validated problem's
+//! pyramid, its scales (what relative parameters refer to), the automatic
+//! alpha, the smoothness weights in pixel units, the update crop and the
+//! initial depth (constant, a map, or fast marching on the denoised image),
+//! so that the linearised and the explicit scheme minimise the same discrete
+//! energy from the same start; and the per-level energy and result both
+//! report.
+
+use std::time::Instant;
+
+use crate::grid::Grid;
+use crate::model::{self, Derivatives, Energy, LevelGeometry, Reflectance};
+use crate::params::{
+    Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
+};
+
+use super::problem::{LevelResult, Problem, SolveError, masked};
+use super::pyramid::{self, PyramidLevel};
+
+/// A validated problem ready for a coarse-to-fine scheme: its pyramid
+/// (coarsest first), the initial depth on the coarsest level and the
+/// smoothness weights in pixel units. Shared by every variational scheme so
+/// that they minimise the same discrete energy on the same levels.
+pub(crate) struct Prepared {
+    /// Levels, coarsest first; the last one is the full image.
+    pub levels: Vec<PyramidLevel>,
+    /// Initial depth on the coarsest level.
+    pub depth: Grid<f64>,
+    /// The constant initial depth (or the warm start's mean).
+    pub initial_depth: f64,
+    /// `alpha` in pixel units.
+    pub alpha: f64,
+    /// `lambda` in pixel units.
+    pub lambda: f64,
+    /// The problem's scales (what relative units refer to).
+    pub scales: ProblemScales,
+    /// The alpha used, in the parameters' units (the chosen one for auto).
+    pub alpha_used: f64,
+    /// The per-pixel crop of the updates.
+    pub crop: Crop,
+    /// Derivatives with `h_z` in depth units.
+    pub derivatives: Derivatives,
+}
+
+/// The per-pixel limit on one update `|dz|`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Crop {
+    /// At most this many depth units.
+    Absolute(f64),
+    /// At most this fraction of the pixel's depth.
+    Relative(f64),
+}
+
+impl Crop {
+    /// The largest step allowed at depth `z`.
+    #[inline]
+    pub(crate) fn limit(self, z: f64) -> f64 {
+        match self {
+            Crop::Absolute(limit) => limit,
+            Crop::Relative(fraction) => fraction * z.abs(),
+        }
+    }
+}
+
+/// Validates `problem` and `params` and builds the pyramid and initial depth.
+pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepared, SolveError> {
+    params.validate()?;
+    let (domain, confidence) = problem.validate(params)?;
+    let (w, h) = problem.image.size();
+    let scales = problem_scales(problem, &confidence);
+    let finest = PyramidLevel {
+        geometry: LevelGeometry::new(w, h, w, h, problem.camera),
+        image: problem.image.clone(),
+        confidence,
+        domain,
+    };
+    let relative_noise = super::auto_alpha::relative_noise(&finest, &scales);
+    let fast_marching = match params.initial_depth {
+        InitialDepth::FastMarching => Some(fast_marching_start(
+            problem,
+            &finest,
+            relative_noise * scales.intensity,
+            relative_noise > FAST_MARCHING_DENOISE_ABOVE,
+        )?),
+        _ => None,
+    };
+    let warm = match &params.initial_depth {
+        InitialDepth::Map(map) => Some(map),
+        InitialDepth::FastMarching => fast_marching.as_ref(),
+        _ => None,
+    };
+    let sizes = if warm.is_some() {
+        vec![(w, h)]
+    } else {
+        pyramid::level_sizes(w, h, params.eta, params.min_level_side)
+    };
+    let mut levels = vec![finest];
+    for &(lw, lh) in &sizes[1..] {
+        let geometry = LevelGeometry::new(lw, lh, w, h, problem.camera);
+        let Some(finer) = levels.last() else { break };
+        let source = if params.anti_alias_sigma == 0.0 {
+            &levels[0]
+        } else {
+            finer
+        };
+        let next = pyramid::downsample(source, geometry, params.anti_alias_sigma);
+        if !next.domain.as_slice().iter().any(|&d| d) {
+            break; // the object vanished at this size: stop coarsening
+        }
+        levels.push(next);
+    }
+    levels.reverse(); // coarsest first
+
+    let coarsest = &levels[0];
+    let (depth, initial_depth) = match (&params.initial_depth, warm) {
+        (_, Some(map)) => fill_warm_start(map),
+        (InitialDepth::Constant(z0), None) => (
+            Grid::filled(coarsest.geometry.width, coarsest.geometry.height, *z0),
+            *z0,
+        ),
+        (InitialDepth::Pyramid(map), None) => {
+            let (filled, mean) = fill_warm_start(map);
+            let known = map.map(|z| z.is_finite() && *z > 0.0);
+            (
+                pyramid::upsample_depth(&filled, &known, &coarsest.domain),
+                mean,
+            )
+        }
+        _ => {
+            let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
+            (
+                Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
+                z0,
+            )
+        }
+    };
+    let alpha_used = match params.alpha {
+        Alpha::Value(alpha) => alpha,
+        Alpha::Auto => {
+            let relative = super::auto_alpha::choose(relative_noise);
+            match params.units {
+                Units::Relative => relative,
+                Units::Paper => scales.alpha_px(relative),
+            }
+        }
+    };
+    let (alpha, lambda, crop, derivatives) = match params.units {
+        Units::Relative => (
+            scales.alpha_px(alpha_used),
+            scales.lambda_px(params.lambda),
+            Crop::Relative(params.dz_limit),
+            match params.derivatives {
+                Derivatives::Numeric { h_z } => Derivatives::Numeric {
+                    h_z: h_z * scales.depth,
+                },
+                exact => exact,
+            },
+        ),
+        Units::Paper => (
+            alpha_used,
+            params.lambda,
+            Crop::Absolute(params.dz_limit),
+            params.derivatives,
+        ),
+    };
+    Ok(Prepared {
+        levels,
+        depth,
+        initial_depth,
+        alpha,
+        lambda,
+        scales,
+        alpha_used,
+        crop,
+        derivatives,
+    })
+}
+
+/// The fast-marching start of [`InitialDepth::FastMarching`]: untrusted
+/// object pixels filled by diffusion from trusted ones (fast marching has no
+/// confidence), the image TV-denoised with weight `noise_sigma` when
+/// `denoise`, then fast marching on the object. NaN off the object.
+fn fast_marching_start(
+    problem: &Problem,
+    finest: &PyramidLevel,
+    noise_sigma: f64,
+    denoise: bool,
+) -> Result<Grid<f64>, SolveError> {
+    let trusted = finest.confidence.map(|&c| c >= 0.5);
+    let mut image = crate::denoise::fill_unknown(&problem.image, &trusted);
+    if denoise {
+        image = crate::denoise::tv_denoise(&image, noise_sigma, TV_ITERATIONS);
+    }
+    let start = Problem {
+        image,
+        camera: problem.camera,
+        intensity_scale: problem.intensity_scale,
+        object_mask: problem.object_mask.clone(),
+        confidence: None,
+    };
+    let settings = super::fast_marching::FastMarchingParams::default();
+    Ok(super::fast_marching::solve_fast_marching(&start, &settings, &mut ())?.depth)
+}
+
+/// Primal-dual iterations of the TV denoising before the fast-marching start.
+const TV_ITERATIONS: usize = 200;
+
+/// The scales of [`ProblemScales`]: the median over trusted object pixels
+/// (confidence > 0, brightness > 0) of the "facing the light" depth
+/// `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already 0 off the
+/// object; `validate` guarantees a trusted pixel with brightness > 0.
+pub(crate) fn problem_scales(problem: &Problem, confidence: &Grid<f64>) -> ProblemScales {
+    let (w, h) = problem.image.size();
+    let s = problem.intensity_scale;
+    let camera = problem.camera;
+    let mut facing: Vec<f64> = Vec::with_capacity(w * h);
+    for r in 0..h {
+        for c in 0..w {
+            let v = *problem.image.at(c, r);
+            if *confidence.at(c, r) > 0.0 && v > 0.0 {
+                let q = model::PixelRay {
+                    x_px: c as f64 - camera.principal_x_px,
+                    y_px: r as f64 - camera.principal_y_px,
+                    focal_px: camera.focal_px,
+                }
+                .q();
+                facing.push(q * (s / v).sqrt());
+            }
+        }
+    }
+    let depth = if facing.is_empty() {
+        1.0
+    } else {
+        let middle = facing.len() / 2;
+        *facing.select_nth_unstable_by(middle, f64::total_cmp).1
+    };
+    ProblemScales {
+        depth,
+        intensity: s / (depth * depth),
+        focal_px: camera.focal_px,
+    }
+}
+
+/// The constant initial depth of [`InitialDepth::FromImage`] on a level: the
+/// brightest trusted domain pixel `b` is assumed to face the light,
+/// `z0 = Q_b sqrt(s / I_b)`.
+pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> f64 {
+    let (w, h) = level.image.size();
+    let mut best = (0.0, 1.0);
+    for r in 0..h {
+        for c in 0..w {
+            let v = *level.image.at(c, r);
+            if *level.domain.at(c, r) && *level.confidence.at(c, r) > 0.0 && v > best.0 {
+                best = (v, level.geometry.ray(c, r).q());
+            }
+        }
+    }
+    if best.0 > 0.0 {
+        best.1 * (intensity_scale / best.0).sqrt()
+    } else {
+        1.0
+    }
+}
+
+/// Replaces non-finite or non-positive values of a warm start by the mean.
+fn fill_warm_start(map: &Grid<f64>) -> (Grid<f64>, f64) {
+    let valid: Vec<f64> = map
+        .as_slice()
+        .iter()
+        .cloned()
+        .filter(|z| z.is_finite() && *z > 0.0)
+        .collect();
+    let mean = valid.iter().sum::<f64>() / valid.len().max(1) as f64;
+    (
+        map.map(|&z| if z.is_finite() && z > 0.0 { z } else { mean }),
+        mean,
+    )
+}
+
+/// A level's depth (NaN off its domain) and reprojection, as observers get them.
+pub(crate) fn level_result<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    index: usize,
+    levels: usize,
+    energy: Energy,
+    start: Instant,
+) -> LevelResult {
+    LevelResult {
+        level: index,
+        levels,
+        depth: masked(depth, &level.domain),
+        reprojection: model::reproject(model, &level.geometry, &level.domain, depth),
+        energy,
+        elapsed: start.elapsed(),
+    }
+}
+
+/// Energy of a level.
+pub(crate) fn level_energy<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    alpha: f64,
+    lambda: f64,
+) -> Energy {
+    model::energy(
+        model,
+        &level.geometry,
+        &level.image,
+        &level.confidence,
+        &level.domain,
+        depth,
+        alpha,
+        lambda,
+    )
+}

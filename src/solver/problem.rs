@@ -1,0 +1,310 @@
+//! What every scheme shares: the [`Problem`] it is asked to explain, the
+//! [`Solution`] it returns, the reports it sends to a [`SolveObserver`] and
+//! the checks of the input. The schemes (`driver`, `explicit`,
+//! `fast_marching`) depend on this module, never on each other.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::camera::Intrinsics;
+use crate::grid::Grid;
+use crate::model::Energy;
+use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
+
+/// Smallest accepted image side.
+pub const MIN_IMAGE_SIDE: usize = 3;
+
+/// What the solver is asked to explain.
+#[derive(Clone, Debug)]
+pub struct Problem {
+    /// Linear image values (>= 0, finite).
+    pub image: Grid<f64>,
+    /// Camera at full resolution.
+    pub camera: Intrinsics,
+    /// Intensity scale `s`.
+    pub intensity_scale: f64,
+    /// Pixels that see the object (`None`: every pixel).
+    pub object_mask: Option<Grid<bool>>,
+    /// Confidence in [0, 1] (`None`: 1 everywhere).
+    pub confidence: Option<Grid<f64>>,
+}
+
+/// Why a solve did not produce a depth map.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// A parameter is out of range.
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    /// The input cannot be solved; the message names the problem.
+    #[error("invalid input: {0}")]
+    Input(String),
+    /// The observer asked to stop.
+    #[error("cancelled")]
+    Cancelled,
+}
+
+/// Reported after every outer iteration.
+#[derive(Clone, Debug, Serialize)]
+pub struct IterationReport {
+    /// Level index, 0 = coarsest.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// Level width.
+    pub width: usize,
+    /// Level height.
+    pub height: usize,
+    /// Outer iteration within the level, from 0.
+    pub iteration: usize,
+    /// Energy after the update.
+    pub energy: Energy,
+    /// Largest `|dz|` applied (after cropping).
+    pub max_step: f64,
+    /// Time since the solve started.
+    #[serde(serialize_with = "seconds")]
+    pub elapsed: Duration,
+}
+
+/// Reported after every level: its depth and reprojection at its own size.
+#[derive(Clone, Debug)]
+pub struct LevelResult {
+    /// Level index, 0 = coarsest.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// Depth at this level's size; NaN outside the domain.
+    pub depth: Grid<f64>,
+    /// Reprojected image at this level's size.
+    pub reprojection: Grid<f64>,
+    /// Energy at the end of the level.
+    pub energy: Energy,
+    /// Time since the solve started.
+    pub elapsed: Duration,
+}
+
+/// Per-level summary kept in a [`Solution`].
+#[derive(Clone, Debug, Serialize)]
+pub struct LevelReport {
+    /// Level width.
+    pub width: usize,
+    /// Level height.
+    pub height: usize,
+    /// Energies after each outer iteration.
+    pub energies: Vec<f64>,
+    /// Seconds spent on this level.
+    pub seconds: f64,
+}
+
+/// Seconds spent in each phase of a solve.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct PhaseTimes {
+    /// Linearising the data term and building its part of the system.
+    pub linearise_seconds: f64,
+    /// Evaluating Psi' and assembling the full system (every inner iteration).
+    pub assemble_seconds: f64,
+    /// SOR sweeps.
+    pub sor_seconds: f64,
+    /// Cropping, applying and (with backtracking) re-evaluating the update.
+    pub update_seconds: f64,
+}
+
+/// The result of a solve.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// Full-resolution depth; NaN outside the object.
+    pub depth: Grid<f64>,
+    /// Reprojected image; 0 outside the object.
+    pub reprojection: Grid<f64>,
+    /// Energy of the initial depth at the coarsest level and of the result.
+    pub initial_energy: Energy,
+    /// Final energy at full resolution.
+    pub final_energy: Energy,
+    /// Levels, coarsest first.
+    pub levels: Vec<LevelReport>,
+    /// Where the time went.
+    pub phases: PhaseTimes,
+    /// Constant initial depth used (or the warm start's mean).
+    pub initial_depth: f64,
+    /// Wall time.
+    pub seconds: f64,
+    /// Outer iterations (linearised), gradient steps (explicit) or 1 (fast
+    /// marching).
+    pub iterations: usize,
+    /// True when a time or iteration budget stopped the scheme early.
+    pub budget_exhausted: bool,
+    /// The smoothness weight used, in the parameters' units (the chosen one
+    /// when alpha was `auto`); NaN for methods without one.
+    pub alpha: f64,
+    /// The same in pixel units.
+    pub alpha_px: f64,
+    /// Charbonnier `lambda` in pixel units.
+    pub lambda_px: f64,
+    /// The problem's scales that relative parameters refer to.
+    pub scales: ProblemScales,
+}
+
+fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(d.as_secs_f64())
+}
+
+/// Receives progress from the solver; every method has a no-op default.
+///
+/// Observers are `Send`: the solve runs on a worker of rayon's pool.
+pub trait SolveObserver: Send {
+    /// After every outer iteration.
+    fn on_iteration(&mut self, _report: &IterationReport) {}
+    /// After every level.
+    fn on_level(&mut self, _result: &LevelResult) {}
+    /// Polled between SOR sweeps; returning true stops the solve with
+    /// [`SolveError::Cancelled`].
+    fn is_cancelled(&self) -> bool {
+        false
+    }
+}
+
+/// An observer that ignores everything.
+impl SolveObserver for () {}
+
+impl Problem {
+    /// Checks sizes and values; returns the effective domain and confidence.
+    pub(crate) fn validate(
+        &self,
+        params: &SolverParams,
+    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+        let (w, h) = self.image.size();
+        let bad = |m: String| Err(SolveError::Input(m));
+        if w < MIN_IMAGE_SIDE || h < MIN_IMAGE_SIDE {
+            return bad(format!(
+                "image is {w}x{h}; at least {MIN_IMAGE_SIDE}x{MIN_IMAGE_SIDE} pixels are needed"
+            ));
+        }
+        let f = self.camera.focal_px;
+        if !(f.is_finite() && f > 0.0) {
+            return bad(format!("focal length must be finite and > 0 (got {f})"));
+        }
+        if !(self.camera.principal_x_px.is_finite() && self.camera.principal_y_px.is_finite()) {
+            return bad("principal point must be finite".into());
+        }
+        let s = self.intensity_scale;
+        if !(s.is_finite() && s > 0.0) {
+            return bad(format!("intensity scale must be finite and > 0 (got {s})"));
+        }
+        if let Some(bad_value) = self
+            .image
+            .as_slice()
+            .iter()
+            .find(|v| !v.is_finite() || **v < 0.0)
+        {
+            return bad(format!(
+                "image contains an invalid value {bad_value} (values must be finite and >= 0)"
+            ));
+        }
+        let object = match &self.object_mask {
+            Some(m) if m.size() != (w, h) => {
+                return bad(format!(
+                    "object mask is {}x{} but the image is {w}x{h}",
+                    m.width(),
+                    m.height()
+                ));
+            }
+            Some(m) => m.clone(),
+            None => Grid::filled(w, h, true),
+        };
+        let confidence = match &self.confidence {
+            Some(c) if c.size() != (w, h) => {
+                return bad(format!(
+                    "confidence is {}x{} but the image is {w}x{h}",
+                    c.width(),
+                    c.height()
+                ));
+            }
+            Some(c) => {
+                if c.as_slice().iter().any(|v| !(0.0..=1.0).contains(v)) {
+                    return bad("confidence values must lie in [0, 1]".into());
+                }
+                c.clone()
+            }
+            None => Grid::filled(w, h, 1.0),
+        };
+        let confidence = Grid::from_fn(w, h, |c, r| {
+            if *object.at(c, r) {
+                *confidence.at(c, r)
+            } else {
+                0.0
+            }
+        });
+        let trusted: Vec<f64> = (0..w * h)
+            .filter(|&q| confidence.as_slice()[q] > 0.0)
+            .map(|q| self.image.as_slice()[q])
+            .collect();
+        if !object.as_slice().iter().any(|&o| o) {
+            return bad("the object mask is empty".into());
+        }
+        if trusted.is_empty() {
+            return bad("no pixel is both on the object and trusted (confidence > 0)".into());
+        }
+        let brightest = trusted.iter().cloned().fold(0.0, f64::max);
+        if brightest <= 0.0 {
+            return bad(
+                "the image is black on every trusted object pixel: there is no shading to explain"
+                    .into(),
+            );
+        }
+        let saturated = trusted.iter().filter(|&&v| v >= 1.0).count();
+        if saturated * 2 > trusted.len() {
+            return bad(format!(
+                "the image is saturated: {saturated} of {} trusted object pixels are at the maximum value; \
+                 lower the exposure or mask the saturated region (confidence 0)",
+                trusted.len()
+            ));
+        }
+        if let InitialDepth::Map(map) | InitialDepth::Pyramid(map) = &params.initial_depth
+            && map.size() != (w, h)
+        {
+            return bad(format!(
+                "initial depth map is {}x{} but the image is {w}x{h}",
+                map.width(),
+                map.height()
+            ));
+        }
+        let domain = match params.domain {
+            DomainMode::Object => object,
+            DomainMode::Paper => Grid::filled(w, h, true),
+        };
+        Ok((domain, confidence))
+    }
+}
+
+/// The full-resolution depth (NaN) and reprojection (0) outside the
+/// problem's object mask, as a [`Solution`] holds them.
+pub(crate) fn on_object(
+    problem: &Problem,
+    depth: &Grid<f64>,
+    reprojection: &Grid<f64>,
+) -> (Grid<f64>, Grid<f64>) {
+    let (w, h) = problem.image.size();
+    let object = problem
+        .object_mask
+        .clone()
+        .unwrap_or_else(|| Grid::filled(w, h, true));
+    let reprojection = Grid::from_fn(w, h, |c, r| {
+        if *object.at(c, r) {
+            *reprojection.at(c, r)
+        } else {
+            0.0
+        }
+    });
+    (masked(depth, &object), reprojection)
+}
+
+/// The depth with NaN outside `domain`.
+pub(crate) fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
+    Grid::from_fn(depth.width(), depth.height(), |c, r| {
+        if *domain.at(c, r) {
+            *depth.at(c, r)
+        } else {
+            f64::NAN
+        }
+    })
+}
