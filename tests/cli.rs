@@ -862,3 +862,46 @@ fn no_camera_and_no_focal() {
     ];
     expect_failure(&args, &out, &["--camera", "--focal"]);
 }
+
+#[test]
+fn solve_picks_the_method_and_chains_one_into_another() {
+    let fx = Fixture::new();
+    // Fast marching alone, then the linearised solver refining its depth.
+    let fm = fx.path("fm");
+    let mut args = fx.solve_args(&fm, &["--method", "fast-marching"]);
+    args.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args), "solve --method fast-marching");
+    let report = read_json(&fm.join("report.json"));
+    assert_eq!(report["parameters"]["method"], "fast_marching");
+    let fm_rse = report["rse"].as_f64().expect("rse");
+    let chained = fx.path("chained");
+    let depth = s(&fm.join("depth.npy"));
+    let mut args = fx.solve_args(&chained, &["--init-depth", &depth]);
+    args.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args), "solve --init-depth fm/depth.npy");
+    let report = read_json(&chained.join("report.json"));
+    assert_eq!(report["parameters"]["method"], "linearised");
+    let rse = report["rse"].as_f64().expect("rse");
+    assert!(
+        rse < 0.05 && fm_rse < 0.05,
+        "rse {rse}, fast marching {fm_rse}"
+    );
+    // The explicit scheme runs from the same command.
+    let explicit = fx.path("explicit");
+    let args = fx.solve_args(
+        &explicit,
+        &["--method", "explicit", "--init-depth", "from-image"],
+    );
+    assert_success(&sfs(&args), "solve --method explicit");
+    assert_eq!(
+        read_json(&explicit.join("report.json"))["parameters"]["method"],
+        "explicit"
+    );
+    // A start that is neither a method, a number nor a file is named.
+    let bad = fx.path("bad");
+    expect_failure(
+        &fx.solve_args(&bad, &["--init-depth", "sideways"]),
+        &bad,
+        &["--init-depth", "sideways"],
+    );
+}

@@ -309,6 +309,7 @@ impl ViewerApp {
                             .add(
                                 egui::Slider::new(&mut number, low..=high)
                                     .logarithmic(log)
+                                    .custom_formatter(|v, _| slider_number(v))
                                     .text(spec.label),
                             )
                             .on_hover_text(tooltip.as_str())
@@ -884,4 +885,15 @@ fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
         egui::FontId::proportional(10.0),
         ui.visuals().weak_text_color(),
     );
+}
+
+/// A slider's number: scientific notation where plain decimals would show
+/// only zeros or too many digits (alpha is around 1e-7 in relative units).
+fn slider_number(value: f64) -> String {
+    let magnitude = value.abs();
+    if magnitude != 0.0 && !(1e-3..1e5).contains(&magnitude) {
+        format!("{value:.3e}")
+    } else {
+        format!("{}", (value * 1e4).round() / 1e4)
+    }
 }

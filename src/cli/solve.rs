@@ -337,11 +337,30 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     stage
         .commit()
         .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    let levels = solution.levels.len();
     let mut summary = format!(
-        "solved {} in {:.2} s ({} levels) -> {}",
+        "solved {} in {:.2} s ({} level{}{}{}) -> {}",
         args.image.display(),
         solution.seconds,
-        solution.levels.len(),
+        levels,
+        if levels == 1 { "" } else { "s" },
+        if matches!(params.initial_depth, InitialDepth::FastMarching) {
+            " after the fast-marching start"
+        } else {
+            ""
+        },
+        if solution.alpha.is_finite() {
+            format!(
+                ", alpha {:.3e} {}",
+                solution.alpha,
+                match params.units {
+                    parameters::Units::Relative => "relative",
+                    parameters::Units::Paper => "paper units",
+                }
+            )
+        } else {
+            String::new()
+        },
         args.out.display()
     );
     if let Some(e) = errors {
