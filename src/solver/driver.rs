@@ -10,12 +10,11 @@ use crate::grid::Grid;
 use crate::model::{Energy, Lambertian, Reflectance};
 use crate::params::{InitialDepth, SolverParams, StepControl};
 
-use super::prepare::{Crop, Prepared, level_energy, level_result, prepare};
+use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
+use super::prepare::{Crop, Prepared, level_energy, prepare};
 use super::problem::{
-    IterationReport, LevelReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver,
-    on_object,
+    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, on_object,
 };
-use super::pyramid;
 use super::sor;
 use super::system::LinearSystem;
 
@@ -53,50 +52,71 @@ fn solve_on_worker<M: Reflectance>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
-    let Prepared {
-        levels,
-        mut depth,
-        initial_depth,
-        alpha,
-        lambda,
-        scales,
-        alpha_used,
-        crop,
-        derivatives,
-    } = prepare(problem, params)?;
+    let prepared = prepare(problem, params)?;
+    let mut scheme = GaussNewton {
+        model,
+        params,
+        prepared: &prepared,
+        z_floor: 1e-6 * prepared.initial_depth.abs().max(1e-9),
+        phases: PhaseTimes::default(),
+    };
     // A start computed by another method (fast marching) is shown to the
     // observer as the first level, so a viewer has a surface at once.
-    let offset = usize::from(matches!(params.initial_depth, InitialDepth::FastMarching));
-    let level_count = levels.len() + offset;
-    let coarsest = &levels[0];
-    let initial_energy = level_energy(model, coarsest, &depth, alpha, lambda);
-    let z_floor = 1e-6 * initial_depth.abs().max(1e-9);
-    if offset == 1 {
-        observer.on_level(&level_result(
-            model,
-            coarsest,
-            &depth,
-            0,
-            level_count,
-            initial_energy,
-            start,
-        ));
-    }
+    let show_start = matches!(params.initial_depth, InitialDepth::FastMarching);
+    let walk = coarse_to_fine(model, &prepared, show_start, start, observer, &mut scheme)?;
+    let phases = scheme.phases;
+    let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
+    let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
+    Ok(Solution {
+        depth,
+        reprojection,
+        initial_energy: walk.initial_energy,
+        final_energy: walk.final_energy,
+        levels: walk.reports,
+        phases,
+        initial_depth: prepared.initial_depth,
+        seconds: start.elapsed().as_secs_f64(),
+        iterations,
+        budget_exhausted: false,
+        alpha: prepared.alpha_used,
+        alpha_px: prepared.alpha,
+        lambda_px: prepared.lambda,
+        scales: prepared.scales,
+    })
+}
 
-    let mut reports = Vec::with_capacity(level_count);
-    // The finest level's reprojection, kept for the solution.
-    let mut last_reprojection = Grid::filled(0, 0, 0.0);
-    let mut phases = PhaseTimes::default();
-    let mut final_energy = initial_energy;
-    for (index, level) in levels.iter().enumerate() {
-        let level_start = Instant::now();
-        if index > 0 {
-            depth = pyramid::upsample_depth(&depth, &levels[index - 1].domain, &level.domain);
-        }
+/// One level of the linearised scheme: `kappa` (up to `kappa_max`) outer
+/// Gauss-Newton iterations, each with `l_max` inner fixed-point iterations
+/// on Psi' and SOR sweeps, the update cropped and (with backtracking) halved
+/// until the energy does not rise.
+struct GaussNewton<'a, M> {
+    model: &'a M,
+    params: &'a SolverParams,
+    prepared: &'a Prepared,
+    z_floor: f64,
+    phases: PhaseTimes,
+}
+
+impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
+    fn solve_level(
+        &mut self,
+        step: &LevelStep<'_>,
+        depth: &mut Grid<f64>,
+        observer: &mut dyn SolveObserver,
+    ) -> Result<LevelEnd, SolveError> {
+        let (model, params, level) = (self.model, self.params, step.level);
+        let Prepared {
+            alpha,
+            lambda,
+            crop,
+            derivatives,
+            ..
+        } = *self.prepared;
+        let energy_of = |depth: &Grid<f64>| level_energy(model, level, depth, alpha, lambda);
         let mut system = LinearSystem::new(level);
         let mut energies = Vec::with_capacity(params.kappa_max);
         // Energy of the current depth on this level, once known.
-        let mut current_energy: Option<Energy> = None;
+        let mut current: Option<Energy> = None;
         // The depth before a trial step (backtracking), reused across iterations.
         let mut previous = depth.clone();
         for iteration in 0..params.kappa_max {
@@ -107,18 +127,18 @@ fn solve_on_worker<M: Reflectance>(
                 break; // the level has converged
             }
             let t0 = Instant::now();
-            if !system.linearise_data(model, level, &depth, derivatives) {
+            if !system.linearise_data(model, level, depth, derivatives) {
                 return Err(SolveError::Input(
                     "the reflectance model has no exact derivatives; use numeric derivatives"
                         .into(),
                 ));
             }
             system.clear_dz();
-            phases.linearise_seconds += t0.elapsed().as_secs_f64();
+            self.phases.linearise_seconds += t0.elapsed().as_secs_f64();
             for _ in 0..params.inner_iterations {
                 let t1 = Instant::now();
                 system.add_smoothness(level, alpha, lambda);
-                phases.assemble_seconds += t1.elapsed().as_secs_f64();
+                self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
                 let t2 = Instant::now();
                 for _ in 0..params.sor_iterations {
                     if observer.is_cancelled() {
@@ -126,25 +146,23 @@ fn solve_on_worker<M: Reflectance>(
                     }
                     sor::sweep(&mut system, params.omega);
                 }
-                phases.sor_seconds += t2.elapsed().as_secs_f64();
+                self.phases.sor_seconds += t2.elapsed().as_secs_f64();
             }
             let t3 = Instant::now();
+            let z_floor = self.z_floor;
             let (max_step, energy) = match params.step_control {
                 StepControl::Crop => {
-                    let step = apply_update(&mut depth, &system, &level.domain, crop, 1.0, z_floor);
-                    (step, level_energy(model, level, &depth, alpha, lambda))
+                    let step = apply_update(depth, &system, &level.domain, crop, 1.0, z_floor);
+                    (step, energy_of(depth))
                 }
                 StepControl::Backtracking => {
-                    let before = match current_energy {
-                        Some(e) => e,
-                        None => level_energy(model, level, &depth, alpha, lambda),
-                    };
+                    let before = current.unwrap_or_else(|| energy_of(depth));
                     previous.as_mut_slice().copy_from_slice(depth.as_slice());
                     let mut scale = 1.0;
                     loop {
                         let step =
-                            apply_update(&mut depth, &system, &level.domain, crop, scale, z_floor);
-                        let after = level_energy(model, level, &depth, alpha, lambda);
+                            apply_update(depth, &system, &level.domain, crop, scale, z_floor);
+                        let after = energy_of(depth);
                         if after.total <= before.total || scale < 1.0 / 16.0 {
                             break (step, after);
                         }
@@ -154,56 +172,25 @@ fn solve_on_worker<M: Reflectance>(
                 }
             };
             energies.push(energy.total);
-            current_energy = Some(energy);
-            phases.update_seconds += t3.elapsed().as_secs_f64();
-            final_energy = energy;
+            current = Some(energy);
+            self.phases.update_seconds += t3.elapsed().as_secs_f64();
             observer.on_iteration(&IterationReport {
-                level: index + offset,
-                levels: level_count,
+                level: step.index,
+                levels: step.levels,
                 width: level.geometry.width,
                 height: level.geometry.height,
                 iteration,
                 energy,
                 max_step,
-                elapsed: start.elapsed(),
+                elapsed: step.start.elapsed(),
             });
         }
-        let result = level_result(
-            model,
-            level,
-            &depth,
-            index + offset,
-            level_count,
-            final_energy,
-            start,
-        );
-        observer.on_level(&result);
-        last_reprojection = result.reprojection;
-        reports.push(LevelReport {
-            width: level.geometry.width,
-            height: level.geometry.height,
+        Ok(LevelEnd {
             energies,
-            seconds: level_start.elapsed().as_secs_f64(),
-        });
+            energy: current.unwrap_or_else(|| energy_of(depth)),
+            out_of_budget: false,
+        })
     }
-    let (depth, reprojection) = on_object(problem, &depth, &last_reprojection);
-    let iterations = reports.iter().map(|l| l.energies.len()).sum();
-    Ok(Solution {
-        depth,
-        reprojection,
-        initial_energy,
-        final_energy,
-        levels: reports,
-        phases,
-        initial_depth,
-        seconds: start.elapsed().as_secs_f64(),
-        iterations,
-        budget_exhausted: false,
-        alpha: alpha_used,
-        alpha_px: alpha,
-        lambda_px: lambda,
-        scales,
-    })
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the

@@ -52,12 +52,12 @@ use crate::grid::Grid;
 use crate::model::{self, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
 
+use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::prepare::{Prepared, level_energy, level_result, prepare};
 use super::problem::{
-    IterationReport, LevelReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver,
-    on_object,
+    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, on_object,
 };
-use super::pyramid::{self, PyramidLevel};
+use super::pyramid::PyramidLevel;
 
 /// Budget and control of the explicit scheme (the model's parameters come
 /// from [`SolverParams`]: alpha, lambda, eta, domain, initial depth).
@@ -382,41 +382,65 @@ fn run<M: Reflectance>(
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
     explicit.validate()?;
-    let Prepared {
-        levels,
-        mut depth,
-        initial_depth,
-        alpha,
-        lambda,
-        scales,
-        alpha_used,
-        ..
-    } = prepare(problem, params)?;
-    let level_count = levels.len();
-    let z_floor = 1e-6 * initial_depth.abs().max(1e-9);
-    let initial_energy = level_energy(model, &levels[0], &depth, alpha, lambda);
-    let mut final_energy = initial_energy;
-    let mut reports = Vec::with_capacity(level_count);
-    let mut total_steps = 0usize;
-    let mut budget_exhausted = false;
-    let mut last_reprojection = Grid::filled(0, 0, 0.0);
-    let out_of_budget = |steps: usize| {
-        explicit.max_iterations.is_some_and(|m| steps >= m)
-            || explicit
-                .max_seconds
-                .is_some_and(|s| start.elapsed().as_secs_f64() >= s)
+    let prepared = prepare(problem, params)?;
+    let mut scheme = Descent {
+        model,
+        explicit,
+        prepared: &prepared,
+        z_floor: 1e-6 * prepared.initial_depth.abs().max(1e-9),
+        total_steps: 0,
     };
-    let mut index = 0;
-    while index < level_count {
-        let level = &levels[index];
-        let level_start = Instant::now();
-        if index > 0 {
-            depth = pyramid::upsample_depth(&depth, &levels[index - 1].domain, &level.domain);
-        }
-        let finest = index + 1 == level_count;
+    let walk = coarse_to_fine(model, &prepared, false, start, observer, &mut scheme)?;
+    let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
+    Ok(Solution {
+        depth,
+        reprojection,
+        initial_energy: walk.initial_energy,
+        final_energy: walk.final_energy,
+        levels: walk.reports,
+        phases: PhaseTimes::default(),
+        initial_depth: prepared.initial_depth,
+        seconds: start.elapsed().as_secs_f64(),
+        iterations: scheme.total_steps,
+        budget_exhausted: walk.budget_exhausted,
+        alpha: prepared.alpha_used,
+        alpha_px: prepared.alpha,
+        lambda_px: prepared.lambda,
+        scales: prepared.scales,
+    })
+}
+
+/// One level of the explicit scheme: alternating data and smoothness
+/// gradient half-steps with the Lipschitz time step, the energy checked every
+/// `check_interval` steps (a rise restores the last check and halves the
+/// step), until the level's tolerance, its iteration count or the budget.
+struct Descent<'a, M> {
+    model: &'a M,
+    explicit: &'a ExplicitParams,
+    prepared: &'a Prepared,
+    z_floor: f64,
+    /// Gradient steps over all levels so far.
+    total_steps: usize,
+}
+
+impl<M: Reflectance> LevelScheme for Descent<'_, M> {
+    fn solve_level(
+        &mut self,
+        step: &LevelStep<'_>,
+        depth: &mut Grid<f64>,
+        observer: &mut dyn SolveObserver,
+    ) -> Result<LevelEnd, SolveError> {
+        let (model, explicit, level) = (self.model, self.explicit, step.level);
+        let (alpha, lambda) = (self.prepared.alpha, self.prepared.lambda);
+        let out_of_budget = |steps: usize| {
+            explicit.max_iterations.is_some_and(|m| steps >= m)
+                || explicit
+                    .max_seconds
+                    .is_some_and(|s| step.start.elapsed().as_secs_f64() >= s)
+        };
         let (w, h) = depth.size();
         let mut ws = Workspace::new(w * h);
-        let mut energy = level_energy(model, level, &depth, alpha, lambda);
+        let mut energy = level_energy(model, level, depth, alpha, lambda);
         let mut checkpoint = depth.clone();
         let mut energies = vec![energy.total];
         let smooth_bound = smoothness_lipschitz(alpha, level.geometry.spacing);
@@ -424,19 +448,20 @@ fn run<M: Reflectance>(
         let mut tau = 0.0;
         let mut steps = 0usize;
         let mut last_snapshot = Instant::now();
+        let mut exhausted = false;
         loop {
             if observer.is_cancelled() {
                 return Err(SolveError::Cancelled);
             }
-            if out_of_budget(total_steps) {
-                budget_exhausted = true;
+            if out_of_budget(self.total_steps) {
+                exhausted = true;
                 break;
             }
-            if !finest && steps >= explicit.level_iterations {
+            if !step.finest && steps >= explicit.level_iterations {
                 break;
             }
             // Data half-step (its linearisation also refreshes the bound).
-            linearise_data(model, level, &depth, &mut ws);
+            linearise_data(model, level, depth, &mut ws);
             if steps.is_multiple_of(explicit.check_interval) {
                 let bound = data_lipschitz(w, h, &level.confidence, &ws).max(smooth_bound);
                 tau = if bound > 0.0 && bound.is_finite() {
@@ -446,16 +471,16 @@ fn run<M: Reflectance>(
                 };
             }
             data_gradient(w, h, &mut ws);
-            descend(&mut depth, &level.domain, &ws.gradient, tau, z_floor);
+            descend(depth, &level.domain, &ws.gradient, tau, self.z_floor);
             // Smoothness half-step at the updated depth.
-            smoothness_gradient(level, &depth, alpha, lambda, &mut ws);
-            descend(&mut depth, &level.domain, &ws.gradient, tau, z_floor);
+            smoothness_gradient(level, depth, alpha, lambda, &mut ws);
+            descend(depth, &level.domain, &ws.gradient, tau, self.z_floor);
             steps += 1;
-            total_steps += 1;
+            self.total_steps += 1;
             if !steps.is_multiple_of(explicit.check_interval) {
                 continue;
             }
-            let trial = level_energy(model, level, &depth, alpha, lambda);
+            let trial = level_energy(model, level, depth, alpha, lambda);
             let improved = trial.total <= energy.total; // false for NaN too
             if !improved {
                 // Overshoot (or a non-finite energy): back to the last check.
@@ -471,31 +496,31 @@ fn run<M: Reflectance>(
             checkpoint.as_mut_slice().copy_from_slice(depth.as_slice());
             energies.push(energy.total);
             observer.on_iteration(&IterationReport {
-                level: index,
-                levels: level_count,
+                level: step.index,
+                levels: step.levels,
                 width: w,
                 height: h,
                 iteration: steps,
                 energy,
                 max_step: tau,
-                elapsed: start.elapsed(),
+                elapsed: step.start.elapsed(),
             });
-            if finest
+            if step.finest
                 && let Some(every) = explicit.snapshot_seconds
                 && last_snapshot.elapsed().as_secs_f64() >= every
             {
                 observer.on_level(&level_result(
                     model,
                     level,
-                    &depth,
-                    index,
-                    level_count,
+                    depth,
+                    step.index,
+                    step.levels,
                     energy,
-                    start,
+                    step.start,
                 ));
                 last_snapshot = Instant::now();
             }
-            let tolerance = if finest {
+            let tolerance = if step.finest {
                 explicit.finest_tolerance
             } else {
                 explicit.tolerance
@@ -504,44 +529,12 @@ fn run<M: Reflectance>(
                 break;
             }
         }
-        final_energy = energy;
-        let result = level_result(model, level, &depth, index, level_count, energy, start);
-        observer.on_level(&result);
-        last_reprojection = result.reprojection;
-        reports.push(LevelReport {
-            width: w,
-            height: h,
+        Ok(LevelEnd {
             energies,
-            seconds: level_start.elapsed().as_secs_f64(),
-        });
-        if budget_exhausted && !finest {
-            // Carry the current depth straight to full resolution.
-            let last = level_count - 1;
-            depth = pyramid::upsample_depth(&depth, &level.domain, &levels[last].domain);
-            let fine = &levels[last];
-            final_energy = level_energy(model, fine, &depth, alpha, lambda);
-            last_reprojection = model::reproject(model, &fine.geometry, &fine.domain, &depth);
-            break;
-        }
-        index += 1;
+            energy,
+            out_of_budget: exhausted,
+        })
     }
-    let (depth, reprojection) = on_object(problem, &depth, &last_reprojection);
-    Ok(Solution {
-        depth,
-        reprojection,
-        initial_energy,
-        final_energy,
-        levels: reports,
-        phases: PhaseTimes::default(),
-        initial_depth,
-        seconds: start.elapsed().as_secs_f64(),
-        iterations: total_steps,
-        budget_exhausted,
-        alpha: alpha_used,
-        alpha_px: alpha,
-        lambda_px: lambda,
-        scales,
-    })
 }
 
 #[cfg(test)]

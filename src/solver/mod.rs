@@ -7,6 +7,7 @@
 //! nothing of threads, files or windows.
 
 pub mod auto_alpha;
+pub(crate) mod coarse_to_fine;
 pub mod driver;
 pub mod explicit;
 pub mod fast_marching;

@@ -1,0 +1,135 @@
+//! The coarse-to-fine loop both variational schemes share (IPOL style: the
+//! single-level solver apart from the driver): the depth resampled from level
+//! to level, a [`LevelScheme`] run on each, every level's result sent to the
+//! observer, the per-level reports kept, and a scheme that runs out of budget
+//! carried straight to full resolution.
+
+use std::time::Instant;
+
+use crate::grid::Grid;
+use crate::model::{self, Energy, Reflectance};
+
+use super::prepare::{Prepared, level_energy, level_result};
+use super::problem::{LevelReport, SolveError, SolveObserver};
+use super::pyramid::{self, PyramidLevel};
+
+/// One level as the loop hands it to a scheme.
+pub(crate) struct LevelStep<'a> {
+    /// The level.
+    pub level: &'a PyramidLevel,
+    /// Its index as observers see it (after a shown start).
+    pub index: usize,
+    /// The number of levels observers see.
+    pub levels: usize,
+    /// Whether it is the full-resolution level.
+    pub finest: bool,
+    /// When the solve started.
+    pub start: Instant,
+}
+
+/// What a scheme reports at the end of a level.
+pub(crate) struct LevelEnd {
+    /// Energies after each step (the scheme's own convention).
+    pub energies: Vec<f64>,
+    /// The energy of the level's final depth.
+    pub energy: Energy,
+    /// A time or iteration budget ran out: stop refining.
+    pub out_of_budget: bool,
+}
+
+/// A variational scheme's work on one level.
+pub(crate) trait LevelScheme {
+    /// Improves `depth` on `step.level`, reporting iterations to `observer`
+    /// and polling its cancellation.
+    fn solve_level(
+        &mut self,
+        step: &LevelStep<'_>,
+        depth: &mut Grid<f64>,
+        observer: &mut dyn SolveObserver,
+    ) -> Result<LevelEnd, SolveError>;
+}
+
+/// What the loop produced.
+pub(crate) struct Walk {
+    /// Depth at full resolution (on the finest level's domain).
+    pub depth: Grid<f64>,
+    /// Its reprojection.
+    pub reprojection: Grid<f64>,
+    /// Per-level reports, coarsest first.
+    pub reports: Vec<LevelReport>,
+    /// Energy of the initial depth on the first level.
+    pub initial_energy: Energy,
+    /// Energy of the result at full resolution.
+    pub final_energy: Energy,
+    /// Whether a budget stopped the scheme.
+    pub budget_exhausted: bool,
+}
+
+/// Runs `scheme` coarse to fine over `prepared`'s levels from its initial
+/// depth. With `show_start`, the initial depth (a start computed by another
+/// method) is sent to the observer first as a level of its own.
+pub(crate) fn coarse_to_fine<M: Reflectance>(
+    model: &M,
+    prepared: &Prepared,
+    show_start: bool,
+    start: Instant,
+    observer: &mut dyn SolveObserver,
+    scheme: &mut impl LevelScheme,
+) -> Result<Walk, SolveError> {
+    let levels = &prepared.levels;
+    let (alpha, lambda) = (prepared.alpha, prepared.lambda);
+    let offset = usize::from(show_start);
+    let count = levels.len() + offset;
+    let mut depth = prepared.depth.clone();
+    let initial_energy = level_energy(model, &levels[0], &depth, alpha, lambda);
+    if show_start {
+        let shown = level_result(model, &levels[0], &depth, 0, count, initial_energy, start);
+        observer.on_level(&shown);
+    }
+    let mut walk = Walk {
+        depth: Grid::filled(0, 0, 0.0),
+        reprojection: Grid::filled(0, 0, 0.0),
+        reports: Vec::with_capacity(levels.len()),
+        initial_energy,
+        final_energy: initial_energy,
+        budget_exhausted: false,
+    };
+    let finest = &levels[levels.len() - 1];
+    for (index, level) in levels.iter().enumerate() {
+        let level_start = Instant::now();
+        if index > 0 {
+            depth = pyramid::upsample_depth(&depth, &levels[index - 1].domain, &level.domain);
+        }
+        let step = LevelStep {
+            level,
+            index: index + offset,
+            levels: count,
+            finest: index + 1 == levels.len(),
+            start,
+        };
+        let end = scheme.solve_level(&step, &mut depth, observer)?;
+        walk.final_energy = end.energy;
+        let result = level_result(model, level, &depth, step.index, count, end.energy, start);
+        observer.on_level(&result);
+        walk.reprojection = result.reprojection;
+        walk.reports.push(LevelReport {
+            width: level.geometry.width,
+            height: level.geometry.height,
+            energies: end.energies,
+            seconds: level_start.elapsed().as_secs_f64(),
+        });
+        if end.out_of_budget {
+            walk.budget_exhausted = true;
+            if !step.finest {
+                // Carry the current depth straight to full resolution.
+                depth = pyramid::upsample_depth(&depth, &level.domain, &finest.domain);
+                walk.final_energy = level_energy(model, finest, &depth, alpha, lambda);
+                walk.reprojection =
+                    model::reproject(model, &finest.geometry, &finest.domain, &depth);
+            }
+            break;
+        }
+    }
+    walk.depth = depth;
+    Ok(walk)
+}
