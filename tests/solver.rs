@@ -248,3 +248,29 @@ fn cancel_stops_within_one_sweep() {
         assert_eq!(recorder.events_after_cancel, 0);
     }
 }
+
+#[test]
+fn clipped_pixels_are_not_trusted() {
+    // A highlight clipped at the top of the range: the solve must be the
+    // one with those pixels painted as confidence 0, not one that bends the
+    // surface towards the light to explain a value the model cannot reach.
+    let scene = sombrero(48, 48);
+    let mut clipped = problem(&scene);
+    clipped.image = scene.image.map(|&v| (v * 2.5).min(1.0));
+    let mut painted = clipped.clone();
+    painted.confidence = Some(clipped.image.map(|&v| if v >= 1.0 { 0.0 } else { 1.0 }));
+    let highlight = clipped
+        .image
+        .as_slice()
+        .iter()
+        .filter(|&&v| v >= 1.0)
+        .count();
+    assert!(
+        highlight > 20,
+        "the test needs a clipped region ({highlight} pixels)"
+    );
+    let params = SolverParams::default();
+    let a = solve(&clipped, &params, &mut ()).expect("solves");
+    let b = solve(&painted, &params, &mut ()).expect("solves");
+    assert_eq!(a.depth, b.depth);
+}

@@ -12,6 +12,10 @@ use crate::grid::Grid;
 use crate::model::Energy;
 use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
 
+/// Image values at or above this are clipped (the top of a file's range,
+/// which the readers map to 1): such pixels get confidence 0.
+pub const SATURATED: f64 = 1.0;
+
 /// Smallest accepted image side.
 pub const MIN_IMAGE_SIDE: usize = 3;
 
@@ -167,7 +171,8 @@ pub trait SolveObserver: Send {
 impl SolveObserver for () {}
 
 impl Problem {
-    /// Checks sizes and values; returns the effective domain and confidence.
+    /// Checks sizes and values; returns the effective domain and confidence
+    /// (0 off the object and on clipped pixels, see [`SATURATED`]).
     pub(crate) fn validate(
         &self,
         params: &SolverParams,
@@ -251,7 +256,7 @@ impl Problem {
                     .into(),
             );
         }
-        let saturated = trusted.iter().filter(|&&v| v >= 1.0).count();
+        let saturated = trusted.iter().filter(|&&v| v >= SATURATED).count();
         if saturated * 2 > trusted.len() {
             return bad(format!(
                 "the image is saturated: {saturated} of {} trusted object pixels are at the maximum value; \
@@ -259,6 +264,19 @@ impl Problem {
                 trusted.len()
             ));
         }
+        // A clipped pixel only says "at least this bright": the model cannot
+        // match it, so it is not trusted (as if painted with confidence 0).
+        let confidence = if saturated > 0 {
+            Grid::from_fn(w, h, |c, r| {
+                if *self.image.at(c, r) >= SATURATED {
+                    0.0
+                } else {
+                    *confidence.at(c, r)
+                }
+            })
+        } else {
+            confidence
+        };
         if let InitialDepth::Map(map) | InitialDepth::Pyramid(map) = &params.initial_depth
             && map.size() != (w, h)
         {
