@@ -172,11 +172,6 @@ pub enum InitialDepth {
     /// Warm start from a full-resolution depth map (NaN where unknown): the
     /// coarse levels are skipped and the map is refined at full resolution.
     Map(crate::grid::Grid<f64>),
-    /// A full-resolution depth map (NaN where unknown) sampled onto the
-    /// coarsest level, then refined through the whole pyramid: a guess of
-    /// the global shape (e.g. from fast marching) that every level may still
-    /// change.
-    Pyramid(crate::grid::Grid<f64>),
 }
 
 /// Every parameter of the linearised coarse-to-fine solver.
@@ -311,9 +306,7 @@ impl SolverParams {
                 z.to_string(),
                 "must be finite, > 0 and < 1e150",
             )),
-            InitialDepth::Map(map) | InitialDepth::Pyramid(map)
-                if !map.as_slice().iter().any(|z| z.is_finite() && *z > 0.0) =>
-            {
+            InitialDepth::Map(map) if !map.as_slice().iter().any(|z| z.is_finite() && *z > 0.0) => {
                 Err(error(
                     "init-depth",
                     "depth map".into(),

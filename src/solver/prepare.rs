@@ -118,14 +118,6 @@ pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepar
             Grid::filled(coarsest.geometry.width, coarsest.geometry.height, *z0),
             *z0,
         ),
-        (InitialDepth::Pyramid(map), None) => {
-            let (filled, mean) = fill_warm_start(map);
-            let known = map.map(|z| z.is_finite() && *z > 0.0);
-            (
-                pyramid::upsample_depth(&filled, &known, &coarsest.domain),
-                mean,
-            )
-        }
         _ => {
             let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
             (

@@ -277,7 +277,7 @@ impl Problem {
         } else {
             confidence
         };
-        if let InitialDepth::Map(map) | InitialDepth::Pyramid(map) = &params.initial_depth
+        if let InitialDepth::Map(map) = &params.initial_depth
             && map.size() != (w, h)
         {
             return bad(format!(
