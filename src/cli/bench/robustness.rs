@@ -244,9 +244,12 @@ pub fn run(
     Ok(out)
 }
 
-/// The report's robustness section.
+/// The report's robustness section (empty when the part was not run).
 pub fn markdown(robustness: &Robustness) -> String {
     let mut md = String::new();
+    if robustness.rows.is_empty() && robustness.sizes.is_empty() {
+        return md; // --part paper
+    }
     let _ = writeln!(
         md,
         "\n## Robustness: the defaults (alpha auto, relative units, fast-marching start)\n"
