@@ -371,6 +371,14 @@ impl LevelGeometry {
         }
     }
 
+    /// The camera-space point (units of `depth`) of level pixel
+    /// `(column, row)` at Cartesian depth `depth`.
+    #[inline]
+    pub fn back_project(&self, column: usize, row: usize, depth: f64) -> [f64; 3] {
+        let ray = self.ray(column, row);
+        self.camera.back_project(ray.x_px, ray.y_px, depth)
+    }
+
     /// The ray of level pixel `(column, row)`: the centre of the area it
     /// covers, in full-resolution image-plane coordinates.
     #[inline]

@@ -408,6 +408,8 @@ pub fn solve_fast_marching(
         levels: 1,
         depth: depth.clone(),
         reprojection: reprojection.clone(),
+        geometry,
+        domain_pixels: domain.as_slice().iter().filter(|&&d| d).count(),
         energy,
         elapsed,
     });

@@ -284,6 +284,8 @@ pub(crate) fn level_result<M: Reflectance>(
         levels,
         depth: masked(depth, &level.domain),
         reprojection: model::reproject(model, &level.geometry, &level.domain, depth),
+        geometry: level.geometry,
+        domain_pixels: level.domain.as_slice().iter().filter(|&&d| d).count(),
         energy,
         elapsed: start.elapsed(),
     }

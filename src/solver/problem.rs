@@ -9,7 +9,7 @@ use serde::Serialize;
 
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
-use crate::model::Energy;
+use crate::model::{Energy, LevelGeometry};
 use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
 
 /// Image values at or above this are clipped (the top of a file's range,
@@ -81,10 +81,23 @@ pub struct LevelResult {
     pub depth: Grid<f64>,
     /// Reprojected image at this level's size.
     pub reprojection: Grid<f64>,
+    /// This level's grid and camera: [`LevelGeometry::back_project`] turns
+    /// a level pixel and its depth into a camera-space point.
+    pub geometry: LevelGeometry,
+    /// Number of pixels in this level's domain (for energy per pixel).
+    pub domain_pixels: usize,
     /// Energy at the end of the level.
     pub energy: Energy,
     /// Time since the solve started.
     pub elapsed: Duration,
+}
+
+impl LevelResult {
+    /// The level's total energy per domain pixel: comparable across levels
+    /// (the total grows with the pixel count), so convergence reads as such.
+    pub fn energy_per_pixel(&self) -> f64 {
+        self.energy.total / self.domain_pixels.max(1) as f64
+    }
 }
 
 /// Per-level summary kept in a [`Solution`].
