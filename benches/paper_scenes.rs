@@ -43,6 +43,7 @@ fn run(case: &Case, params: &SolverParams) -> (f64, f64, f64) {
         intensity_scale: case.scene.intensity_scale,
         object_mask: Some(case.scene.object_mask.clone()),
         confidence: None,
+        lights: Vec::new(),
     };
     let params = SolverParams {
         alpha: case.alpha,

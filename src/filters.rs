@@ -69,6 +69,7 @@ pub fn smooth_depth(
         intensity_scale: 1.0,
         object_mask: Some(object.clone()),
         confidence: None,
+        lights: Vec::new(),
     };
     let smoothing = SolverParams {
         alpha: Alpha::Value(weight / (scale * scale)),

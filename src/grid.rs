@@ -127,6 +127,22 @@ impl<T> Grid<T> {
             data: self.data.iter().map(f).collect(),
         }
     }
+
+    /// A new grid with `f` applied to the values of `self` and `other` at
+    /// each pixel; `other` must have the same size (extra values of the
+    /// larger one are ignored otherwise).
+    pub fn zip_map<U, V>(&self, other: &Grid<U>, mut f: impl FnMut(&T, &U) -> V) -> Grid<V> {
+        Grid {
+            width: self.width,
+            height: self.height,
+            data: self
+                .data
+                .iter()
+                .zip(&other.data)
+                .map(|(a, b)| f(a, b))
+                .collect(),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -255,6 +255,92 @@ pub fn read_image(path: &Path, srgb: bool) -> Result<Grid<f64>, IoError> {
     image_to_grey(path, image, srgb)
 }
 
+/// How a photograph's values are decoded to linear light (`--srgb`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SrgbMode {
+    /// Always apply the sRGB transfer function.
+    On,
+    /// Never: the values are linear.
+    Off,
+    /// On for JPEG and 8-bit images, off for 16-bit and float images and for
+    /// PNGs marked linear (gAMA 1.0, as everything this tool writes).
+    #[default]
+    Auto,
+}
+
+/// What [`SrgbMode::Auto`] decides for `path`, and why (for reports and the
+/// viewer). `None` when the file cannot be decoded.
+pub fn srgb_decision(path: &Path, mode: SrgbMode) -> Result<(bool, String), IoError> {
+    let image = decode_image(path)?;
+    Ok(decide_srgb(path, &image, mode))
+}
+
+fn decide_srgb(path: &Path, image: &DynamicImage, mode: SrgbMode) -> (bool, String) {
+    match mode {
+        SrgbMode::On => return (true, "sRGB decoding on (--srgb on)".into()),
+        SrgbMode::Off => return (false, "values read as linear (--srgb off)".into()),
+        SrgbMode::Auto => {}
+    }
+    let is_jpeg = matches!(ImageFormat::from_path(path), Ok(ImageFormat::Jpeg))
+        || fs::read(path)
+            .map(|b| b.starts_with(&[0xFF, 0xD8, 0xFF]))
+            .unwrap_or(false);
+    if is_jpeg {
+        return (true, "a JPEG: sRGB-decoded (auto)".into());
+    }
+    if png_marked_linear(path) {
+        return (
+            false,
+            "a PNG marked linear (gAMA 1.0): read as linear (auto)".into(),
+        );
+    }
+    let eight_bit = matches!(
+        image,
+        DynamicImage::ImageLuma8(_)
+            | DynamicImage::ImageLumaA8(_)
+            | DynamicImage::ImageRgb8(_)
+            | DynamicImage::ImageRgba8(_)
+    );
+    if eight_bit {
+        (true, "an 8-bit photograph: sRGB-decoded (auto)".into())
+    } else {
+        (
+            false,
+            "a 16-bit or float image: read as linear (auto)".into(),
+        )
+    }
+}
+
+/// True when `path` is a PNG whose gAMA chunk says gamma 1 (linear values).
+fn png_marked_linear(path: &Path) -> bool {
+    let Ok(file) = fs::File::open(path) else {
+        return false;
+    };
+    let decoder = png::Decoder::new(std::io::BufReader::new(file));
+    let Ok(reader) = decoder.read_info() else {
+        return false;
+    };
+    let info = reader.info();
+    if info.srgb.is_some() {
+        return false;
+    }
+    match info.source_gamma {
+        // gAMA stores 1/gamma; 1.0 means linear.
+        Some(g) => (g.into_value() - 1.0).abs() < 0.01,
+        None => false,
+    }
+}
+
+/// Reads a photograph as linear grey values, deciding the sRGB decoding by
+/// `mode`; returns the image and whether sRGB decoding was applied, with the
+/// reason.
+pub fn read_photo(path: &Path, mode: SrgbMode) -> Result<(Grid<f64>, bool, String), IoError> {
+    let image = decode_image(path)?;
+    let (srgb, why) = decide_srgb(path, &image, mode);
+    Ok((image_to_grey(path, image, srgb)?, srgb, why))
+}
+
 /// Reads a mask/confidence image as values in [0, 1]: grey value divided by
 /// the maximum of its type, luminance (Rec. 709) for colour, never
 /// sRGB-decoded; alpha is ignored.
@@ -301,27 +387,61 @@ fn quantise(v: f64, max: f64) -> f64 {
 }
 
 /// Writes a 16-bit linear grey PNG: values clamped to [0, 1], NaN as 0,
-/// scaled by 65535 and rounded.
+/// scaled by 65535 and rounded; marked linear (gAMA 1.0).
 pub fn write_png16(path: &Path, image: &Grid<f64>) -> Result<(), IoError> {
-    let data = image
+    let data: Vec<u16> = image
         .as_slice()
         .iter()
         .map(|&v| quantise(v, 65535.0) as u16)
         .collect();
-    let buffer = grey_buffer(path, image.width(), image.height(), data)?;
-    save_png(path, DynamicImage::ImageLuma16(buffer))
+    let bytes: Vec<u8> = data.iter().flat_map(|v: &u16| v.to_be_bytes()).collect();
+    save_linear_png(
+        path,
+        image.width(),
+        image.height(),
+        png::BitDepth::Sixteen,
+        &bytes,
+    )
 }
 
-/// Writes an 8-bit grey PNG: values clamped to [0, 1], NaN as 0, scaled by
-/// 255 and rounded.
+/// Writes an 8-bit grey PNG of linear values: clamped to [0, 1], NaN as 0,
+/// scaled by 255 and rounded; marked linear (gAMA 1.0), so that
+/// `--srgb auto` does not decode it again.
 pub fn write_png8(path: &Path, image: &Grid<f64>) -> Result<(), IoError> {
-    let data = image
+    let data: Vec<u8> = image
         .as_slice()
         .iter()
         .map(|&v| quantise(v, 255.0) as u8)
         .collect();
-    let buffer = grey_buffer(path, image.width(), image.height(), data)?;
-    save_png(path, DynamicImage::ImageLuma8(buffer))
+    save_linear_png(
+        path,
+        image.width(),
+        image.height(),
+        png::BitDepth::Eight,
+        &data,
+    )
+}
+
+/// Writes grey samples (big-endian for 16 bits) as a PNG whose gAMA chunk
+/// says the values are linear (gamma 1.0).
+fn save_linear_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    depth: png::BitDepth,
+    samples: &[u8],
+) -> Result<(), IoError> {
+    let (w, h) = image_dims(path, width, height)?;
+    let file = fs::File::create(path).map_err(|e| write_error(path, e))?;
+    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    encoder.set_color(png::ColorType::Grayscale);
+    encoder.set_depth(depth);
+    encoder.set_source_gamma(png::ScaledFloat::new(1.0));
+    let mut writer = encoder.write_header().map_err(|e| write_error(path, e))?;
+    writer
+        .write_image_data(samples)
+        .map_err(|e| write_error(path, e))?;
+    writer.finish().map_err(|e| write_error(path, e))
 }
 
 /// Writes a binary mask as an 8-bit grey PNG, 255 for true and 0 for false.
@@ -656,92 +776,7 @@ pub fn write_depth_png16(path: &Path, depth: &Grid<f64>) -> Result<Option<(f64, 
     Ok(range)
 }
 
-/// The camera/scene file (`scene.json`). All keys are required except `name`;
-/// unknown keys are rejected so that typos are caught.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct CameraFile {
-    /// Optional scene name (omitted from the file when absent).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub name: Option<String>,
-    /// Image width in pixels.
-    pub width: usize,
-    /// Image height in pixels.
-    pub height: usize,
-    /// Focal length in pixels.
-    pub focal: f64,
-    /// Principal point column in pixels.
-    pub cx: f64,
-    /// Principal point row in pixels.
-    pub cy: f64,
-    /// Light/albedo intensity scale applied to the image values.
-    pub intensity_scale: f64,
-}
-
-impl CameraFile {
-    /// The pinhole intrinsics of this camera.
-    pub fn intrinsics(&self) -> Intrinsics {
-        Intrinsics {
-            focal_px: self.focal,
-            principal_x_px: self.cx,
-            principal_y_px: self.cy,
-        }
-    }
-
-    /// Checks `focal > 0` and finite, `cx`/`cy` finite, `intensity_scale > 0`
-    /// and finite, `width`/`height >= 1`; the error names the field and
-    /// `path`.
-    pub fn validate(&self, path: &Path) -> Result<(), IoError> {
-        let bad = |reason: String| {
-            Err(IoError::Camera {
-                path: path.to_path_buf(),
-                reason,
-            })
-        };
-        let positive = [
-            ("focal", self.focal),
-            ("intensity_scale", self.intensity_scale),
-        ];
-        for (key, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return bad(format!("`{key}` must be a positive finite number, got {v}"));
-            }
-        }
-        for (key, v) in [("cx", self.cx), ("cy", self.cy)] {
-            if !v.is_finite() {
-                return bad(format!("`{key}` must be a finite number, got {v}"));
-            }
-        }
-        for (key, v) in [("width", self.width), ("height", self.height)] {
-            if v == 0 {
-                return bad(format!("`{key}` must be at least 1, got 0"));
-            }
-        }
-        Ok(())
-    }
-}
-
-/// Reads and validates ([`CameraFile::validate`]) a camera/scene file.
-///
-/// Missing keys, unknown keys and values of the wrong type are errors naming
-/// the key and the file.
-pub fn read_camera(path: &Path) -> Result<CameraFile, IoError> {
-    let text = fs::read_to_string(path).map_err(|cause| IoError::Read {
-        path: path.to_path_buf(),
-        cause,
-    })?;
-    let camera: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    camera.validate(path)?;
-    Ok(camera)
-}
-
-/// Writes a camera/scene file as pretty JSON.
-pub fn write_camera(path: &Path, camera: &CameraFile) -> Result<(), IoError> {
-    write_json(path, camera)
-}
+pub use crate::calibration::{CameraFile, read_camera, write_camera};
 
 /// Writes any serde value as pretty JSON, with a final newline.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), IoError> {
@@ -1092,10 +1127,11 @@ mod tests {
             name: Some("vase".into()),
             width: 64,
             height: 48,
-            focal: 80.0,
-            cx: 31.5,
-            cy: 23.5,
-            intensity_scale: 1.0,
+            focal: Some(80.0),
+            cx: Some(31.5),
+            cy: Some(23.5),
+            intensity_scale: Some(1.0),
+            ..CameraFile::default()
         }
     }
 
@@ -1112,7 +1148,7 @@ mod tests {
         write_camera(&p, &unnamed).unwrap();
         assert!(!fs::read_to_string(&p).unwrap().contains("name"));
         assert_eq!(read_camera(&p).unwrap(), unnamed);
-        let k = camera().intrinsics();
+        let k = camera().intrinsics().unwrap();
         assert_eq!(
             (k.focal_px, k.principal_x_px, k.principal_y_px),
             (80.0, 31.5, 23.5)
@@ -1144,7 +1180,7 @@ mod tests {
         assert!(e.contains("focla") && e.contains("unknown field"), "{e}");
 
         let bad = CameraFile {
-            focal: 0.0,
+            focal: Some(0.0),
             ..camera()
         };
         let e = bad.validate(&p).unwrap_err().to_string();

@@ -13,19 +13,24 @@
 
 #[cfg(feature = "gui")]
 pub mod app;
+pub mod calibration;
 pub mod camera;
 pub mod cli;
 pub mod colour;
 pub mod denoise;
 pub mod filters;
+pub mod fit;
 pub mod grid;
 pub mod io;
+pub mod light;
 pub mod mask_edit;
 pub mod metrics;
 pub mod model;
 pub mod params;
+pub mod photo;
 #[cfg(feature = "gui")]
 pub mod render;
+pub mod resample;
 pub mod scene;
 pub mod solver;
 pub mod worker;

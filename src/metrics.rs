@@ -5,7 +5,7 @@ use serde::Serialize;
 
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
-use crate::model::{self, Lambertian, LevelGeometry};
+use crate::model::{self, Lambertian, LevelGeometry, Reflectance};
 
 /// RSE and RIE of a result.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -73,13 +73,24 @@ pub fn errors(
     camera: Intrinsics,
     intensity_scale: f64,
 ) -> Result<Errors, MetricsError> {
+    let model = Lambertian { intensity_scale };
+    errors_with_model(depth, depth_gt, image, camera, &model)
+}
+
+/// [`errors`] for any reflectance model (e.g. lights off the optical centre).
+pub fn errors_with_model<M: Reflectance + ?Sized>(
+    depth: &Grid<f64>,
+    depth_gt: &Grid<f64>,
+    image: &Grid<f64>,
+    camera: Intrinsics,
+    model: &M,
+) -> Result<Errors, MetricsError> {
     check_size("image", image.size(), depth_gt.size())?;
     let rse = rse(depth, depth_gt)?;
     let (w, h) = depth_gt.size();
     let mask = depth_gt.map(|g| g.is_finite());
-    let model = Lambertian { intensity_scale };
     let geometry = LevelGeometry::new(w, h, w, h, camera);
-    let reprojection = model::reproject(&model, &geometry, &mask, depth);
+    let reprojection = model::reproject(model, &geometry, &mask, depth);
     let (mut num, mut den) = (0.0, 0.0);
     for q in 0..w * h {
         if mask.as_slice()[q] {

@@ -562,6 +562,7 @@ mod tests {
             intensity_scale: scene.intensity_scale,
             object_mask: Some(scene.object_mask),
             confidence: None,
+            lights: Vec::new(),
         };
         // The paper's constant start: the whole pyramid, many levels.
         let params = SolverParams {

@@ -27,10 +27,12 @@ const SYNTH_FILES: [&str; 7] = [
 ];
 
 /// Files `solve` writes.
-const SOLVE_FILES: [&str; 5] = [
+const SOLVE_FILES: [&str; 7] = [
     "depth.npy",
     "depth16.png",
+    "input_linear.png",
     "reprojection.png",
+    "residual.png",
     "mesh.ply",
     "report.json",
 ];
@@ -904,4 +906,189 @@ fn solve_picks_the_method_and_chains_one_into_another() {
         &bad,
         &["--init-depth", "sideways"],
     );
+}
+
+/// A Sombrero lit from beside the lens (mu = 1 LED) is solved back with the
+/// light where it is, far better than with the light assumed at the centre;
+/// the scene file carries the lights, `solve` reads them.
+#[test]
+fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
+    let tmp = tempdir().unwrap();
+    let scene = tmp.path().join("lit");
+    assert_success(
+        &sfs([
+            "synth",
+            "sombrero",
+            "--size",
+            "64x64",
+            "--light",
+            "0.5,-0.4,0",
+            "--light-dir",
+            "-0.2,0.2,1",
+            "--light-mu",
+            "1",
+            "--out",
+            &s(&scene),
+        ]),
+        "synth with a light",
+    );
+    let camera = read_json(&scene.join("scene.json"));
+    assert_eq!(camera["lights"][0]["mu"], 1.0);
+    let rse = |out: &str, extra: &[&str]| {
+        let r = tmp.path().join(out);
+        let mut args = vec![
+            "solve".to_string(),
+            s(&scene.join("image16.png")),
+            "--camera".into(),
+            s(&scene.join("scene.json")),
+            "--gt".into(),
+            s(&scene),
+            "-q".into(),
+            "--out".into(),
+            s(&r),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        assert_success(&sfs(&args), out);
+        read_json(&r.join("report.json"))["rse"].as_f64().unwrap()
+    };
+    let with_light = rse("with", &[]);
+    let ignored = rse("ignored", &["--light", "0,0,0"]);
+    assert!(with_light < 0.05, "with the light model: rse {with_light}");
+    assert!(
+        ignored > 3.0 * with_light,
+        "ignored {ignored} vs {with_light}"
+    );
+    // Fast marching knows only the centred light and says so.
+    let out = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--camera",
+        &s(&scene.join("scene.json")),
+        "--method",
+        "fast-marching",
+        "-q",
+        "--out",
+        &s(&tmp.path().join("fm")),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("optical centre only"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// `--max-side` solves at a working size: outputs at that size, the report
+/// says both sizes, intrinsics follow (the RSE against a ground truth
+/// rendered at the working size stays small).
+#[test]
+fn max_side_solves_at_a_working_size() {
+    let tmp = tempdir().unwrap();
+    let big = tmp.path().join("big");
+    let small = tmp.path().join("small");
+    for (dir, size) in [(&big, "96x64"), (&small, "48x32")] {
+        assert_success(
+            &sfs(["synth", "sombrero", "--size", size, "--out", &s(dir)]),
+            "synth",
+        );
+    }
+    let r = tmp.path().join("r");
+    let args = [
+        "solve",
+        &s(&big.join("image16.png")),
+        "--focal",
+        "96",
+        "--intensity-scale",
+        "2",
+        "--max-side",
+        "48",
+        "--gt",
+        &s(&small),
+        "-q",
+        "--out",
+        &s(&r),
+    ];
+    assert_success(&sfs(args), "solve --max-side");
+    let depth = sfs_studio::io::read_npy(&r.join("depth.npy")).unwrap();
+    assert_eq!(depth.size(), (48, 32));
+    let report = read_json(&r.join("report.json"));
+    assert_eq!(report["input"]["full_width"], 96);
+    assert_eq!(report["input"]["width"], 48);
+    assert!((report["input"]["camera"]["focal"].as_f64().unwrap() - 48.0).abs() < 1e-9);
+    let rse = report["rse"].as_f64().unwrap();
+    assert!(rse < 0.05, "rse at the working size {rse}");
+}
+
+/// A camera file calibrated for twice the image size gives the same solve
+/// as the right one (the intrinsics are scaled).
+#[test]
+fn calibration_for_another_size_is_scaled() {
+    let fx = Fixture::new();
+    let camera = read_json(&fx.scene.join("scene.json"));
+    let f = camera["focal"].as_f64().unwrap();
+    let doubled = fx.path("double.json");
+    std::fs::write(
+        &doubled,
+        format!(
+            r#"{{"calibration_width": 80, "calibration_height": 80, "focal": {},
+                "cx": 39.5, "cy": 39.5, "intensity_scale": 2}}"#,
+            2.0 * f
+        ),
+    )
+    .unwrap();
+    let a = fx.path("a");
+    let b = fx.path("b");
+    assert_success(&sfs(fx.solve_args(&a, &[])), "solve");
+    let mut args = fx.solve_args(&b, &[]);
+    args[3] = s(&doubled);
+    assert_success(&sfs(&args), "solve with a doubled calibration");
+    let za = sfs_studio::io::read_npy(&a.join("depth.npy")).unwrap();
+    let zb = sfs_studio::io::read_npy(&b.join("depth.npy")).unwrap();
+    let worst = za
+        .as_slice()
+        .iter()
+        .zip(zb.as_slice())
+        .filter(|(x, _)| x.is_finite())
+        .map(|(x, y)| ((x - y) / x).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-5, "relative difference {worst}");
+}
+
+/// A nearly black photograph is called too dark, up front and in the
+/// report's warnings; the model-fit summary is in the report.
+#[test]
+fn a_dark_image_gets_a_plain_warning() {
+    let tmp = tempdir().unwrap();
+    let scene = tmp.path().join("dark");
+    assert_success(
+        &sfs(["synth", "sombrero", "--size", "32x32", "--out", &s(&scene)]),
+        "synth",
+    );
+    let image = sfs_studio::io::read_image(&scene.join("image16.png"), false).unwrap();
+    let dark = tmp.path().join("dark.png");
+    sfs_studio::io::write_png16(&dark, &image.map(|v| v * 0.0008)).unwrap();
+    let r = tmp.path().join("r");
+    let out = sfs(["solve", &s(&dark), "--focal", "32", "--out", &s(&r)]);
+    assert_success(&out, "solve a dark image");
+    assert!(stderr(&out).contains("too dark"), "{}", stderr(&out));
+    let report = read_json(&r.join("report.json"));
+    let warnings = report["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("too dark"))
+    );
+    assert!(report["model_fit"]["rie_trusted"].is_number());
+    // The same image at a normal exposure has no darkness warning.
+    let r2 = tmp.path().join("r2");
+    let out = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--focal",
+        "32",
+        "--out",
+        &s(&r2),
+    ]);
+    assert_success(&out, "solve the lit image");
+    assert!(!stderr(&out).contains("too dark"), "{}", stderr(&out));
 }

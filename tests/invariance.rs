@@ -24,6 +24,7 @@ fn problem(scene: &Scene, image: Grid<f64>, intensity_scale: f64) -> Problem {
         intensity_scale,
         object_mask: Some(scene.object_mask.clone()),
         confidence: None,
+        lights: Vec::new(),
     }
 }
 

@@ -40,6 +40,7 @@ impl Case {
                 .confidence
                 .as_ref()
                 .map(|c| Grid::from_vec(w, h, c.clone()).unwrap()),
+            lights: Vec::new(),
         }
     }
 }
@@ -222,6 +223,7 @@ fn uniform(width: usize, height: usize, value: f64) -> Problem {
         intensity_scale: 1.0,
         object_mask: None,
         confidence: None,
+        lights: Vec::new(),
     }
 }
 

@@ -185,21 +185,13 @@ impl Document {
 /// Reads a camera file and checks it against the image size.
 pub fn read_camera(path: &Path, size: (usize, usize)) -> Result<CameraState> {
     let file = io::read_camera(path)?;
-    if (file.width, file.height) != size {
-        bail!(
-            "camera file {} is for a {}x{} image but the image is {}x{}",
-            path.display(),
-            file.width,
-            file.height,
-            size.0,
-            size.1
-        );
-    }
+    // Intrinsics calibrated for another size of the same image are scaled.
+    let camera = file.intrinsics_for(path, size)?;
     Ok(CameraState {
-        focal_px: file.focal,
-        cx_px: file.cx,
-        cy_px: file.cy,
-        intensity_scale: file.intensity_scale,
+        focal_px: camera.focal_px,
+        cx_px: camera.principal_x_px,
+        cy_px: camera.principal_y_px,
+        intensity_scale: file.intensity_scale.unwrap_or(1.0),
         source: CameraSource::File(path.to_path_buf()),
     })
 }

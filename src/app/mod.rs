@@ -398,6 +398,7 @@ impl ViewerApp {
             intensity_scale: doc.camera.intensity_scale,
             object_mask: doc.masks.object_for_solver(),
             confidence: doc.masks.confidence_for_solver(),
+            lights: Vec::new(),
         };
         let params = self.settings.params.to_params();
         self.level_inputs = Some((

@@ -6,6 +6,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 
 use crate::io;
+use crate::light::LightModel;
 use crate::metrics;
 
 /// Arguments of `eval`.
@@ -36,13 +37,10 @@ pub fn run(args: &EvalArgs) -> Result<()> {
             gt.depth.height()
         );
     }
-    let errors = metrics::errors(
-        &depth,
-        &gt.depth,
-        &gt.image,
-        camera.intrinsics(),
-        camera.intensity_scale,
-    )?;
+    let intrinsics = camera.intrinsics_for(&camera_path, gt.depth.size())?;
+    let (lights, _) = camera.lights_for(&camera_path, &[], None)?;
+    let model = LightModel::new(camera.intensity_scale.unwrap_or(1.0), &lights);
+    let errors = metrics::errors_with_model(&depth, &gt.depth, &gt.image, intrinsics, &model)?;
     println!("{}", serde_json::to_string(&errors)?);
     Ok(())
 }

@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod eval;
 mod figures;
+mod lights;
 mod params;
 mod solve;
 mod synth;
@@ -19,6 +20,7 @@ mod view;
 
 pub use bench::BenchArgs;
 pub use eval::EvalArgs;
+pub use lights::LightArgs;
 pub use params::ParamArgs;
 pub use solve::SolveArgs;
 pub use synth::SynthArgs;
@@ -46,7 +48,7 @@ pub enum Command {
     /// Render a synthetic scene with ground truth (the Sombrero or an OBJ mesh).
     Synth(SynthArgs),
     /// Recover depth from an image.
-    Solve(SolveArgs),
+    Solve(Box<SolveArgs>),
     /// Compare a depth map with a synthetic scene's ground truth (prints JSON).
     Eval(EvalArgs),
     /// The paper's experiments side by side: every method on the test

@@ -9,24 +9,33 @@ use clap::{Args, ValueEnum};
 use serde_json::json;
 
 use crate::camera::Intrinsics;
+use crate::fit;
 use crate::grid::Grid;
-use crate::io::{self, OutputStage};
+use crate::io::{self, OutputStage, SrgbMode};
+use crate::light::PointLight;
 use crate::metrics;
 use crate::params::{self as parameters, InitialDepth, SolverParams};
+use crate::photo::{self, PhotoSetup, Vignetting};
+use crate::resample::{resize_area, scale_intrinsics};
 use crate::solver::{self, IterationReport, Problem, SolveObserver};
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
 #[derive(Debug, Args)]
 #[command(allow_negative_numbers = true)]
 pub struct SolveArgs {
-    /// Input image: 8/16-bit PNG, TIFF or JPEG, read as linear values in [0, 1]
-    /// (colour converted to luminance).
-    pub image: PathBuf,
-    /// Camera file (scene.json keys: width, height, focal, cx, cy,
-    /// intensity_scale; all in pixels except the scale).
+    /// Input photograph(s): 8/16-bit PNG, TIFF or JPEG, read as linear values
+    /// in [0, 1] (colour converted to luminance). Several photographs of one
+    /// scene, each with other lights on, are summed in linear light (as if
+    /// the lights were on together).
+    #[arg(required = true, num_args = 1..)]
+    pub images: Vec<PathBuf>,
+    /// Camera file: scene.json (width, height, focal, cx, cy or K,
+    /// intensity_scale, lights) or a near_ps calibration.json; intrinsics
+    /// given for another image size (width/height, or
+    /// calibration_width/height) are scaled to the image.
     #[arg(long, conflicts_with_all = ["focal", "cx", "cy"])]
     pub camera: Option<PathBuf>,
-    /// Focal length in pixels (instead of --camera).
+    /// Focal length in pixels of the photograph as given (instead of --camera).
     #[arg(long)]
     pub focal: Option<f64>,
     /// Principal point column in pixels [default: (width-1)/2].
@@ -35,29 +44,65 @@ pub struct SolveArgs {
     /// Principal point row in pixels [default: (height-1)/2].
     #[arg(long, requires = "focal")]
     pub cy: Option<f64>,
-    /// Intensity scale s (albedo x light power) [default: the camera file's, else 1].
-    #[arg(long)]
-    pub intensity_scale: Option<f64>,
+    /// Intensity scale s (albedo x light power x gain), or `auto`: estimated
+    /// with lights off the centre (depth is then metric, in the lights'
+    /// units); with a centred light auto means s = 1 unless --known-depth
+    /// fixes the depth unit [default: the camera file's, else auto].
+    #[arg(long, value_name = "S|auto")]
+    pub intensity_scale: Option<String>,
+    /// A known distance: pixel X,Y (of the photograph as given) is Z depth
+    /// units away; sets the depth scale (and s) with a centred light, and s
+    /// with lights anywhere.
+    #[arg(long, value_name = "X,Y,Z", value_parser = super::parse_floats::<3>)]
+    pub known_depth: Option<[f64; 3]>,
+    /// Where the lights are.
+    #[command(flatten)]
+    pub lights: super::LightArgs,
     /// Object mask image (white = object, black = no surface) [default: every pixel].
     #[arg(long)]
     pub mask: Option<PathBuf>,
     /// Confidence image in [0, 1] (black = do not trust, e.g. highlights) [default: 1].
     #[arg(long)]
     pub confidence: Option<PathBuf>,
-    /// Linearise an sRGB-encoded photograph before solving.
+    /// Lower the confidence of saturated highlights, near-black and
+    /// cast-shadow pixels and the silhouette band (combined with
+    /// --confidence by the minimum); written as confidence_used.png.
     #[arg(long)]
-    pub srgb: bool,
+    pub auto_confidence: bool,
+    /// sRGB decoding: `on`, `off`, or `auto` (on for JPEG and 8-bit
+    /// photographs, off for 16-bit and float images and for PNGs marked
+    /// linear, as everything `synth` writes). `--srgb` alone means on.
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on")]
+    pub srgb: SrgbArg,
+    /// A frame with every light off (same camera settings), subtracted from
+    /// each photograph.
+    #[arg(long, value_name = "FILE")]
+    pub ambient: Option<PathBuf>,
+    /// Vignetting correction: `cos4` (the pinhole's natural fall-off) or a
+    /// flat-field image (a uniform white target) [default: none].
+    #[arg(long, value_name = "cos4|FILE")]
+    pub vignetting: Option<String>,
+    /// A known albedo map (linear, relative), divided out; pixels with
+    /// albedo below 0.02 are not trusted.
+    #[arg(long, value_name = "FILE")]
+    pub albedo: Option<PathBuf>,
+    /// Solve at a working size whose longest side is at most N pixels (area
+    /// averaging; intrinsics and masks scaled alike); outputs are at the
+    /// working size. 0: the full size.
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_SIDE)]
+    pub max_side: usize,
     /// Initial depth: `fast-marching` (default: fast marching on the image,
-    /// denoised when noisy, then refined at full resolution), `from-image`
-    /// (the paper's constant depth from the brightest pixel, then the whole
-    /// pyramid), a number (a constant depth, depth units), or a `.npy` depth
-    /// map to refine at full resolution.
+    /// denoised when noisy, then refined at full resolution; with lights off
+    /// the centre the plane that best fits the image, refined through the
+    /// pyramid), `from-image` (the paper's constant depth from the brightest
+    /// pixel, then the whole pyramid), a number (a constant depth, depth
+    /// units), or a `.npy` depth map of the working size.
     #[arg(long, value_name = "fast-marching|from-image|Z|FILE.npy")]
     pub init_depth: Option<String>,
     /// The scheme: `linearised` (the paper's, default), `explicit` (Ju et
     /// al.'s gradient descent on the same energy) or `fast-marching`
-    /// (Prados-Faugeras by fast marching; ignores the confidence and the
-    /// energy's parameters).
+    /// (Prados-Faugeras by fast marching, centred light only; ignores the
+    /// confidence and the energy's parameters).
     #[arg(long, value_enum, default_value = "linearised")]
     pub method: MethodArg,
     /// Solver parameters (one option per entry of the parameter table).
@@ -70,9 +115,35 @@ pub struct SolveArgs {
     #[arg(long, short)]
     pub quiet: bool,
     /// Output folder (created if needed): depth.npy, depth16.png,
-    /// reprojection.png, mesh.ply, report.json.
+    /// reprojection.png, residual.png, mesh.ply, report.json.
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// The default working size of `solve` (longest side, pixels): 1920x1080
+/// solves at full size, an 18 MP photograph at 2000x1333.
+pub const DEFAULT_MAX_SIDE: usize = 2000;
+
+/// `--srgb`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SrgbArg {
+    /// Always decode sRGB.
+    On,
+    /// Values are linear.
+    Off,
+    /// Decide from the file.
+    Auto,
+}
+
+impl SrgbArg {
+    /// The reader's mode.
+    pub fn mode(self) -> SrgbMode {
+        match self {
+            SrgbArg::On => SrgbMode::On,
+            SrgbArg::Off => SrgbMode::Off,
+            SrgbArg::Auto => SrgbMode::Auto,
+        }
+    }
 }
 
 /// `--method`.
@@ -201,55 +272,206 @@ fn read_sized_mask(path: &Path, what: &str, size: (usize, usize)) -> Result<Grid
     Ok(mask)
 }
 
-/// Runs `solve`.
-pub fn run(args: &SolveArgs) -> Result<()> {
-    let image = io::read_image(&args.image, args.srgb)?;
-    let size = image.size();
-    let (camera, file_scale) = match (&args.camera, args.focal) {
-        (Some(path), _) => {
-            let file = io::read_camera(path)?;
-            file.validate(path)?;
-            if (file.width, file.height) != size {
-                bail!(
-                    "camera file {} is for {}x{} images but {} is {}x{}",
+/// The camera, lights and scale a solve starts from, and what was decided.
+struct Setup {
+    /// Intrinsics of the photograph at its full size.
+    camera: Intrinsics,
+    lights: Vec<PointLight>,
+    /// `Some(s)` when given (option or camera file); `None`: auto.
+    intensity_scale: Option<f64>,
+    /// The unit of depth, when the camera file says it.
+    units: Option<String>,
+    /// Sentences for the summary and the report.
+    notes: Vec<String>,
+}
+
+fn camera_setup(args: &SolveArgs, full_size: (usize, usize)) -> Result<Setup> {
+    let mut notes = Vec::new();
+    let file = match &args.camera {
+        Some(path) => Some((path, io::read_camera(path)?)),
+        None => None,
+    };
+    let camera = match (&file, args.focal) {
+        (Some((path, file)), _) => {
+            let camera = file.intrinsics_for(path, full_size)?;
+            if (file.width, file.height) != full_size {
+                notes.push(format!(
+                    "intrinsics of {} ({}x{}) scaled to the {}x{} photograph: f = {:.2} px, \
+                     c = ({:.2}, {:.2})",
                     path.display(),
                     file.width,
                     file.height,
-                    args.image.display(),
-                    size.0,
-                    size.1
-                );
+                    full_size.0,
+                    full_size.1,
+                    camera.focal_px,
+                    camera.principal_x_px,
+                    camera.principal_y_px
+                ));
             }
-            (file.intrinsics(), Some(file.intensity_scale))
+            camera
         }
         (None, Some(focal)) => {
-            let mut camera = Intrinsics::centred(focal, size.0, size.1);
+            let mut camera = Intrinsics::centred(focal, full_size.0, full_size.1);
             if let Some(cx) = args.cx {
                 camera.principal_x_px = cx;
             }
             if let Some(cy) = args.cy {
                 camera.principal_y_px = cy;
             }
-            (camera, None)
+            camera
         }
         (None, None) => bail!("no camera: give --camera FILE or --focal F (pixels)"),
     };
-    let intensity_scale = args.intensity_scale.or(file_scale).unwrap_or(1.0);
+    let lights = match (args.lights.lights()?, &file) {
+        (Some(lights), _) => {
+            if !args.lights.indices.is_empty() {
+                bail!("give either --light X,Y,Z or --light-index K (a camera file's lights)");
+            }
+            lights
+        }
+        (None, Some((path, file))) if !file.lights.is_empty() => {
+            let names: Vec<String> = args
+                .images
+                .iter()
+                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
+                .collect();
+            let (lights, said) = if args.lights.indices.is_empty() && names.len() > 1 {
+                // Several photographs: each one's own light, summed.
+                let mut picks = Vec::new();
+                for name in &names {
+                    let (one, _) = file.lights_for(path, &[], Some(name))?;
+                    let number = file
+                        .lights
+                        .iter()
+                        .enumerate()
+                        .find(|(_, e)| e.image.as_deref() == Some(name.as_str()))
+                        .map(|(k, e)| e.led.unwrap_or(k as u32 + 1));
+                    match (one.len(), number) {
+                        (1, Some(n)) => picks.push(n),
+                        _ => bail!(
+                            "{}: cannot tell which light took {name}; give --light-index K \
+                             for each light that was on",
+                            path.display()
+                        ),
+                    }
+                }
+                file.lights_for(path, &picks, None)?
+            } else {
+                file.lights_for(
+                    path,
+                    &args.lights.indices,
+                    names.first().map(String::as_str),
+                )?
+            };
+            notes.push(format!("lights: {said}"));
+            lights
+        }
+        (None, _) => {
+            if !args.lights.indices.is_empty() {
+                bail!("--light-index needs a camera file that lists lights (--camera)");
+            }
+            Vec::new()
+        }
+    };
+    let given = match args.intensity_scale.as_deref() {
+        Some(text) if text.eq_ignore_ascii_case("auto") => None,
+        Some(text) => {
+            let s: f64 = text
+                .parse()
+                .map_err(|_| anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`"))?;
+            if !(s.is_finite() && s > 0.0 && s < 1e100) {
+                bail!("--intensity-scale {text}: must be positive and finite (below 1e100)");
+            }
+            Some(s)
+        }
+        None => file.as_ref().and_then(|(_, f)| f.intensity_scale),
+    };
+    Ok(Setup {
+        camera,
+        lights,
+        intensity_scale: given,
+        units: file.and_then(|(_, f)| f.units),
+        notes,
+    })
+}
+
+/// Runs `solve`.
+pub fn run(args: &SolveArgs) -> Result<()> {
+    let vignetting = match args.vignetting.as_deref() {
+        None | Some("none") => Vignetting::None,
+        Some("cos4") => Vignetting::Cos4,
+        Some(file) => Vignetting::FlatField(PathBuf::from(file)),
+    };
+    let max_side = (args.max_side > 0).then_some(args.max_side);
+    let photo_setup = PhotoSetup {
+        images: args.images.clone(),
+        srgb: args.srgb.mode(),
+        ambient: args.ambient.clone(),
+        vignetting,
+        albedo: args.albedo.clone(),
+        max_side,
+    };
+    let full_size = photo::full_size(&photo_setup)?;
+    let mut setup = camera_setup(args, full_size)?;
+    let photo = photo::load(&photo_setup, Some(setup.camera))?;
+    let size = photo.size();
+    let camera = scale_intrinsics(setup.camera, full_size, size);
+    if size != full_size {
+        setup.notes.push(format!(
+            "solved at {}x{} (area-averaged from {}x{}; --max-side 0 for the full size)",
+            size.0, size.1, full_size.0, full_size.1
+        ));
+    }
     let object_mask = match &args.mask {
-        Some(path) => Some(read_sized_mask(path, "mask", size)?.map(|&v| v >= 0.5)),
+        Some(path) => Some(
+            resize_area(&read_sized_mask(path, "mask", full_size)?, size.0, size.1)
+                .map(|&v| v >= 0.5),
+        ),
         None => None,
     };
-    let confidence = match &args.confidence {
-        Some(path) => Some(read_sized_mask(path, "confidence", size)?),
+    let mut confidence = match &args.confidence {
+        Some(path) => Some(resize_area(
+            &read_sized_mask(path, "confidence", full_size)?,
+            size.0,
+            size.1,
+        )),
         None => None,
     };
+    if let Some(lost) = &photo.lost {
+        confidence = Some(match confidence {
+            Some(c) => c.zip_map(lost, |a, b| a.min(*b)),
+            None => lost.clone(),
+        });
+    }
+    let mut suggestion = None;
+    if args.auto_confidence {
+        let object = object_mask
+            .clone()
+            .unwrap_or_else(|| Grid::filled(size.0, size.1, true));
+        let (suggested, counts) = fit::suggest_confidence(&photo.image, &object, None);
+        confidence = Some(match confidence {
+            Some(c) => c.zip_map(&suggested, |a, b| a.min(*b)),
+            None => suggested,
+        });
+        suggestion = Some(counts);
+    }
+    let dark = fit::darkness_warning(&photo.image, object_mask.as_ref());
+    if let Some(warning) = &dark
+        && !args.quiet
+    {
+        eprintln!("warning: {warning}");
+    }
     let ground_truth = match &args.gt {
         Some(dir) => {
             let gt = read_ground_truth(dir)?;
             if gt.depth.size() != size {
                 bail!(
-                    "ground truth in {} does not match the image size",
-                    dir.display()
+                    "ground truth in {} is {}x{} but the image is solved at {}x{}",
+                    dir.display(),
+                    gt.depth.width(),
+                    gt.depth.height(),
+                    size.0,
+                    size.1
                 );
             }
             Some(gt)
@@ -257,12 +479,13 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         None => None,
     };
     let params = args.params(size)?;
-    let problem = Problem {
-        image,
+    let mut problem = Problem {
+        image: photo.image.clone(),
         camera,
-        intensity_scale,
+        intensity_scale: setup.intensity_scale.unwrap_or(1.0),
         object_mask,
         confidence,
+        lights: setup.lights.clone(),
     };
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(1);
@@ -278,25 +501,138 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         bar,
         kappa: params.kappa,
     };
-    let solution = solver::solve_method(&problem, &params, &args.method.method(), &mut progress);
+    // The intensity scale: estimated with lights off the centre; a known
+    // distance fixes it (and the depth unit).
+    let known_pixel = args.known_depth.map(|[x, y, z]| {
+        let kx = size.0 as f64 / full_size.0 as f64;
+        let ky = size.1 as f64 / full_size.1 as f64;
+        (
+            ((x + 0.5) * kx - 0.5).round(),
+            ((y + 0.5) * ky - 0.5).round(),
+            z,
+        )
+    });
+    if let Some((x, y, z)) = known_pixel
+        && !(x >= 0.0
+            && y >= 0.0
+            && (x as usize) < size.0
+            && (y as usize) < size.1
+            && z > 0.0
+            && z.is_finite())
+    {
+        bail!("--known-depth: the pixel must lie in the image and the distance be positive");
+    }
+    let mut scale_estimate = None;
+    let centred = problem.light_is_centred();
+    if setup.intensity_scale.is_none() && !centred && known_pixel.is_none() {
+        let estimate =
+            solver::calibrate::estimate_intensity_scale(&problem, &params, &mut progress)
+                .with_context(
+                    || "cannot estimate the intensity scale (give --intensity-scale S)",
+                )?;
+        problem.intensity_scale = estimate.intensity_scale;
+        setup.notes.push(format!(
+            "intensity scale estimated: s = {:.4e} (object about {:.1} {} away){}",
+            estimate.intensity_scale,
+            estimate.depth,
+            setup.units.as_deref().unwrap_or("depth units"),
+            if estimate.well_determined {
+                ""
+            } else {
+                "; poorly determined by this image: give --intensity-scale or --known-depth"
+            }
+        ));
+        scale_estimate = Some(estimate);
+    }
+    let method = args.method.method();
+    let mut solution = solver::solve_method(&problem, &params, &method, &mut progress);
+    if let (Ok(first), Some((x, y, z))) = (&solution, known_pixel) {
+        let (c, r) = (x as usize, y as usize);
+        let Some(k) = solver::calibrate::scale_to_known_depth(&first.depth, c, r, z) else {
+            bail!("--known-depth: pixel {c},{r} (working size) is not on the solved surface");
+        };
+        if centred {
+            // Exact: depth times k, s times k^2 (the invariance tests).
+            problem.intensity_scale *= k * k;
+            let mut scaled = solver::solve_method(&problem, &params, &method, &mut progress);
+            if let Ok(ref mut s) = scaled {
+                // One more solve reproduces the first up to round-off; take
+                // the exact rescaling of the depth to meet the measurement.
+                if let Some(k2) = solver::calibrate::scale_to_known_depth(&s.depth, c, r, z) {
+                    s.depth = s.depth.map(|v| v * k2);
+                }
+            }
+            solution = scaled;
+        } else {
+            // Lights anywhere: search s so the pixel lands at the distance
+            // (depth grows with s; a few secant steps in log space).
+            let mut s = problem.intensity_scale;
+            let mut current = first.clone();
+            for _ in 0..8 {
+                let Some(k) = solver::calibrate::scale_to_known_depth(&current.depth, c, r, z)
+                else {
+                    break;
+                };
+                if (k - 1.0).abs() < 1e-3 {
+                    break;
+                }
+                s *= k * k;
+                problem.intensity_scale = s;
+                current = solver::solve_method(&problem, &params, &method, &mut progress)?;
+            }
+            solution = Ok(current);
+        }
+        setup.notes.push(format!(
+            "depth scale from --known-depth: s = {:.4e}",
+            problem.intensity_scale
+        ));
+    }
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
-    let solution = solution.with_context(|| format!("cannot solve {}", args.image.display()))?;
+    let solution =
+        solution.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
+    let model = problem.model();
     let errors = match &ground_truth {
-        Some(gt) => Some(metrics::errors(
+        Some(gt) => Some(metrics::errors_with_model(
             &solution.depth,
             &gt.depth,
             &gt.image,
             camera,
-            intensity_scale,
+            &model,
         )?),
         None => None,
     };
+    let domain = solution.depth.map(|z| z.is_finite());
+    let fit_confidence = problem.confidence.clone();
+    let model_fit = fit::measure(
+        &problem.image,
+        &solution.reprojection,
+        &domain,
+        fit_confidence.as_ref(),
+        solution.scales.intensity,
+    );
+    let residual = fit::residual_map(
+        &problem.image,
+        &solution.reprojection,
+        &domain,
+        solution.scales.intensity,
+    );
 
     let mut stage = OutputStage::new(&args.out)?;
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
     io::write_png16(&stage.path("reprojection.png"), &solution.reprojection)?;
+    io::write_png16(&stage.path("input_linear.png"), &problem.image)?;
+    // Residual in [-0.5, 0.5] I_ref mapped to [0, 1]: grey 0.5 = explained.
+    io::write_png8(
+        &stage.path("residual.png"),
+        &residual.map(|v| if v.is_finite() { 0.5 + v } else { 0.5 }),
+    )?;
+    if let Some(c) = &problem.confidence
+        && (args.auto_confidence || photo.lost.is_some())
+    {
+        io::write_png8(&stage.path("confidence_used.png"), c)?;
+    }
     let depth_range = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
     io::write_depth_ply(
         &stage.path("mesh.ply"),
@@ -304,21 +640,41 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         &camera,
         Some(&solution.reprojection),
     )?;
+    let mut warnings: Vec<String> = model_fit.warnings.clone();
+    if let Some(d) = dark
+        && !warnings.iter().any(|w| w.contains("too dark"))
+    {
+        warnings.insert(0, d);
+    }
     let report = json!({
         "input": {
-            "image": args.image,
+            "images": args.images,
+            "full_width": full_size.0,
+            "full_height": full_size.1,
             "width": size.0,
             "height": size.1,
-            "srgb": args.srgb,
+            "srgb": photo.srgb.0,
+            "srgb_reason": photo.srgb.1,
+            "ambient": args.ambient,
+            "ambient_clamped_share": photo.ambient_clamped,
+            "vignetting": args.vignetting,
+            "albedo": args.albedo,
             "mask": args.mask,
             "confidence": args.confidence,
+            "auto_confidence": suggestion,
             "camera": {
                 "focal": camera.focal_px,
                 "cx": camera.principal_x_px,
                 "cy": camera.principal_y_px,
-                "intensity_scale": intensity_scale,
+                "intensity_scale": problem.intensity_scale,
+                "intensity_scale_given": setup.intensity_scale.is_some(),
+                "units": setup.units,
             },
+            "lights": problem.lights,
+            "known_depth": args.known_depth,
         },
+        "intensity_scale_search": scale_estimate,
+        "notes": setup.notes,
         "parameters": params_json(&params, args),
         "alpha_used": solution.alpha,
         "alpha_px": solution.alpha_px,
@@ -329,6 +685,8 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         "phases": solution.phases,
         "final_energy": solution.final_energy,
         "seconds": solution.seconds,
+        "model_fit": model_fit,
+        "warnings": warnings,
         "depth16_png_range": depth_range.map(|(near, far)| json!({"near_white": near, "far_black": far})),
         "rse": errors.map(|e| e.rse),
         "rie": errors.map(|e| e.rie),
@@ -340,11 +698,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let levels = solution.levels.len();
     let mut summary = format!(
         "solved {} in {:.2} s ({} level{}{}{}) -> {}",
-        args.image.display(),
+        args.images[0].display(),
         solution.seconds,
         levels,
         if levels == 1 { "" } else { "s" },
-        if matches!(params.initial_depth, InitialDepth::FastMarching) {
+        if matches!(params.initial_depth, InitialDepth::FastMarching) && centred {
             " after the fast-marching start"
         } else {
             ""
@@ -367,7 +725,21 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         summary.push_str(&format!("  rse {:.5} rie {:.5}", e.rse, e.rie));
     }
     if !args.quiet {
+        for note in &setup.notes {
+            eprintln!("{note}");
+        }
         eprintln!("{summary}");
+        eprintln!(
+            "model fit: RIE {:.3} over trusted pixels, {:.0} % badly explained, {:.0} % \
+             near-black, {:.1} % saturated",
+            model_fit.rie_trusted,
+            100.0 * model_fit.poor_share,
+            100.0 * model_fit.near_black_share,
+            100.0 * model_fit.saturated_share
+        );
+        for warning in &warnings {
+            eprintln!("warning: {warning}");
+        }
     }
     Ok(())
 }

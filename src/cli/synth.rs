@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 
+use crate::calibration::LightEntry;
 use crate::io::{self, CameraFile, OutputStage};
 use crate::scene::{self, Scene, mesh, sombrero};
 
@@ -33,6 +34,10 @@ pub struct SynthArgs {
     /// Mesh distance from the camera, in units of the mesh's largest side.
     #[arg(long, default_value_t = 2.0)]
     pub distance: f64,
+    /// Lights (camera frame, in units of depth: the Sombrero's, or the
+    /// mesh's largest side = 1) [default: one at the optical centre].
+    #[command(flatten)]
+    pub lights: super::LightArgs,
     /// Output folder (created if needed).
     #[arg(long, value_parser = super::parse_path)]
     pub out: PathBuf,
@@ -41,8 +46,12 @@ pub struct SynthArgs {
 /// Renders the scene named by the arguments.
 pub fn render_scene(args: &SynthArgs) -> Result<Scene> {
     let (width, height) = args.size;
+    if !args.lights.indices.is_empty() {
+        anyhow::bail!("--light-index picks lights of a camera file; synth takes --light X,Y,Z");
+    }
+    let lights = args.lights.lights()?.unwrap_or_default();
     if args.scene == "sombrero" {
-        return Ok(sombrero::sombrero(width, height));
+        return Ok(sombrero::sombrero_lit(width, height, &lights));
     }
     let path = Path::new(&args.scene);
     let mesh = mesh::load_obj(path)?;
@@ -55,7 +64,9 @@ pub fn render_scene(args: &SynthArgs) -> Result<Scene> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "mesh".into());
-    Ok(mesh::render(&mesh, width, height, &placement, &name)?)
+    Ok(mesh::render_lit(
+        &mesh, width, height, &placement, &lights, &name,
+    )?)
 }
 
 /// Runs `synth`.
@@ -89,12 +100,21 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     io::write_npy_f64(&stage.path("depth_gt.npy"), &scene.depth_gt)?;
     let camera = CameraFile {
         name: Some(scene.name.clone()),
-        width: w,
-        height: h,
-        focal: scene.camera.focal_px,
-        cx: scene.camera.principal_x_px,
-        cy: scene.camera.principal_y_px,
-        intensity_scale: scene.intensity_scale,
+        intensity_scale: Some(scene.intensity_scale),
+        lights: scene
+            .lights
+            .iter()
+            .map(|l| LightEntry {
+                position: l.position,
+                direction: l.direction,
+                mu: l.mu,
+                intensity: Some(l.intensity),
+                rgb_intensity: None,
+                led: None,
+                image: None,
+            })
+            .collect(),
+        ..CameraFile::new(scene.camera, w, h)
     };
     io::write_camera(&stage.path("scene.json"), &camera)?;
     stage

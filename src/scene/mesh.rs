@@ -18,6 +18,7 @@ use rayon::prelude::*;
 
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
+use crate::light::PointLight;
 use crate::scene::Scene;
 
 /// Rows per band of the parallel rasteriser (triangles are binned per band).
@@ -321,6 +322,25 @@ pub fn render(
     placement: &Placement,
     name: &str,
 ) -> Result<Scene, MeshError> {
+    render_lit(mesh, width, height, placement, &[], name)
+}
+
+/// [`render`] lit by `lights` (camera frame, in units of the placed model,
+/// whose largest side is 1; empty: one light at the optical centre). Cast
+/// shadows are not traced: the image is the model's local shading.
+pub fn render_lit(
+    mesh: &TriangleMesh,
+    width: usize,
+    height: usize,
+    placement: &Placement,
+    lights: &[PointLight],
+    name: &str,
+) -> Result<Scene, MeshError> {
+    for (k, light) in lights.iter().enumerate() {
+        light
+            .validated(k + 1)
+            .map_err(|message| MeshError::InvalidInput { message })?;
+    }
     if width < 2 || height < 2 {
         return Err(MeshError::InvalidInput {
             message: format!("image size {width} x {height}: both sides must be at least 2 pixels"),
@@ -366,7 +386,7 @@ pub fn render(
                 ray_x: &ray_x,
                 ray_y: &ray_y,
             };
-            band.render(bin, &triangles, &vertex_normals, depth, image, mask);
+            band.render(bin, &triangles, &vertex_normals, lights, depth, image, mask);
         });
 
     if !mask.iter().any(|&m| m) {
@@ -393,6 +413,7 @@ pub fn render(
         image: Grid::from_vec(width, height, image).ok_or_else(grid_error)?,
         depth_gt: Grid::from_vec(width, height, depth).ok_or_else(grid_error)?,
         object_mask: Grid::from_vec(width, height, mask).ok_or_else(grid_error)?,
+        lights: lights.to_vec(),
     })
 }
 
@@ -447,11 +468,13 @@ struct Band<'a> {
 impl Band<'_> {
     /// Z-buffers the triangles of `bin` into this band and shades it with
     /// `s = 1`. The slices are the band's rows of the full image.
+    #[allow(clippy::too_many_arguments)]
     fn render(
         &self,
         bin: &[u32],
         triangles: &[PreparedTriangle],
         vertex_normals: &[[f64; 3]],
+        lights: &[PointLight],
         depth: &mut [f64],
         image: &mut [f64],
         mask: &mut [bool],
@@ -491,11 +514,13 @@ impl Band<'_> {
             };
             let point = scale(d, z);
             let normal = shading_normal(tri, bary, vertex_normals);
-            let r = norm(point);
-            // N faces the camera when N . P <= 0; then N . L = -N . P / r.
-            let n_dot_p = dot(normal, point);
-            let cos_incidence = n_dot_p.abs() / r;
-            let intensity = cos_incidence / (r * r);
+            // The normal turned to face the camera (N . P <= 0).
+            let facing = if dot(normal, point) > 0.0 {
+                scale(normal, -1.0)
+            } else {
+                normal
+            };
+            let intensity = crate::light::irradiance(lights, point, facing);
             depth[k] = z;
             mask[k] = true;
             image[k] = if intensity.is_finite() {

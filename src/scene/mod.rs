@@ -23,6 +23,8 @@ pub struct Scene {
     pub depth_gt: Grid<f64>,
     /// True where the pixel sees the object.
     pub object_mask: Grid<bool>,
+    /// The lights it was rendered with (empty: one at the optical centre).
+    pub lights: Vec<crate::light::PointLight>,
 }
 
 /// Adds Gaussian noise of standard deviation `sigma_255` (on the 0..255 scale)

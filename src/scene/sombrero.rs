@@ -5,7 +5,8 @@ use std::f64::consts::PI;
 use super::Scene;
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
-use crate::model::{Lambertian, PixelRay, Reflectance};
+use crate::light::{LightModel, PointLight};
+use crate::model::{PixelRay, Reflectance};
 
 /// Intensity scale of the Sombrero scene.
 pub const SOMBRERO_INTENSITY_SCALE: f64 = 2.0;
@@ -34,10 +35,14 @@ pub fn sombrero_depth(x_px: f64, y_px: f64, width: usize) -> (f64, f64, f64) {
 /// Renders the Sombrero at `width` x `height` (`f = width`, default principal
 /// point, `s = 2`, every pixel foreground).
 pub fn sombrero(width: usize, height: usize) -> Scene {
+    sombrero_lit(width, height, &[])
+}
+
+/// [`sombrero`] lit by `lights` (camera frame, units of depth; empty: the
+/// paper's light at the optical centre), still with `s = 2`.
+pub fn sombrero_lit(width: usize, height: usize, lights: &[PointLight]) -> Scene {
     let camera = Intrinsics::centred(width as f64, width, height);
-    let model = Lambertian {
-        intensity_scale: SOMBRERO_INTENSITY_SCALE,
-    };
+    let model = LightModel::new(SOMBRERO_INTENSITY_SCALE, lights);
     let mut depth_gt = Grid::filled(width, height, 0.0);
     let image = Grid::from_fn(width, height, |c, r| {
         let (x_px, y_px) = camera.image_xy(c as f64, r as f64);
@@ -57,6 +62,7 @@ pub fn sombrero(width: usize, height: usize) -> Scene {
         image,
         depth_gt,
         object_mask: Grid::filled(width, height, true),
+        lights: lights.to_vec(),
     }
 }
 

@@ -7,7 +7,7 @@
 use std::time::Instant;
 
 use crate::grid::Grid;
-use crate::model::{Energy, Lambertian, Reflectance};
+use crate::model::{Energy, Reflectance};
 use crate::params::{InitialDepth, SolverParams, StepControl};
 
 use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
@@ -18,16 +18,14 @@ use super::problem::{
 use super::sor;
 use super::system::LinearSystem;
 
-/// Solves with the Lambertian model of the paper.
+/// Solves with the problem's own model: the paper's Lambertian model with
+/// the light at the optical centre, or lights anywhere (METHOD.md section 9).
 pub fn solve(
     problem: &Problem,
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    let model = Lambertian {
-        intensity_scale: problem.intensity_scale,
-    };
-    solve_with_model(problem, params, &model, observer)
+    solve_with_model(problem, params, &problem.model(), observer)
 }
 
 /// Solves with any reflectance model.

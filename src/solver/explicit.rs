@@ -49,7 +49,7 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::grid::Grid;
-use crate::model::{self, Lambertian, Reflectance, Spacing, charbonnier_derivative, slot};
+use crate::model::{self, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
 
 use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
@@ -360,16 +360,15 @@ fn descend(depth: &mut Grid<f64>, domain: &Grid<bool>, gradient: &[f64], tau: f6
         });
 }
 
-/// Solves with the explicit scheme and the Lambertian model.
+/// Solves with the explicit scheme and the problem's model (lights
+/// anywhere).
 pub fn solve_explicit(
     problem: &Problem,
     params: &SolverParams,
     explicit: &ExplicitParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    let model = Lambertian {
-        intensity_scale: problem.intensity_scale,
-    };
+    let model = problem.model();
     rayon::scope(|_| run(problem, params, explicit, &model, observer))
 }
 
@@ -540,6 +539,7 @@ impl<M: Reflectance> LevelScheme for Descent<'_, M> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::Lambertian;
     use crate::model::LevelGeometry;
     use crate::scene::sombrero::sombrero;
 
@@ -594,6 +594,7 @@ mod tests {
             intensity_scale: scene.intensity_scale,
             object_mask: None,
             confidence: None,
+            lights: Vec::new(),
         };
         let params = SolverParams::paper(50.0);
         let explicit = ExplicitParams {

@@ -59,6 +59,7 @@ use std::collections::BinaryHeap;
 use std::time::Instant;
 
 use crate::grid::Grid;
+use crate::light::LightModel;
 use crate::model::{self, Lambertian, LevelGeometry};
 use crate::params::{DomainMode, SolverParams};
 
@@ -240,7 +241,16 @@ pub fn solve_fast_marching(
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let f2 = problem.camera.focal_px * problem.camera.focal_px;
-    let s = problem.intensity_scale;
+    let s = match problem.model() {
+        LightModel::Centred(model) => model.intensity_scale,
+        LightModel::Near(_) => {
+            return Err(SolveError::Input(
+                "fast marching models lights at the optical centre only (the paper's set-up); \
+                 these lights are off the centre: use the linearised or the explicit method"
+                    .into(),
+            ));
+        }
+    };
     let brightest = (0..w * h)
         .filter(|&q| domain.as_slice()[q])
         .map(|q| problem.image.as_slice()[q])
@@ -474,6 +484,7 @@ mod tests {
             intensity_scale: 1.0,
             object_mask: Some(mask),
             confidence: None,
+            lights: Vec::new(),
         };
         (problem, truth)
     }

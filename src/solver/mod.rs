@@ -7,6 +7,7 @@
 //! nothing of threads, files or windows.
 
 pub mod auto_alpha;
+pub mod calibrate;
 pub(crate) mod coarse_to_fine;
 pub mod driver;
 pub mod explicit;

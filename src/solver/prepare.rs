@@ -75,8 +75,13 @@ pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepar
         domain,
     };
     let relative_noise = super::auto_alpha::relative_noise(&finest, &scales);
-    let fast_marching = match params.initial_depth {
-        InitialDepth::FastMarching => Some(fast_marching_start(
+    // Fast marching knows only the centred light; with lights elsewhere the
+    // default start is the plane that best explains the image, refined
+    // through the whole pyramid (the paper's path).
+    let fast_marching_start_wanted =
+        matches!(params.initial_depth, InitialDepth::FastMarching) && problem.light_is_centred();
+    let fast_marching = match fast_marching_start_wanted {
+        true => Some(fast_marching_start(
             problem,
             &finest,
             relative_noise * scales.intensity,
@@ -118,6 +123,18 @@ pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepar
             Grid::filled(coarsest.geometry.width, coarsest.geometry.height, *z0),
             *z0,
         ),
+        _ if !problem.light_is_centred() => {
+            let z0 = initial_depth_plane_fit(
+                coarsest,
+                &problem.model(),
+                scales.depth,
+                nearest_object_depth(&problem.lights),
+            );
+            (
+                Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
+                z0,
+            )
+        }
         _ => {
             let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
             (
@@ -189,6 +206,7 @@ fn fast_marching_start(
         intensity_scale: problem.intensity_scale,
         object_mask: problem.object_mask.clone(),
         confidence: None,
+        lights: Vec::new(),
     };
     let settings = super::fast_marching::FastMarchingParams::default();
     Ok(super::fast_marching::solve_fast_marching(&start, &settings, &mut ())?.depth)
@@ -252,6 +270,74 @@ pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> f
     } else {
         1.0
     }
+}
+
+/// The constant initial depth for lights anywhere: the fronto-parallel
+/// plane `z = z0 >= nearest` whose rendering best fits the trusted domain
+/// pixels of `level` in least squares (a scan over six decades around
+/// `guess`, refined by golden sections on `log z0`).
+pub fn initial_depth_plane_fit<M: Reflectance>(
+    level: &PyramidLevel,
+    model: &M,
+    guess: f64,
+    nearest: f64,
+) -> f64 {
+    let (w, h) = level.image.size();
+    let pixels: Vec<(model::PixelRay, f64)> = (0..h)
+        .flat_map(|r| (0..w).map(move |c| (c, r)))
+        .filter(|&(c, r)| *level.domain.at(c, r) && *level.confidence.at(c, r) > 0.0)
+        .map(|(c, r)| (level.geometry.ray(c, r), *level.image.at(c, r)))
+        .collect();
+    let floor = nearest.max(0.0);
+    let cost = |log_z: f64| -> f64 {
+        let z = log_z.exp();
+        if z < floor {
+            return f64::INFINITY;
+        }
+        pixels
+            .iter()
+            .map(|(ray, i)| {
+                let d = i - model.radiance(ray, z, 0.0, 0.0);
+                d * d
+            })
+            .sum()
+    };
+    if pixels.is_empty() || !(guess.is_finite() && guess > 0.0) {
+        return guess.max(1e-9);
+    }
+    let centre = guess.ln();
+    let (steps, span) = (121, 3.0 * std::f64::consts::LN_10);
+    let step = 2.0 * span / (steps - 1) as f64;
+    let best = (0..steps)
+        .map(|k| centre - span + k as f64 * step)
+        .map(|log_z| (log_z, cost(log_z)))
+        .filter(|(_, c)| c.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(centre, |(log_z, _)| log_z);
+    let (mut a, mut b) = (best - step, best + step);
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..40 {
+        let (m1, m2) = (b - ratio * (b - a), a + ratio * (b - a));
+        if cost(m1) <= cost(m2) {
+            b = m2;
+        } else {
+            a = m1;
+        }
+    }
+    (0.5 * (a + b)).exp()
+}
+
+/// The nearest distance an object lit by `lights` is assumed to be at: every
+/// light within 45 degrees of the optical axis as seen from the object
+/// (`z >= S_z + |S_xy|`). A plane nearer than that, lit at grazing angles,
+/// can explain a smooth image as well as the true distance does; the
+/// set-ups this tool serves (a flash or LEDs beside the lens) light the
+/// object from the camera's side.
+pub fn nearest_object_depth(lights: &[crate::light::PointLight]) -> f64 {
+    lights
+        .iter()
+        .map(|l| l.position[2] + l.off_axis())
+        .fold(0.0, f64::max)
 }
 
 /// Replaces non-finite or non-positive values of a warm start by the mean.

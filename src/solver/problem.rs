@@ -9,6 +9,7 @@ use serde::Serialize;
 
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
+use crate::light::{LightModel, PointLight};
 use crate::model::{Energy, LevelGeometry};
 use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
 
@@ -32,6 +33,9 @@ pub struct Problem {
     pub object_mask: Option<Grid<bool>>,
     /// Confidence in [0, 1] (`None`: 1 everywhere).
     pub confidence: Option<Grid<f64>>,
+    /// The lights switched on, camera frame, units of depth (empty: the
+    /// paper's single light at the optical centre).
+    pub lights: Vec<PointLight>,
 }
 
 /// Why a solve did not produce a depth map.
@@ -184,6 +188,16 @@ pub trait SolveObserver: Send {
 impl SolveObserver for () {}
 
 impl Problem {
+    /// The reflectance model of this problem's lights and intensity scale.
+    pub fn model(&self) -> LightModel {
+        LightModel::new(self.intensity_scale, &self.lights)
+    }
+
+    /// True when every light sits at the optical centre (the paper's model).
+    pub fn light_is_centred(&self) -> bool {
+        crate::light::is_centred(&self.lights)
+    }
+
     /// Checks sizes and values; returns the effective domain and confidence
     /// (0 off the object and on clipped pixels, see [`SATURATED`]).
     pub(crate) fn validate(
@@ -207,6 +221,9 @@ impl Problem {
         let s = self.intensity_scale;
         if !(s.is_finite() && s > 0.0) {
             return bad(format!("intensity scale must be finite and > 0 (got {s})"));
+        }
+        for (k, light) in self.lights.iter().enumerate() {
+            light.validated(k + 1).map_err(SolveError::Input)?;
         }
         if let Some(bad_value) = self
             .image

@@ -366,6 +366,7 @@ impl Runner {
             intensity_scale: scene.intensity_scale,
             object_mask: Some(scene.object_mask.clone()),
             confidence,
+            lights: Vec::new(),
         };
         let mut recorder = CurveRecorder {
             truth: &scene.depth_gt,

@@ -98,6 +98,7 @@ fn problem(scene: &Scene, image: Grid<f64>) -> Problem {
         intensity_scale: scene.intensity_scale,
         object_mask: Some(scene.object_mask.clone()),
         confidence: None,
+        lights: Vec::new(),
     }
 }
 

@@ -1,0 +1,88 @@
+//! The light options shared by `solve`, `synth` and `view`: `--light X,Y,Z`
+//! (repeatable) with its direction, anisotropy and intensity in the same
+//! order, and `--light-index K` for the lights of a camera file.
+
+use anyhow::{Result, bail};
+use clap::Args;
+
+use crate::light::PointLight;
+
+/// Where the lights are (camera frame: x right, y down, z forward; units of
+/// depth). Without `--light` the camera file's lights are used, else one
+/// light at the optical centre (the paper's).
+#[derive(Clone, Debug, Default, Args)]
+#[command(allow_negative_numbers = true)]
+pub struct LightArgs {
+    /// A point light at X,Y,Z in the camera frame, units of depth
+    /// (repeatable: lights on together are summed) [default: the camera
+    /// file's lights, else 0,0,0].
+    #[arg(long = "light", value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = super::parse_floats::<3>)]
+    pub positions: Vec<[f64; 3]>,
+    /// The principal direction of each --light, in the same order (one value
+    /// applies to all) [default: isotropic].
+    #[arg(long = "light-dir", value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = super::parse_floats::<3>)]
+    pub directions: Vec<[f64; 3]>,
+    /// The anisotropy mu of each --light (radiance ~ cos^mu of the angle to
+    /// --light-dir; 0 isotropic, 1 Lambertian LED) [default: 0].
+    #[arg(long = "light-mu", value_name = "MU")]
+    pub mus: Vec<f64>,
+    /// The relative intensity of each --light [default: 1].
+    #[arg(long = "light-intensity", value_name = "PHI")]
+    pub intensities: Vec<f64>,
+    /// With a camera file listing lights (a near_ps calibration.json): the
+    /// light whose `led` number is K (repeatable: summed) [default: the light
+    /// whose `image` is the photograph's file name].
+    #[arg(long = "light-index", value_name = "K")]
+    pub indices: Vec<u32>,
+}
+
+/// One value per light from a list given once (for all) or once per light.
+fn per_light<T: Copy>(values: &[T], lights: usize, name: &str) -> Result<Vec<Option<T>>> {
+    match values.len() {
+        0 => Ok(vec![None; lights]),
+        1 => Ok(vec![Some(values[0]); lights]),
+        n if n == lights => Ok(values.iter().map(|&v| Some(v)).collect()),
+        n => bail!(
+            "--{name} is given {n} times for {lights} --light: give it once or once per light"
+        ),
+    }
+}
+
+impl LightArgs {
+    /// The lights of `--light` and its companions (validated), or `None`
+    /// without `--light`.
+    pub fn lights(&self) -> Result<Option<Vec<PointLight>>> {
+        if self.positions.is_empty() {
+            if !(self.directions.is_empty() && self.mus.is_empty() && self.intensities.is_empty()) {
+                bail!("--light-dir, --light-mu and --light-intensity need --light X,Y,Z");
+            }
+            return Ok(None);
+        }
+        let n = self.positions.len();
+        let directions = per_light(&self.directions, n, "light-dir")?;
+        let mus = per_light(&self.mus, n, "light-mu")?;
+        let intensities = per_light(&self.intensities, n, "light-intensity")?;
+        let mut lights = Vec::with_capacity(n);
+        for k in 0..n {
+            let light = PointLight {
+                position: self.positions[k],
+                direction: directions[k],
+                mu: mus[k].unwrap_or(0.0),
+                intensity: intensities[k].unwrap_or(1.0),
+            };
+            if light.mu > 0.0 && light.direction.is_none() {
+                bail!(
+                    "--light-mu {} for light {} needs --light-dir",
+                    light.mu,
+                    k + 1
+                );
+            }
+            lights.push(
+                light
+                    .validated(k + 1)
+                    .map_err(|e| anyhow::anyhow!("--light: {e}"))?,
+            );
+        }
+        Ok(Some(lights))
+    }
+}

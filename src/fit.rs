@@ -1,0 +1,412 @@
+//! How well the model explains an image, said plainly: the model-fit summary
+//! after a solve (RIE over trusted pixels, share of badly explained,
+//! near-black and saturated pixels, warnings), the residual map, the
+//! darkness check before a solve, and the suggested confidence (saturated
+//! highlights, near-black and cast-shadow pixels, the silhouette band).
+
+use serde::Serialize;
+
+use crate::grid::Grid;
+
+/// Linear values below this are near-black: an 8-bit sRGB value of about 3,
+/// where one quantisation step is more than a quarter of the value.
+pub const NEAR_BLACK: f64 = 0.001;
+
+/// Linear values at or above this are (nearly) saturated.
+pub const NEAR_SATURATED: f64 = 0.98;
+
+/// A pixel is badly explained when `|I - R|` exceeds this fraction of
+/// `max(I, I_ref / 10)`.
+pub const POOR_RESIDUAL: f64 = 0.15;
+
+/// The RIE over trusted pixels above which the fit is called poor.
+pub const POOR_RIE: f64 = 0.15;
+
+/// The share of badly explained trusted pixels above which the fit is called
+/// poor.
+pub const POOR_SHARE: f64 = 0.2;
+
+/// The median object brightness (linear, full range 1) below which an image
+/// is too dark to carry shape: half the object near-black (an ambient frame
+/// has median 0 on the face; the LED photographs of near_ps_human1, dark as
+/// they are, 0.002).
+pub const TOO_DARK_MEDIAN: f64 = NEAR_BLACK;
+
+/// The model-fit summary of a solve.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ModelFit {
+    /// `sqrt(sum c (I - R)^2 / sum c I^2)` over trusted object pixels.
+    pub rie_trusted: f64,
+    /// Share of trusted object pixels whose residual exceeds
+    /// [`POOR_RESIDUAL`].
+    pub poor_share: f64,
+    /// Share of object pixels below [`NEAR_BLACK`].
+    pub near_black_share: f64,
+    /// Share of object pixels at or above [`NEAR_SATURATED`].
+    pub saturated_share: f64,
+    /// Median linear brightness of the object pixels.
+    pub median_brightness: f64,
+    /// Plain-language warnings (empty when the fit is good).
+    pub warnings: Vec<String>,
+}
+
+fn median(mut values: Vec<f64>) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let middle = values.len() / 2;
+    *values.select_nth_unstable_by(middle, f64::total_cmp).1
+}
+
+/// The warning for an image too dark to carry shape (before a solve), from
+/// the object pixels' brightness; `None` when it is bright enough.
+pub fn darkness_warning(image: &Grid<f64>, object: Option<&Grid<bool>>) -> Option<String> {
+    let values: Vec<f64> = image
+        .as_slice()
+        .iter()
+        .enumerate()
+        .filter(|(q, _)| object.is_none_or(|o| o.as_slice()[*q]))
+        .map(|(_, v)| *v)
+        .collect();
+    let brightest = values.iter().copied().fold(0.0, f64::max);
+    let median = median(values);
+    (median < TOO_DARK_MEDIAN).then(|| {
+        format!(
+            "the image is too dark to carry shape: the object's median brightness is {:.2} % of \
+             full range (brightest {:.2} %); a lit photograph, a longer exposure or an ambient \
+             frame that is not the photograph itself is needed",
+            100.0 * median,
+            100.0 * brightest
+        )
+    })
+}
+
+/// The residual map `(I - R) / I_ref` on `domain` (NaN elsewhere): positive
+/// where the image is brighter than the model explains.
+pub fn residual_map(
+    image: &Grid<f64>,
+    reprojection: &Grid<f64>,
+    domain: &Grid<bool>,
+    intensity_ref: f64,
+) -> Grid<f64> {
+    Grid::from_fn(image.width(), image.height(), |c, r| {
+        if *domain.at(c, r) {
+            (image.at(c, r) - reprojection.at(c, r)) / intensity_ref
+        } else {
+            f64::NAN
+        }
+    })
+}
+
+/// Measures the fit of `reprojection` to `image` over the object (`domain`)
+/// with the solver's confidence (0 = not trusted), `intensity_ref` the
+/// problem's brightness scale.
+pub fn measure(
+    image: &Grid<f64>,
+    reprojection: &Grid<f64>,
+    domain: &Grid<bool>,
+    confidence: Option<&Grid<f64>>,
+    intensity_ref: f64,
+) -> ModelFit {
+    let (mut num, mut den, mut trusted, mut poor) = (0.0, 0.0, 0usize, 0usize);
+    let (mut object, mut black, mut saturated) = (0usize, 0usize, 0usize);
+    let mut values = Vec::new();
+    for q in 0..image.len() {
+        if !domain.as_slice()[q] {
+            continue;
+        }
+        let (i, r) = (image.as_slice()[q], reprojection.as_slice()[q]);
+        object += 1;
+        values.push(i);
+        black += usize::from(i < NEAR_BLACK);
+        saturated += usize::from(i >= NEAR_SATURATED);
+        let c = confidence.map_or(1.0, |c| c.as_slice()[q]);
+        if c > 0.0 && r.is_finite() {
+            num += c * (i - r) * (i - r);
+            den += c * i * i;
+            trusted += 1;
+            poor += usize::from((i - r).abs() > POOR_RESIDUAL * i.max(0.1 * intensity_ref));
+        }
+    }
+    let share = |n: usize, of: usize| n as f64 / of.max(1) as f64;
+    let mut fit = ModelFit {
+        rie_trusted: if den > 0.0 {
+            (num / den).sqrt()
+        } else {
+            f64::NAN
+        },
+        poor_share: share(poor, trusted),
+        near_black_share: share(black, object),
+        saturated_share: share(saturated, object),
+        median_brightness: median(values),
+        warnings: Vec::new(),
+    };
+    if fit.median_brightness < TOO_DARK_MEDIAN {
+        fit.warnings.push(format!(
+            "the image is too dark to carry shape (median {:.2} % of full range)",
+            100.0 * fit.median_brightness
+        ));
+    }
+    if fit.rie_trusted.is_nan() || fit.rie_trusted > POOR_RIE || fit.poor_share > POOR_SHARE {
+        fit.warnings.push(format!(
+            "the model does not fit this image: RIE {:.3} over trusted pixels, {:.0} % of them \
+             off by more than {:.0} % (the light's position, albedo, shadows or highlights?); \
+             see the residual map and mask what the model cannot explain",
+            fit.rie_trusted,
+            100.0 * fit.poor_share,
+            100.0 * POOR_RESIDUAL
+        ));
+    }
+    if fit.near_black_share > 0.1 {
+        fit.warnings.push(format!(
+            "{:.0} % of the object is near-black (below {:.1} % of full range): no shape there",
+            100.0 * fit.near_black_share,
+            100.0 * NEAR_BLACK
+        ));
+    }
+    if fit.saturated_share > 0.02 {
+        fit.warnings.push(format!(
+            "{:.1} % of the object is saturated (not trusted)",
+            100.0 * fit.saturated_share
+        ));
+    }
+    fit
+}
+
+/// Why [`suggest_confidence`] lowered a pixel's confidence: counts of object
+/// pixels per reason (a pixel counts under every reason that applies).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Suggestion {
+    /// Saturated highlights (and their 1-pixel rim).
+    pub saturated: usize,
+    /// Near-black pixels.
+    pub near_black: usize,
+    /// Cast shadows: much darker than the model predicts, or than their
+    /// surroundings without a model.
+    pub shadow: usize,
+    /// The band along the object's silhouette.
+    pub silhouette: usize,
+}
+
+/// Confidence of the silhouette band.
+const SILHOUETTE_CONFIDENCE: f64 = 0.3;
+
+/// Proposes a confidence in [0, 1] (1 = trusted) for `image` on `object`:
+/// 0 on saturated highlights (with a 1-pixel rim), near-black pixels and
+/// cast shadows, 0.3 on the silhouette band (1 % of the object's size, at
+/// least 2 pixels). Cast shadows are pixels darker than half the model's
+/// prediction where a `reprojection` is given, else darker than 30 % of the
+/// local mean brightness of the object (a box of 20 % of its size). Off the
+/// object the confidence is 0.
+pub fn suggest_confidence(
+    image: &Grid<f64>,
+    object: &Grid<bool>,
+    reprojection: Option<&Grid<f64>>,
+) -> (Grid<f64>, Suggestion) {
+    let (w, h) = image.size();
+    let on = |c: usize, r: usize| *object.at(c, r);
+    let (mut min_c, mut max_c, mut min_r, mut max_r) = (w, 0, h, 0);
+    for r in 0..h {
+        for c in 0..w {
+            if on(c, r) {
+                min_c = min_c.min(c);
+                max_c = max_c.max(c);
+                min_r = min_r.min(r);
+                max_r = max_r.max(r);
+            }
+        }
+    }
+    let size = if max_c >= min_c && max_r >= min_r {
+        ((max_c - min_c + 1) as f64).hypot((max_r - min_r + 1) as f64)
+    } else {
+        0.0
+    };
+    let band = ((0.01 * size).round() as usize).max(2);
+    let distance = distance_to_background(object);
+    let local_mean = match reprojection {
+        Some(_) => None,
+        None => Some(box_mean_on(image, object, ((0.1 * size) as usize).max(4))),
+    };
+    let mut count = Suggestion::default();
+    let confidence = Grid::from_fn(w, h, |c, r| {
+        if !on(c, r) {
+            return 0.0;
+        }
+        let i = *image.at(c, r);
+        let mut conf: f64 = 1.0;
+        let near_saturated = (r.saturating_sub(1)..(r + 2).min(h)).any(|rr| {
+            (c.saturating_sub(1)..(c + 2).min(w)).any(|cc| *image.at(cc, rr) >= NEAR_SATURATED)
+        });
+        if near_saturated {
+            conf = 0.0;
+            count.saturated += 1;
+        }
+        if i < NEAR_BLACK {
+            conf = 0.0;
+            count.near_black += 1;
+        }
+        let shadow = match (reprojection, &local_mean) {
+            (Some(model), _) => {
+                let predicted = *model.at(c, r);
+                predicted > NEAR_BLACK && i < 0.5 * predicted
+            }
+            (None, Some(mean)) => i < 0.3 * mean.at(c, r),
+            (None, None) => false,
+        };
+        if shadow {
+            conf = 0.0;
+            count.shadow += 1;
+        }
+        if *distance.at(c, r) <= band {
+            conf = conf.min(SILHOUETTE_CONFIDENCE);
+            count.silhouette += 1;
+        }
+        conf
+    });
+    (confidence, count)
+}
+
+/// City-block distance (pixels) of each object pixel to the nearest
+/// background pixel or image border (two-pass chamfer); 0 off the object.
+fn distance_to_background(object: &Grid<bool>) -> Grid<usize> {
+    let (w, h) = object.size();
+    let far = w + h;
+    let mut d = Grid::from_fn(w, h, |c, r| {
+        if !*object.at(c, r) {
+            0
+        } else {
+            // The image border counts as background.
+            (c + 1).min(r + 1).min(w - c).min(h - r)
+        }
+    });
+    for r in 0..h {
+        for c in 0..w {
+            if *d.at(c, r) == 0 {
+                continue;
+            }
+            let mut v = (*d.at(c, r)).min(far);
+            if c > 0 {
+                v = v.min(d.at(c - 1, r) + 1);
+            }
+            if r > 0 {
+                v = v.min(d.at(c, r - 1) + 1);
+            }
+            *d.at_mut(c, r) = v;
+        }
+    }
+    for r in (0..h).rev() {
+        for c in (0..w).rev() {
+            if *d.at(c, r) == 0 {
+                continue;
+            }
+            let mut v = *d.at(c, r);
+            if c + 1 < w {
+                v = v.min(d.at(c + 1, r) + 1);
+            }
+            if r + 1 < h {
+                v = v.min(d.at(c, r + 1) + 1);
+            }
+            *d.at_mut(c, r) = v;
+        }
+    }
+    d
+}
+
+/// The mean of `image` over object pixels in a `(2 radius + 1)^2` box, by
+/// summed-area tables.
+fn box_mean_on(image: &Grid<f64>, object: &Grid<bool>, radius: usize) -> Grid<f64> {
+    let (w, h) = image.size();
+    let mut sum = vec![0.0; (w + 1) * (h + 1)];
+    let mut count = vec![0.0; (w + 1) * (h + 1)];
+    for r in 0..h {
+        for c in 0..w {
+            let (v, n) = if *object.at(c, r) {
+                (*image.at(c, r), 1.0)
+            } else {
+                (0.0, 0.0)
+            };
+            let q = (r + 1) * (w + 1) + c + 1;
+            sum[q] = v + sum[q - 1] + sum[q - w - 1] - sum[q - w - 2];
+            count[q] = n + count[q - 1] + count[q - w - 1] - count[q - w - 2];
+        }
+    }
+    let rect = |t: &[f64], c0: usize, r0: usize, c1: usize, r1: usize| {
+        t[r1 * (w + 1) + c1] - t[r0 * (w + 1) + c1] - t[r1 * (w + 1) + c0] + t[r0 * (w + 1) + c0]
+    };
+    Grid::from_fn(w, h, |c, r| {
+        let (c0, r0) = (c.saturating_sub(radius), r.saturating_sub(radius));
+        let (c1, r1) = ((c + radius + 1).min(w), (r + radius + 1).min(h));
+        let n = rect(&count, c0, r0, c1, r1);
+        if n > 0.0 {
+            rect(&sum, c0, r0, c1, r1) / n
+        } else {
+            0.0
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_dark_image_is_called_dark_and_a_lit_one_is_not() {
+        let dark = Grid::filled(20, 20, 0.0005);
+        assert!(darkness_warning(&dark, None).unwrap().contains("too dark"));
+        let lit = Grid::filled(20, 20, 0.2);
+        assert!(darkness_warning(&lit, None).is_none());
+        let domain = Grid::filled(20, 20, true);
+        let fit = measure(&dark, &dark, &domain, None, 0.0005);
+        assert!(
+            fit.warnings.iter().any(|w| w.contains("too dark")),
+            "{fit:?}"
+        );
+    }
+
+    #[test]
+    fn a_perfect_fit_has_no_warning_and_a_wrong_one_has() {
+        let image = Grid::from_fn(30, 30, |c, _| 0.2 + 0.01 * c as f64);
+        let domain = Grid::filled(30, 30, true);
+        let good = measure(&image, &image, &domain, None, 0.3);
+        assert_eq!(good.rie_trusted, 0.0);
+        assert!(good.warnings.is_empty(), "{good:?}");
+        let wrong = image.map(|v| 0.5 * v);
+        let bad = measure(&image, &wrong, &domain, None, 0.3);
+        assert!((bad.rie_trusted - 0.5).abs() < 1e-12);
+        assert_eq!(bad.poor_share, 1.0);
+        assert!(bad.warnings.iter().any(|w| w.contains("does not fit")));
+        // Untrusted pixels do not count.
+        let zero = Grid::filled(30, 30, 0.0);
+        let ignored = measure(&image, &wrong, &domain, Some(&zero), 0.3);
+        assert_eq!(ignored.poor_share, 0.0);
+    }
+
+    #[test]
+    fn suggestions_mark_highlights_black_shadows_and_the_rim() {
+        let mut image = Grid::filled(40, 40, 0.3);
+        *image.at_mut(20, 20) = 1.0; // highlight
+        *image.at_mut(10, 10) = 0.001; // near-black
+        for r in 25..30 {
+            for c in 25..30 {
+                *image.at_mut(c, r) = 0.05; // a cast shadow
+            }
+        }
+        let object = Grid::from_fn(40, 40, |c, r| (3..37).contains(&c) && (3..37).contains(&r));
+        let (conf, count) = suggest_confidence(&image, &object, None);
+        assert_eq!(*conf.at(20, 20), 0.0);
+        assert_eq!(*conf.at(21, 21), 0.0, "the rim of a highlight");
+        assert_eq!(*conf.at(10, 10), 0.0);
+        assert_eq!(*conf.at(27, 27), 0.0, "shadow");
+        assert_eq!(*conf.at(3, 20), SILHOUETTE_CONFIDENCE);
+        assert_eq!(*conf.at(15, 15), 1.0);
+        assert_eq!(*conf.at(0, 0), 0.0, "off the object");
+        assert_eq!(count.saturated, 9);
+        // The 5x5 shadow and the near-black pixel, darker than their surroundings.
+        assert_eq!(count.shadow, 26);
+        // With a model, a pixel darker than half its prediction is a shadow.
+        let model = Grid::filled(40, 40, 0.3);
+        let (conf, _) = suggest_confidence(&image, &object, Some(&model));
+        assert_eq!(*conf.at(27, 27), 0.0);
+        assert_eq!(*conf.at(15, 15), 1.0);
+    }
+}

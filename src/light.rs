@@ -1,0 +1,424 @@
+//! Point lights anywhere in the camera frame (METHOD.md section 9): the
+//! general near-light Lambertian model with anisotropic LEDs, its exact
+//! partial derivatives, and the lights' description shared by the camera
+//! file, the CLI, `synth` and the viewer.
+//!
+//! `I = s sum_k phi_k a_k(P) max(0, N . (S_k - P)) / |S_k - P|^3`, with
+//! `P = z (x/f, y/f, 1)`, `N = n / |n|`, `n = (f z_x, f z_y, -(z + x z_x + y z_y))`
+//! and `a_k = (D_k . (P - S_k) / |P - S_k|)^mu_k`. One isotropic light at the
+//! optical centre gives back the paper's `s Q^3 / (z W)` exactly.
+
+use serde::{Deserialize, Serialize};
+
+use crate::model::{Lambertian, PixelRay, Reflectance};
+
+/// One point light in the camera frame (x right, y down, z along the optical
+/// axis), in the units of depth.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PointLight {
+    /// Position `S` in the camera frame, units of depth.
+    pub position: [f64; 3],
+    /// Unit principal direction `D` of an anisotropic emitter (normalised on
+    /// validation); `None`: isotropic.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub direction: Option<[f64; 3]>,
+    /// Anisotropy `mu >= 0` (radiance falls off as `cos^mu` of the angle to
+    /// `direction`; 0: isotropic, 1: Lambertian emitter). Ignored without a
+    /// direction.
+    #[serde(default)]
+    pub mu: f64,
+    /// Relative intensity `phi > 0` (1 for one light).
+    #[serde(default = "one")]
+    pub intensity: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Largest accepted anisotropy: LED datasheets stay below ~10; beyond 100 a
+/// light is a laser pointer and `cos^mu` underflows.
+pub const MAX_MU: f64 = 100.0;
+
+impl PointLight {
+    /// The paper's light: isotropic, intensity 1, at the optical centre.
+    pub const CENTRED: PointLight = PointLight {
+        position: [0.0; 3],
+        direction: None,
+        mu: 0.0,
+        intensity: 1.0,
+    };
+
+    /// True when this light is the paper's (up to its intensity): at the
+    /// optical centre and isotropic.
+    pub fn is_centred(&self) -> bool {
+        self.position == [0.0; 3] && (self.direction.is_none() || self.mu == 0.0)
+    }
+
+    /// Checks every field and normalises the direction; the error says which
+    /// field of light `index` (from 1) is wrong and why.
+    pub fn validated(mut self, index: usize) -> Result<Self, String> {
+        let name = format!("light {index}");
+        if self
+            .position
+            .iter()
+            .any(|v| !v.is_finite() || v.abs() > 1e12)
+        {
+            return Err(format!(
+                "{name}: position {:?} must be finite (|value| <= 1e12)",
+                self.position
+            ));
+        }
+        if !(self.mu.is_finite() && (0.0..=MAX_MU).contains(&self.mu)) {
+            return Err(format!("{name}: mu {} must lie in [0, {MAX_MU}]", self.mu));
+        }
+        if !(self.intensity.is_finite() && self.intensity > 0.0 && self.intensity < 1e30) {
+            return Err(format!(
+                "{name}: intensity {} must be positive and finite",
+                self.intensity
+            ));
+        }
+        if let Some(d) = self.direction {
+            let length = dot(d, d).sqrt();
+            if !(length.is_finite() && length > 1e-12) {
+                return Err(format!("{name}: direction {d:?} must be a non-zero vector"));
+            }
+            self.direction = Some([d[0] / length, d[1] / length, d[2] / length]);
+        }
+        Ok(self)
+    }
+
+    /// Distance of the light from the optical axis, units of depth.
+    pub fn off_axis(&self) -> f64 {
+        self.position[0].hypot(self.position[1])
+    }
+}
+
+/// True when `lights` is the paper's set-up: no light given, or one light at
+/// the optical centre (its intensity only scales `s`).
+pub fn is_centred(lights: &[PointLight]) -> bool {
+    lights.is_empty() || lights.iter().all(PointLight::is_centred)
+}
+
+/// Lambertian surface lit by point lights anywhere, `1/r^2` fall-off, LED
+/// anisotropy: the general model of METHOD.md section 9.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NearLights {
+    /// Intensity scale `s` (albedo times the camera's gain).
+    pub intensity_scale: f64,
+    /// The lights switched on (summed). Validated (unit directions).
+    pub lights: Vec<PointLight>,
+}
+
+#[inline]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// One light's irradiance at a surface point and the partial derivatives of
+/// its logarithm with respect to `(z, z_x, z_y)`; `None` where the light
+/// does not reach the surface (behind it, or outside the emitter's cone).
+#[inline]
+fn light_term(
+    light: &PointLight,
+    ray: &PixelRay,
+    depth: f64,
+    dz_dx: f64,
+    dz_dy: f64,
+) -> Option<(f64, [f64; 3])> {
+    let f = ray.focal_px;
+    let (x, y) = (ray.x_px, ray.y_px);
+    // P = z v, v = (x/f, y/f, 1); L = S - P.
+    let v = [x / f, y / f, 1.0];
+    let s = light.position;
+    let l = [s[0] - depth * v[0], s[1] - depth * v[1], s[2] - depth];
+    let n = [f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy)];
+    let g = dot(n, l);
+    let w2 = dot(n, n);
+    let d2 = dot(l, l);
+    if !(g > 0.0 && w2 > 0.0 && d2 > 0.0) {
+        return None;
+    }
+    let d = d2.sqrt();
+    // mu is the effective exponent: 0 for an isotropic light.
+    let (aniso, dlog_aniso_dz, mu) = match light.direction {
+        Some(dir) if light.mu > 0.0 => {
+            // e = D . (P - S) = -D . L; de/dz = D . v.
+            let e = -dot(dir, l);
+            if e <= 0.0 {
+                return None;
+            }
+            ((e / d).powf(light.mu), light.mu * dot(dir, v) / e, light.mu)
+        }
+        _ => (1.0, 0.0, 0.0),
+    };
+    let value = light.intensity * aniso * g / (w2.sqrt() * d2 * d);
+    // d log I / d theta = mu e'/e - (mu + 3) d'/d + g'/g - W'/W.
+    let l_dot_v = dot(l, v);
+    let dz = dlog_aniso_dz + (mu + 3.0) * l_dot_v / d2 + (-l[2] - dot(n, v)) / g + n[2] / w2;
+    let dzx = (f * l[0] - x * l[2]) / g - (f * n[0] - x * n[2]) / w2;
+    let dzy = (f * l[1] - y * l[2]) / g - (f * n[1] - y * n[2]) / w2;
+    Some((value, [dz, dzx, dzy]))
+}
+
+impl Reflectance for NearLights {
+    #[inline]
+    fn radiance(&self, ray: &PixelRay, depth: f64, dz_dx: f64, dz_dy: f64) -> f64 {
+        let sum: f64 = self
+            .lights
+            .iter()
+            .filter_map(|light| light_term(light, ray, depth, dz_dx, dz_dy))
+            .map(|(value, _)| value)
+            .sum();
+        self.intensity_scale * sum
+    }
+
+    #[inline]
+    fn radiance_with_partials(
+        &self,
+        ray: &PixelRay,
+        depth: f64,
+        dz_dx: f64,
+        dz_dy: f64,
+    ) -> Option<[f64; 4]> {
+        let mut out = [0.0; 4];
+        for light in &self.lights {
+            if let Some((value, dlog)) = light_term(light, ray, depth, dz_dx, dz_dy) {
+                out[0] += value;
+                out[1] += value * dlog[0];
+                out[2] += value * dlog[1];
+                out[3] += value * dlog[2];
+            }
+        }
+        Some(out.map(|v| self.intensity_scale * v))
+    }
+}
+
+/// The reflectance a problem is solved with: the paper's closed form when
+/// every light sits at the optical centre (their intensities fold into `s`),
+/// the general model otherwise.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightModel {
+    /// Lights at the optical centre: `s sum(phi) Q^3 / (z W)`.
+    Centred(Lambertian),
+    /// Lights anywhere.
+    Near(NearLights),
+}
+
+impl LightModel {
+    /// The model for intensity scale `intensity_scale` and `lights` (empty:
+    /// the paper's single light at the optical centre).
+    pub fn new(intensity_scale: f64, lights: &[PointLight]) -> Self {
+        if is_centred(lights) {
+            let phi: f64 = if lights.is_empty() {
+                1.0
+            } else {
+                lights.iter().map(|l| l.intensity).sum()
+            };
+            LightModel::Centred(Lambertian {
+                intensity_scale: intensity_scale * phi,
+            })
+        } else {
+            LightModel::Near(NearLights {
+                intensity_scale,
+                lights: lights.to_vec(),
+            })
+        }
+    }
+}
+
+impl Reflectance for LightModel {
+    #[inline]
+    fn radiance(&self, ray: &PixelRay, depth: f64, dz_dx: f64, dz_dy: f64) -> f64 {
+        match self {
+            LightModel::Centred(m) => m.radiance(ray, depth, dz_dx, dz_dy),
+            LightModel::Near(m) => m.radiance(ray, depth, dz_dx, dz_dy),
+        }
+    }
+
+    #[inline]
+    fn radiance_with_partials(
+        &self,
+        ray: &PixelRay,
+        depth: f64,
+        dz_dx: f64,
+        dz_dy: f64,
+    ) -> Option<[f64; 4]> {
+        match self {
+            LightModel::Centred(m) => m.radiance_with_partials(ray, depth, dz_dx, dz_dy),
+            LightModel::Near(m) => m.radiance_with_partials(ray, depth, dz_dx, dz_dy),
+        }
+    }
+}
+
+/// Irradiance factor `sum_k phi_k a_k (N . L_k)^+ / |L_k|^3` at camera-space
+/// point `point` with unit normal `normal` facing the camera (for renderers
+/// that know the true normal).
+pub fn irradiance(lights: &[PointLight], point: [f64; 3], normal: [f64; 3]) -> f64 {
+    let centred = [PointLight::CENTRED];
+    let lights = if lights.is_empty() {
+        &centred[..]
+    } else {
+        lights
+    };
+    lights
+        .iter()
+        .map(|light| {
+            let l = [
+                light.position[0] - point[0],
+                light.position[1] - point[1],
+                light.position[2] - point[2],
+            ];
+            let d2 = dot(l, l);
+            let cos_n = dot(normal, l);
+            if !(cos_n > 0.0 && d2 > 0.0) {
+                return 0.0;
+            }
+            let d = d2.sqrt();
+            let aniso = match light.direction {
+                Some(dir) if light.mu > 0.0 => {
+                    let e = -dot(dir, l) / d;
+                    if e <= 0.0 {
+                        return 0.0;
+                    }
+                    e.powf(light.mu)
+                }
+                _ => 1.0,
+            };
+            light.intensity * aniso * cos_n / (d2 * d)
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ray() -> PixelRay {
+        PixelRay {
+            x_px: 37.0,
+            y_px: -21.0,
+            focal_px: 300.0,
+        }
+    }
+
+    #[test]
+    fn centred_light_is_the_papers_model() {
+        let near = NearLights {
+            intensity_scale: 2.5,
+            lights: vec![PointLight::CENTRED],
+        };
+        let paper = Lambertian {
+            intensity_scale: 2.5,
+        };
+        for (z, zx, zy) in [(4.0, 0.01, -0.02), (1.5, -0.003, 0.0), (10.0, 0.05, 0.04)] {
+            let a = near.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+            let b = paper.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+            for k in 0..4 {
+                assert!(
+                    (a[k] - b[k]).abs() <= 1e-12 * b[k].abs().max(1e-9),
+                    "{k}: {a:?} {b:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn exact_partials_match_differences_off_centre() {
+        let lights = vec![
+            PointLight {
+                position: [0.8, -0.5, 0.3],
+                direction: Some([-0.3, 0.4, 0.87]),
+                mu: 1.5,
+                intensity: 1.0,
+            }
+            .validated(1)
+            .unwrap(),
+            PointLight {
+                position: [-0.6, 0.2, -0.1],
+                direction: None,
+                mu: 0.0,
+                intensity: 0.7,
+            },
+        ];
+        let model = NearLights {
+            intensity_scale: 3.0,
+            lights,
+        };
+        for (z, zx, zy) in [(4.0, 0.004, -0.006), (2.5, -0.01, 0.002), (6.0, 0.0, 0.0)] {
+            let exact = model.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+            assert!((exact[0] - model.radiance(&ray(), z, zx, zy)).abs() < 1e-15);
+            let h = [1e-6 * z, 1e-8, 1e-8];
+            let args = [z, zx, zy];
+            for k in 0..3 {
+                let at = |delta: f64| {
+                    let mut a = args;
+                    a[k] += delta;
+                    model.radiance(&ray(), a[0], a[1], a[2])
+                };
+                let numeric = (at(h[k]) - at(-h[k])) / (2.0 * h[k]);
+                let scale = exact[k + 1].abs().max(1e-6 * exact[0] / z);
+                assert!(
+                    (numeric - exact[k + 1]).abs() < 1e-5 * scale,
+                    "partial {k} at {args:?}: numeric {numeric} exact {}",
+                    exact[k + 1]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn light_behind_the_surface_gives_no_light() {
+        // A plane facing +x (steep) lit from the -x side.
+        let model = NearLights {
+            intensity_scale: 1.0,
+            lights: vec![PointLight {
+                position: [-100.0, 0.0, 0.0],
+                ..PointLight::CENTRED
+            }],
+        };
+        let r = PixelRay {
+            x_px: 0.0,
+            y_px: 0.0,
+            focal_px: 100.0,
+        };
+        // z_x < 0 strongly: the normal turns towards -x... and +x for z_x > 0.
+        assert!(model.radiance(&r, 5.0, -1.0, 0.0) > 0.0);
+        assert_eq!(model.radiance(&r, 5.0, 1.0, 0.0), 0.0);
+    }
+
+    #[test]
+    fn irradiance_matches_the_model_on_a_plane() {
+        let lights = vec![PointLight {
+            position: [0.4, 0.1, 0.2],
+            direction: Some([0.0, 0.0, 1.0]),
+            mu: 1.0,
+            intensity: 2.0,
+        }];
+        let model = NearLights {
+            intensity_scale: 1.0,
+            lights: lights.clone(),
+        };
+        // Fronto-parallel plane at z = 3: N = (0, 0, -1).
+        let r = ray();
+        let point = [3.0 * r.x_px / r.focal_px, 3.0 * r.y_px / r.focal_px, 3.0];
+        let a = irradiance(&lights, point, [0.0, 0.0, -1.0]);
+        let b = model.radiance(&r, 3.0, 0.0, 0.0);
+        assert!((a - b).abs() < 1e-12 * b, "{a} {b}");
+    }
+
+    #[test]
+    fn validation_names_the_field() {
+        let bad = PointLight {
+            mu: -1.0,
+            ..PointLight::CENTRED
+        };
+        assert!(bad.validated(2).unwrap_err().contains("light 2: mu"));
+        let bad = PointLight {
+            direction: Some([0.0; 3]),
+            mu: 1.0,
+            ..PointLight::CENTRED
+        };
+        assert!(bad.validated(1).unwrap_err().contains("direction"));
+    }
+}

@@ -1,0 +1,247 @@
+//! The intensity scale `s` when it is not known (`--intensity-scale auto`).
+//!
+//! With every light at the optical centre `s` only sets the depth scale
+//! (image and `s` times `k^2` give depth times `k`, exactly): one known
+//! distance fixes it ([`scale_to_known_depth`]). With a light off the centre
+//! the depth is metric and `s` is a real unknown: [`estimate_intensity_scale`]
+//! searches the object distance `Z` whose scale `s(Z)` (a plane at `Z`
+//! renders to the image's median brightness) lets the solver explain the
+//! image best, on a small working copy of the problem.
+
+use serde::Serialize;
+
+use crate::grid::Grid;
+use crate::params::SolverParams;
+use crate::resample::{resize_area, scale_intrinsics, working_size};
+
+use super::problem::{Problem, SolveError, SolveObserver};
+
+/// Longest side of the working copy the scale is searched on.
+pub const SEARCH_SIDE: usize = 128;
+
+/// The result of [`estimate_intensity_scale`].
+#[derive(Clone, Debug, Serialize)]
+pub struct ScaleEstimate {
+    /// The estimated `s`.
+    pub intensity_scale: f64,
+    /// The object distance (median depth of the working solve) it implies.
+    pub depth: f64,
+    /// `(s, depth, relative residual)` of every trial, in search order.
+    pub trials: Vec<(f64, f64, f64)>,
+    /// False when the best trial sits at the end of the searched range or
+    /// the residual barely changes over it (the image does not determine
+    /// `s`; give it, or `--known-depth`).
+    pub well_determined: bool,
+}
+
+/// The working copy of `problem` at [`SEARCH_SIDE`].
+fn small(problem: &Problem) -> Problem {
+    let (w, h) = problem.image.size();
+    let (sw, sh) = working_size(w, h, Some(SEARCH_SIDE));
+    let mask = problem
+        .object_mask
+        .as_ref()
+        .map(|m| resize_area(&m.map(|&v| if v { 1.0 } else { 0.0 }), sw, sh).map(|&v| v >= 0.5));
+    Problem {
+        image: resize_area(&problem.image, sw, sh),
+        camera: scale_intrinsics(problem.camera, (w, h), (sw, sh)),
+        intensity_scale: problem.intensity_scale,
+        object_mask: mask,
+        confidence: problem
+            .confidence
+            .as_ref()
+            .map(|c| resize_area(c, sw, sh).map(|v| v.clamp(0.0, 1.0))),
+        lights: problem.lights.clone(),
+    }
+}
+
+/// The median brightness over the object and the model's brightness of a
+/// fronto-parallel plane at `depth` with `s = 1`, both at the object's pixels.
+fn plane_ratio(problem: &Problem, depth: f64) -> Option<f64> {
+    let (w, h) = problem.image.size();
+    let unit = crate::light::LightModel::new(1.0, &problem.lights);
+    let geometry = crate::model::LevelGeometry::new(w, h, w, h, problem.camera);
+    let mut ratios = Vec::new();
+    for r in 0..h {
+        for c in 0..w {
+            let on = problem.object_mask.as_ref().is_none_or(|m| *m.at(c, r));
+            let trusted = problem
+                .confidence
+                .as_ref()
+                .is_none_or(|m| *m.at(c, r) > 0.0);
+            let i = *problem.image.at(c, r);
+            if on && trusted && i > 0.0 {
+                let rendered = crate::model::Reflectance::radiance(
+                    &unit,
+                    &geometry.ray(c, r),
+                    depth,
+                    0.0,
+                    0.0,
+                );
+                if rendered > 0.0 {
+                    ratios.push(i / rendered);
+                }
+            }
+        }
+    }
+    if ratios.is_empty() {
+        return None;
+    }
+    let middle = ratios.len() / 2;
+    Some(*ratios.select_nth_unstable_by(middle, f64::total_cmp).1)
+}
+
+/// Relative residual `sqrt(sum c (I - R)^2 / sum c I^2)` of a solve, and its
+/// median depth.
+fn trial(
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<(f64, f64), SolveError> {
+    let solution = super::solve(problem, params, &mut Forward(observer))?;
+    let (mut num, mut den) = (0.0, 0.0);
+    let mut depths = Vec::new();
+    for q in 0..problem.image.len() {
+        let z = solution.depth.as_slice()[q];
+        if !z.is_finite() {
+            continue;
+        }
+        depths.push(z);
+        let c = problem.confidence.as_ref().map_or(1.0, |c| c.as_slice()[q]);
+        let (i, r) = (
+            problem.image.as_slice()[q],
+            solution.reprojection.as_slice()[q],
+        );
+        num += c * (i - r) * (i - r);
+        den += c * i * i;
+    }
+    let middle = depths.len() / 2;
+    let depth = if depths.is_empty() {
+        f64::NAN
+    } else {
+        *depths.select_nth_unstable_by(middle, f64::total_cmp).1
+    };
+    Ok(((num / den.max(f64::MIN_POSITIVE)).sqrt(), depth))
+}
+
+/// Passes cancellation through, nothing else (the trials are not levels of
+/// the user's solve).
+struct Forward<'a>(&'a mut dyn SolveObserver);
+
+impl SolveObserver for Forward<'_> {
+    fn is_cancelled(&self) -> bool {
+        self.0.is_cancelled()
+    }
+}
+
+/// Estimates `s` for a problem whose lights are off the optical centre (see
+/// the module docs). The object distance is searched from the nearest the
+/// lights allow ([`super::prepare::nearest_object_depth`], at least half the
+/// farthest light's distance from the camera) to 20 times that distance
+/// (beyond, every light looks centred):
+/// nine trials spaced evenly in `log Z`, then golden sections around the
+/// best; `problem.intensity_scale` is ignored.
+///
+/// # Errors
+/// As [`super::solve`]; `SolveError::Input` for centred lights (where `s`
+/// is a choice of depth unit, not an unknown).
+pub fn estimate_intensity_scale(
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<ScaleEstimate, SolveError> {
+    if problem.light_is_centred() {
+        return Err(SolveError::Input(
+            "with every light at the optical centre the intensity scale only sets the depth \
+             unit: give --known-depth, or any scale"
+                .into(),
+        ));
+    }
+    let mut work = small(problem);
+    let reach = problem
+        .lights
+        .iter()
+        .map(|l| l.position.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .fold(0.0, f64::max);
+    let nearest = super::prepare::nearest_object_depth(&problem.lights).max(0.5 * reach);
+    let (lo, hi) = (nearest.ln(), (20.0 * reach).ln());
+    let mut trials = Vec::new();
+    let mut evaluate = |log_z: f64, trials: &mut Vec<(f64, f64, f64)>| -> Result<f64, SolveError> {
+        let Some(s) = plane_ratio(&work, log_z.exp()) else {
+            return Ok(f64::INFINITY);
+        };
+        work.intensity_scale = s;
+        let (residual, depth) = trial(&work, params, observer)?;
+        trials.push((s, depth, residual));
+        Ok(if residual.is_finite() {
+            residual
+        } else {
+            f64::INFINITY
+        })
+    };
+    let steps = 9;
+    let step = (hi - lo) / (steps - 1) as f64;
+    let mut best = (lo, f64::INFINITY, 0usize);
+    for k in 0..steps {
+        let log_z = lo + k as f64 * step;
+        let value = evaluate(log_z, &mut trials)?;
+        if value < best.1 {
+            best = (log_z, value, k);
+        }
+    }
+    let coarse: Vec<f64> = trials.iter().map(|t| t.2).collect();
+    let (mut a, mut b) = (best.0 - step, best.0 + step);
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut m1, mut m2) = (b - ratio * (b - a), a + ratio * (b - a));
+    let (mut f1, mut f2) = (evaluate(m1, &mut trials)?, evaluate(m2, &mut trials)?);
+    for _ in 0..5 {
+        if f1 <= f2 {
+            b = m2;
+            m2 = m1;
+            f2 = f1;
+            m1 = b - ratio * (b - a);
+            f1 = evaluate(m1, &mut trials)?;
+        } else {
+            a = m1;
+            m1 = m2;
+            f1 = f2;
+            m2 = a + ratio * (b - a);
+            f2 = evaluate(m2, &mut trials)?;
+        }
+    }
+    let (s, depth, _) = trials
+        .iter()
+        .copied()
+        .filter(|t| t.2.is_finite())
+        .min_by(|x, y| x.2.total_cmp(&y.2))
+        .ok_or_else(|| SolveError::Input("no trial scale explained the image".into()))?;
+    // Determined: an inner minimum at least 10 % below the coarse trials two
+    // steps away on both sides (a tilt of the surface absorbs much of a
+    // light's offset at no smoothness cost, so the curve is often flat
+    // towards far distances, where every light looks centred).
+    let at = |k: usize| coarse.get(k).copied().unwrap_or(f64::INFINITY);
+    let well_determined =
+        best.2 >= 2 && best.2 + 2 < steps && best.1 < 0.9 * at(best.2 - 2).min(at(best.2 + 2));
+    Ok(ScaleEstimate {
+        intensity_scale: s,
+        depth,
+        trials,
+        well_determined,
+    })
+}
+
+/// The scale factor `k` that puts pixel `(column, row)` of `depth` at
+/// `distance`: multiply the depth by `k` and `s` by `k^2` (exact for centred
+/// lights). `None` when the pixel has no finite positive depth.
+pub fn scale_to_known_depth(
+    depth: &Grid<f64>,
+    column: usize,
+    row: usize,
+    distance: f64,
+) -> Option<f64> {
+    if column >= depth.width() || row >= depth.height() {
+        return None;
+    }
+    let z = *depth.at(column, row);
+    (z.is_finite() && z > 0.0 && distance.is_finite() && distance > 0.0).then(|| distance / z)
+}
