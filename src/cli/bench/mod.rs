@@ -12,6 +12,7 @@ use serde::Serialize;
 
 use super::figures::{self, Canvas, Series, Shade};
 
+mod lights;
 mod robustness;
 use crate::filters;
 use crate::grid::Grid;
@@ -61,6 +62,8 @@ pub enum Part {
     Paper,
     /// The robustness table of the defaults.
     Robustness,
+    /// Lights beside the lens: the light model against ignoring the light.
+    Lights,
 }
 
 /// Smoothness weight of the variational methods on clean images (pixel units).
@@ -237,6 +240,8 @@ pub struct Report {
     pub figures: Vec<String>,
     /// The defaults over scenes, sizes, noise and exposure.
     pub robustness: robustness::Robustness,
+    /// Lights beside the lens.
+    pub lights: Vec<lights::LightRow>,
     /// Scenes that could not be run, and why.
     pub skipped: Vec<String>,
     /// Wall time of the whole benchmark.
@@ -592,7 +597,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         peak_reset: reset_peak_memory(),
     };
     let mut skipped = Vec::new();
-    let benches = if args.part == Part::Robustness {
+    let benches = if matches!(args.part, Part::Robustness | Part::Lights) {
         Vec::new()
     } else {
         scenes(args, &mut skipped)
@@ -792,10 +797,16 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         .into_iter()
         .filter(|name| wanted(args, name))
         .collect();
-    let robustness = if args.part == Part::Paper {
+    let robustness = if matches!(args.part, Part::Paper | Part::Lights) {
         robustness::Robustness::default()
     } else {
         robustness::run(&names, &args.meshes, args.quick, &mut skipped)?
+    };
+    let lights = if matches!(args.part, Part::All | Part::Lights) {
+        let side = if args.quick { 48 } else { 256 };
+        lights::run(&names, &args.meshes, side, &mut skipped)?
+    } else {
+        Vec::new()
     };
 
     let report = Report {
@@ -809,6 +820,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         inpainting,
         figures: figures_written,
         robustness,
+        lights,
         skipped,
         total_seconds: started.elapsed().as_secs_f64(),
     };
@@ -1198,6 +1210,7 @@ fn markdown(report: &Report, runner: &Runner) -> String {
         );
     }
     md.push_str(&robustness::markdown(&report.robustness));
+    md.push_str(&lights::markdown(&report.lights));
     md
 }
 
