@@ -39,7 +39,9 @@ pub fn sombrero(width: usize, height: usize) -> Scene {
 }
 
 /// [`sombrero`] lit by `lights` (camera frame, units of depth; empty: the
-/// paper's light at the optical centre), still with `s = 2`.
+/// paper's light at the optical centre, `s = 2`). With lights given, `s` is
+/// chosen so the brightest pixel is 0.9 (as meshes are rendered), so that a
+/// ring of lights does not saturate.
 pub fn sombrero_lit(width: usize, height: usize, lights: &[PointLight]) -> Scene {
     let camera = Intrinsics::centred(width as f64, width, height);
     let model = LightModel::new(SOMBRERO_INTENSITY_SCALE, lights);
@@ -55,10 +57,17 @@ pub fn sombrero_lit(width: usize, height: usize, lights: &[PointLight]) -> Scene
         };
         model.radiance(&ray, z, zx, zy)
     });
+    let brightest = image.as_slice().iter().copied().fold(0.0, f64::max);
+    let (image, intensity_scale) = if lights.is_empty() || brightest.is_nan() || brightest <= 0.0 {
+        (image, SOMBRERO_INTENSITY_SCALE)
+    } else {
+        let k = 0.9 / brightest;
+        (image.map(|v| v * k), SOMBRERO_INTENSITY_SCALE * k)
+    };
     Scene {
         name: "sombrero".into(),
         camera,
-        intensity_scale: SOMBRERO_INTENSITY_SCALE,
+        intensity_scale,
         image,
         depth_gt,
         object_mask: Grid::filled(width, height, true),
