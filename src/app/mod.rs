@@ -100,10 +100,28 @@ pub struct Progress {
     pub size: (usize, usize),
     /// Outer iteration.
     pub iteration: usize,
-    /// Total energy.
-    pub energy: f64,
+    /// Total energy divided by the level's pixel count (see [`per_pixel`]).
+    pub energy_per_pixel: f64,
     /// Time since the job started.
     pub elapsed: Duration,
+}
+
+/// One point of the energy plot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnergyPoint {
+    /// Level index (0 = coarsest).
+    pub level: usize,
+    /// Total energy divided by the level's pixel count ([`per_pixel`]).
+    pub per_pixel: f64,
+}
+
+/// The energy per pixel of a `(width, height)` level: the total divided by
+/// `width * height`, the same for iteration reports and level results, so
+/// that levels of different sizes compare (the total grows with the pixel
+/// count). With the default (paper) domain every pixel is in the domain, so
+/// this equals `LevelResult::energy_per_pixel`.
+pub fn per_pixel(total: f64, (width, height): (usize, usize)) -> f64 {
+    total / (width * height).max(1) as f64
 }
 
 /// State of the solve shown on screen.
@@ -119,8 +137,9 @@ pub struct SolveState {
     pub arrived: Vec<(usize, usize)>,
     /// Latest level.
     pub latest: Option<LevelView>,
-    /// Energies of every outer iteration of the job.
-    pub energies: Vec<f64>,
+    /// Energy per pixel after every outer iteration of the job (and of
+    /// every level without iterations), coarse to fine.
+    pub energies: Vec<EnergyPoint>,
     /// Progress.
     pub progress: Progress,
     /// Final result.
@@ -147,9 +166,6 @@ struct Stats {
     first_level_generation: Option<u64>,
     trials_done: usize,
 }
-
-/// Full-size image and ground truth for preparing levels.
-type LevelInputs = (std::sync::Arc<Grid<f64>>, Option<std::sync::Arc<Grid<f64>>>);
 
 /// A screenshot that arrived, with where to save it.
 type Screenshot = (PathBuf, std::sync::Arc<egui::ColorImage>);
@@ -193,7 +209,7 @@ pub struct ViewerApp {
     mesh_generation: u64,
     /// The image and ground truth of the running job, shared with the
     /// level-preparation thread.
-    level_inputs: Option<LevelInputs>,
+    level_inputs: Option<view3d::LevelInputs>,
     notice: Option<String>,
     screenshot_requested: bool,
     screenshots: (
@@ -400,10 +416,11 @@ impl ViewerApp {
             confidence: doc.masks.confidence_for_solver(),
         };
         let params = self.settings.params.to_params();
-        self.level_inputs = Some((
-            std::sync::Arc::new(doc.image.clone()),
-            doc.ground_truth.clone().map(std::sync::Arc::new),
-        ));
+        self.level_inputs = Some(view3d::LevelInputs {
+            image: std::sync::Arc::new(doc.image.clone()),
+            ground_truth: doc.ground_truth.clone().map(std::sync::Arc::new),
+            object: problem.object_mask.clone().map(std::sync::Arc::new),
+        });
         self.mask_revision_solved = doc.masks.revision();
         let job = worker.submit(SolveRequest { problem, params });
         self.solve.job = Some(job);
@@ -440,13 +457,18 @@ impl ViewerApp {
             match event {
                 Event::Started { .. } => {}
                 Event::Progress { report, .. } => {
-                    self.solve.energies.push(report.energy.total);
+                    let size = (report.width, report.height);
+                    let energy_per_pixel = per_pixel(report.energy.total, size);
+                    self.solve.energies.push(EnergyPoint {
+                        level: report.level,
+                        per_pixel: energy_per_pixel,
+                    });
                     self.solve.progress = Progress {
                         level: report.level,
                         levels: report.levels,
-                        size: (report.width, report.height),
+                        size,
                         iteration: report.iteration,
-                        energy: report.energy.total,
+                        energy_per_pixel,
                         elapsed: report.elapsed,
                     };
                 }
@@ -489,24 +511,20 @@ impl ViewerApp {
             // generation comes back from the preparation thread.
             self.stats.first_level_generation = Some(self.mesh_generation + 1);
         }
-        let Some(doc) = &self.document else {
-            return;
-        };
-        let scale = size.0 as f64 / doc.size().0 as f64;
-        let camera = crate::camera::Intrinsics {
-            focal_px: doc.camera.focal_px * scale,
-            principal_x_px: (doc.camera.cx_px + 0.5) * scale - 0.5,
-            principal_y_px: (doc.camera.cy_px + 0.5) * size.1 as f64 / doc.size().1 as f64 - 0.5,
-        };
-        if let (Some(meshes), Some((image, ground_truth))) = (&self.meshes, &self.level_inputs) {
+        // A level without outer iterations (a fast-marching start) is a
+        // point of its own in the energy plot.
+        if self.solve.energies.last().map(|e| e.level) != Some(result.level) {
+            self.solve.energies.push(EnergyPoint {
+                level: result.level,
+                per_pixel: per_pixel(result.energy.total, size),
+            });
+        }
+        if let (Some(meshes), Some(inputs)) = (&self.meshes, &self.level_inputs) {
             self.mesh_generation += 1;
             meshes.submit(view3d::MeshJob {
                 generation: self.mesh_generation,
-                depth: result.depth.clone(),
-                reprojection: result.reprojection.clone(),
-                camera,
-                image: image.clone(),
-                ground_truth: ground_truth.clone(),
+                level: result.clone(),
+                inputs: inputs.clone(),
             });
         }
         self.solve.latest = Some(LevelView {

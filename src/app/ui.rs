@@ -245,8 +245,8 @@ impl ViewerApp {
         });
         if s.running {
             ui.label(format!(
-                "energy {:.5}, {:.2} s",
-                s.progress.energy,
+                "energy per pixel {:.4e}, {:.2} s",
+                s.progress.energy_per_pixel,
                 s.progress.elapsed.as_secs_f64()
             ));
         }
@@ -511,6 +511,10 @@ impl ViewerApp {
             ui.selectable_value(&mut v.colour, SurfaceColour::Error, "error");
         });
         ui.checkbox(&mut v.wireframe, "wireframe");
+        ui.checkbox(&mut v.photo_texture, "photograph as texture")
+            .on_hover_text(
+                "Show the input image on the surface instead of the shading or colour map",
+            );
         ui.add(egui::Slider::new(&mut v.light_yaw_deg, -80.0..=80.0).text("light yaw (°)"));
         ui.add(egui::Slider::new(&mut v.light_pitch_deg, -80.0..=80.0).text("light pitch (°)"));
         if ui.button("reset view").clicked() {
@@ -831,8 +835,9 @@ fn split(
     }
 }
 
-/// log10 of the energy over all outer iterations of the job.
-fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
+/// log10 of the energy per pixel over all outer iterations of the job,
+/// levels coarse to fine, a faint line where a level starts.
+fn energy_plot(ui: &mut egui::Ui, energies: &[super::EnergyPoint]) {
     let (rect, _) =
         ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
     let painter = ui.painter_at(rect);
@@ -842,31 +847,42 @@ fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
         ui.visuals().widgets.noninteractive.bg_stroke,
         egui::StrokeKind::Inside,
     );
-    let values: Vec<f64> = energies
+    let points: Vec<(usize, f64)> = energies
         .iter()
-        .filter(|e| e.is_finite() && **e > 0.0)
-        .map(|e| e.log10())
+        .filter(|e| e.per_pixel.is_finite() && e.per_pixel > 0.0)
+        .map(|e| (e.level, e.per_pixel.log10()))
         .collect();
-    if values.len() < 2 {
+    let weak = ui.visuals().weak_text_color();
+    if points.len() < 2 {
         painter.text(
             rect.center(),
             egui::Align2::CENTER_CENTER,
-            "energy per iteration",
+            "energy per pixel, per iteration",
             egui::FontId::proportional(11.0),
-            ui.visuals().weak_text_color(),
+            weak,
         );
         return;
     }
-    let lo = values.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let lo = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let hi = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
     let span = (hi - lo).max(1e-12);
-    let n = values.len() - 1;
-    let points: Vec<egui::Pos2> = values
+    let n = points.len() - 1;
+    let x = |i: usize| egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32);
+    for i in 1..points.len() {
+        if points[i].0 != points[i - 1].0 {
+            painter.vline(
+                x(i),
+                rect.y_range(),
+                egui::Stroke::new(1.0, weak.gamma_multiply(0.5)),
+            );
+        }
+    }
+    let line: Vec<egui::Pos2> = points
         .iter()
         .enumerate()
-        .map(|(i, v)| {
+        .map(|(i, &(_, v))| {
             egui::pos2(
-                egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32),
+                x(i),
                 egui::lerp(
                     rect.bottom() - 4.0..=rect.top() + 4.0,
                     ((v - lo) / span) as f32,
@@ -875,15 +891,15 @@ fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
         })
         .collect();
     painter.add(egui::Shape::line(
-        points,
+        line,
         egui::Stroke::new(1.5, ui.visuals().hyperlink_color),
     ));
     painter.text(
         rect.left_top() + egui::vec2(4.0, 2.0),
         egui::Align2::LEFT_TOP,
-        format!("log10 energy {hi:.2} … {lo:.2}"),
+        format!("log10 energy per pixel (total / level w·h) {hi:.2} … {lo:.2}"),
         egui::FontId::proportional(10.0),
-        ui.visuals().weak_text_color(),
+        weak,
     );
 }
 

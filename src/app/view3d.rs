@@ -10,37 +10,46 @@ use crossbeam_channel::{Receiver, Sender, TryRecvError};
 use eframe::egui;
 use egui_wgpu::wgpu;
 
-use crate::camera::Intrinsics;
+use crate::depth_mesh::{DepthMesh, MeshOptions};
 use crate::grid::Grid;
 use crate::render::{Bounds, ColourMode, OrbitCamera, SurfaceMesh, SurfaceRenderer, ViewSettings};
+use crate::solver::{LevelResult, pyramid};
 
 /// Meshes shown in the 3-D view have at most this many vertices; larger
-/// depth maps are point-sampled with a stride (display only).
+/// depth maps are sampled with a stride (display only).
 pub const MAX_VIEW_VERTICES: usize = 512 * 512;
+
+/// The full-size inputs of a solve job that every level is shown against,
+/// shared with the level-preparation thread.
+#[derive(Clone)]
+pub struct LevelInputs {
+    /// The input image (linear).
+    pub image: Arc<Grid<f64>>,
+    /// Ground-truth depth.
+    pub ground_truth: Option<Arc<Grid<f64>>>,
+    /// The object mask (`None`: every pixel is object). The solver's levels
+    /// carry depth off the object too (the paper's domain): the view shows
+    /// only the object.
+    pub object: Option<Arc<Grid<bool>>>,
+}
 
 /// A level to prepare for display: its mesh and its 2-D panel images.
 pub struct MeshJob {
     /// Increases with every job; the newest wins.
     pub generation: u64,
-    /// Depth (NaN = no surface).
-    pub depth: Grid<f64>,
-    /// Reprojection at the level's size.
-    pub reprojection: Grid<f64>,
-    /// Camera at the depth map's resolution.
-    pub camera: Intrinsics,
-    /// The full-size input image.
-    pub image: Arc<Grid<f64>>,
-    /// Ground-truth depth at full size.
-    pub ground_truth: Option<Arc<Grid<f64>>>,
+    /// The level as the solver reported it (depth, reprojection, geometry).
+    pub level: LevelResult,
+    /// The job's full-size inputs.
+    pub inputs: LevelInputs,
 }
 
 /// Images of the 2-D panels for one level, with the colour-map ranges.
 pub struct LevelPanels {
     /// Reprojection, grey.
     pub reprojection: egui::ColorImage,
-    /// |input - reprojection| at full size.
+    /// |input - reprojection| at full size, on the object.
     pub difference: (egui::ColorImage, [f64; 2]),
-    /// Depth.
+    /// Depth on the object.
     pub depth: (egui::ColorImage, [f64; 2]),
     /// |depth - ground truth| at full size.
     pub depth_error: Option<(egui::ColorImage, [f64; 2])>,
@@ -56,32 +65,137 @@ pub struct BuiltMesh {
     pub panels: Option<LevelPanels>,
 }
 
-/// The CPU work of a level: panel images, then the mesh (coloured by the
-/// reprojection error at the level's size).
+/// `full` sampled at the centres of a `(width, height)` level's pixels, in
+/// full-resolution pixels as the solver's rays (bilinear).
+fn at_level(full: &Grid<f64>, (width, height): (usize, usize)) -> Grid<f64> {
+    let (full_width, full_height) = full.size();
+    Grid::from_fn(width, height, |c, r| {
+        pyramid::bilinear(
+            full,
+            pyramid::map_coordinate(c, width, full_width),
+            pyramid::map_coordinate(r, height, full_height),
+        )
+    })
+}
+
+/// The object mask at a `(width, height)` level: a level pixel is object
+/// when at least half of the bilinear weight at its centre is.
+fn object_at_level(object: &Grid<bool>, (width, height): (usize, usize)) -> Grid<bool> {
+    let (full_width, full_height) = object.size();
+    Grid::from_fn(width, height, |c, r| {
+        let taps = pyramid::bilinear_taps(
+            (full_width, full_height),
+            pyramid::map_coordinate(c, width, full_width),
+            pyramid::map_coordinate(r, height, full_height),
+        );
+        let weight: f64 = taps
+            .iter()
+            .filter(|&&(q, _)| object.as_slice()[q])
+            .map(|&(_, w)| w)
+            .sum();
+        weight >= 0.5
+    })
+}
+
+/// `photo` divided by its 99th percentile over the pixels with finite
+/// `depth` (the surface), so that a dark photograph shows on the surface as
+/// bright as a well-exposed one; unchanged when that is not positive.
+fn exposure_normalised(mut photo: Grid<f64>, depth: &Grid<f64>) -> Grid<f64> {
+    let mut on_surface: Vec<f64> = photo
+        .as_slice()
+        .iter()
+        .zip(depth.as_slice())
+        .filter(|(p, z)| p.is_finite() && z.is_finite())
+        .map(|(&p, _)| p)
+        .collect();
+    if on_surface.is_empty() {
+        return photo;
+    }
+    let k = (on_surface.len() - 1) * 99 / 100;
+    let (_, &mut white, _) = on_surface.select_nth_unstable_by(k, f64::total_cmp);
+    if white > 0.0 {
+        photo.as_mut_slice().iter_mut().for_each(|p| *p /= white);
+    }
+    photo
+}
+
+/// NaN where `keep` is false.
+fn masked(values: &Grid<f64>, keep: &Grid<bool>) -> Grid<f64> {
+    Grid::from_fn(values.width(), values.height(), |c, r| {
+        if *keep.at(c, r) {
+            *values.at(c, r)
+        } else {
+            f64::NAN
+        }
+    })
+}
+
+/// The stride that keeps a `(width, height)` grid's samples within
+/// [`MAX_VIEW_VERTICES`].
+fn view_stride((width, height): (usize, usize)) -> usize {
+    let pixels = width * height;
+    if pixels <= MAX_VIEW_VERTICES {
+        1
+    } else {
+        ((pixels as f64 / MAX_VIEW_VERTICES as f64).sqrt().ceil() as usize).max(1)
+    }
+}
+
+/// The CPU work of a level: its depth on the object only, the panel images,
+/// then the mesh (by the exporters' triangulation, placed by the level's own
+/// geometry), coloured by the reprojection error and carrying the
+/// photograph at the level's size.
 fn prepare_level(job: MeshJob) -> BuiltMesh {
     use super::images;
-    let difference = images::abs_difference(&job.reprojection, &job.image);
+    let MeshJob {
+        generation,
+        level,
+        inputs,
+    } = job;
+    let size = level.depth.size();
+    let depth = match &inputs.object {
+        Some(object) if object.size() == inputs.image.size() => {
+            masked(&level.depth, &object_at_level(object, size))
+        }
+        _ => level.depth,
+    };
+    let mut difference = images::abs_difference(&level.reprojection, &inputs.image);
+    if let Some(object) = &inputs.object
+        && object.size() == difference.size()
+    {
+        difference = masked(&difference, object);
+    }
     let difference_range = [0.0, images::finite_range(&difference).map_or(1.0, |r| r[1])];
-    let depth_range = images::finite_range(&job.depth).unwrap_or([0.0, 1.0]);
-    let depth_error = job.ground_truth.as_ref().map(|gt| {
-        let error = images::abs_difference(&job.depth, gt);
+    let depth_range = images::finite_range(&depth).unwrap_or([0.0, 1.0]);
+    let depth_error = inputs.ground_truth.as_ref().map(|gt| {
+        let error = images::abs_difference(&depth, gt);
         let range = [0.0, images::finite_range(&error).map_or(1.0, |r| r[1])];
         (images::colour_mapped(&error, range), range)
     });
     let panels = LevelPanels {
-        reprojection: images::grey_image(&job.reprojection),
+        reprojection: images::grey_image(&level.reprojection),
         difference: (
             images::colour_mapped(&difference, difference_range),
             difference_range,
         ),
-        depth: (images::colour_mapped(&job.depth, depth_range), depth_range),
+        depth: (images::colour_mapped(&depth, depth_range), depth_range),
         depth_error,
     };
-    let level_difference = images::abs_difference(&job.image, &job.reprojection);
-    let (depth, camera, values) = decimate(job.depth, job.camera, Some(level_difference));
-    let mesh = SurfaceMesh::from_depth(&depth, &camera, values.as_ref());
+    let level_difference = images::abs_difference(&inputs.image, &level.reprojection);
+    let photo = exposure_normalised(at_level(&inputs.image, size), &depth);
+    let options = MeshOptions {
+        stride: view_stride(size),
+        ..MeshOptions::default()
+    };
+    let mesh = match DepthMesh::with_options(&depth, &level.geometry, options) {
+        Ok(mesh) => SurfaceMesh::from_depth_mesh(&mesh, Some(&level_difference), Some(&photo)),
+        Err(e) => {
+            log_once(&format!("3-D view: no mesh for level {}: {e}", level.level));
+            SurfaceMesh::default()
+        }
+    };
     BuiltMesh {
-        generation: job.generation,
+        generation,
         mesh: Arc::new(mesh),
         panels: Some(panels),
     }
@@ -151,31 +265,6 @@ impl Drop for MeshBuilder {
             let _ = handle.join();
         }
     }
-}
-
-/// Point-samples a large depth map (and its values) with a stride so that
-/// the mesh stays below [`MAX_VIEW_VERTICES`]; scales the camera to match.
-fn decimate(
-    depth: Grid<f64>,
-    camera: Intrinsics,
-    values: Option<Grid<f64>>,
-) -> (Grid<f64>, Intrinsics, Option<Grid<f64>>) {
-    let (w, h) = depth.size();
-    if w * h <= MAX_VIEW_VERTICES {
-        return (depth, camera, values);
-    }
-    let stride = ((w * h) as f64 / MAX_VIEW_VERTICES as f64).sqrt().ceil() as usize;
-    let (sw, sh) = (w.div_ceil(stride), h.div_ceil(stride));
-    let sample = |g: &Grid<f64>| Grid::from_fn(sw, sh, |c, r| *g.at(c * stride, r * stride));
-    let s = stride as f64;
-    // Column c of the sampled grid is column c * stride of the original:
-    // x = (c s - cx) / f = (c - cx / s) / (f / s).
-    let camera = Intrinsics {
-        focal_px: camera.focal_px / s,
-        principal_x_px: camera.principal_x_px / s,
-        principal_y_px: camera.principal_y_px / s,
-    };
-    (sample(&depth), camera, values.as_ref().map(sample))
 }
 
 /// GPU state kept in egui-wgpu's callback resources.
@@ -272,7 +361,12 @@ pub struct SurfaceView {
     /// Orbit camera.
     pub camera: OrbitCamera,
     mesh: Option<(u64, Arc<SurfaceMesh>)>,
+    /// The bounds the camera framed (or is to frame at the next frame).
     framed_bounds: Option<Bounds>,
+    /// Framing waits for the view's size (its aspect).
+    needs_framing: bool,
+    /// Width / height of the view at the last frame.
+    aspect: f32,
     /// Whether the GPU renderer was installed.
     pub available: Result<(), String>,
 }
@@ -284,6 +378,8 @@ impl SurfaceView {
             camera: OrbitCamera::default(),
             mesh: None,
             framed_bounds: None,
+            needs_framing: false,
+            aspect: 1.0,
             available,
         }
     }
@@ -297,15 +393,15 @@ impl SurfaceView {
     pub fn clear(&mut self) {
         self.mesh = None;
         self.framed_bounds = None;
+        self.needs_framing = false;
     }
 
-    /// Shows a new mesh; frames it the first time (later meshes keep the
-    /// user's view).
+    /// Shows a new mesh; frames it (at the next frame, when the view's
+    /// aspect is known) the first time: later meshes keep the user's view.
     pub fn set_mesh(&mut self, built: BuiltMesh) -> Option<LevelPanels> {
         if self.framed_bounds.is_none() && !built.mesh.is_empty() {
-            let bounds = built.mesh.bounds();
-            self.camera = OrbitCamera::framing(&bounds);
-            self.framed_bounds = Some(bounds);
+            self.framed_bounds = Some(built.mesh.bounds());
+            self.needs_framing = true;
         }
         self.mesh = Some((built.generation, built.mesh));
         built.panels
@@ -326,6 +422,13 @@ impl SurfaceView {
         }
         let size = ui.available_size().max(egui::vec2(64.0, 64.0));
         let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
+        self.aspect = rect.width() / rect.height().max(1.0);
+        if self.needs_framing
+            && let Some(bounds) = &self.framed_bounds
+        {
+            self.camera = OrbitCamera::framing(bounds, self.aspect);
+            self.needs_framing = false;
+        }
         if response.dragged_by(egui::PointerButton::Primary) {
             let d = response.drag_delta();
             self.camera.orbit(-d.x * 0.01, d.y * 0.01);
@@ -351,6 +454,7 @@ impl SurfaceView {
             (rect.height() * ppp).round().max(1.0) as u32,
         ];
         let (colour_mode, value_range) = match prefs.colour {
+            _ if prefs.photo_texture => (ColourMode::Photo, [0.0, 1.0]),
             super::settings::SurfaceColour::Shaded => (ColourMode::Shaded, [0.0, 1.0]),
             super::settings::SurfaceColour::Depth => {
                 (ColourMode::Depth, self.depth_range().unwrap_or([0.0, 1.0]))
@@ -390,7 +494,7 @@ impl SurfaceView {
     /// Frames the current mesh again.
     pub fn reset(&mut self) {
         if let Some((_, mesh)) = &self.mesh {
-            self.camera = OrbitCamera::framing(&mesh.bounds());
+            self.camera = OrbitCamera::framing(&mesh.bounds(), self.aspect);
         }
     }
 }
@@ -440,22 +544,55 @@ mod tests {
     }
 
     #[test]
-    fn decimation_keeps_geometry_consistent() {
-        let (w, h) = (1920, 1080);
-        let camera = Intrinsics::centred(1920.0, w, h);
-        let depth = Grid::from_fn(w, h, |c, r| 2.0 + (c + r) as f64 * 1e-4);
-        let (small, cam, _) = decimate(depth.clone(), camera, None);
-        assert!(small.len() <= MAX_VIEW_VERTICES);
-        let stride = w / small.width();
-        // The same pixel back-projects to the same ray in both cameras.
-        let (x0, y0) = camera.image_xy((10 * stride) as f64, (7 * stride) as f64);
-        let (x1, y1) = cam.image_xy(10.0, 7.0);
-        let p0 = camera.back_project(x0, y0, 2.0);
-        let p1 = cam.back_project(x1, y1, 2.0);
-        assert!(
-            p0.iter().zip(p1).all(|(a, b)| (a - b).abs() < 1e-12),
-            "{p0:?} {p1:?}"
-        );
-        assert_eq!(*small.at(10, 7), *depth.at(10 * stride, 7 * stride));
+    fn a_level_shows_only_the_object_and_large_levels_are_sampled() {
+        use crate::camera::Intrinsics;
+        use crate::model::{Energy, LevelGeometry};
+        // A 40x30 image, the object a centred disc; the level at half size
+        // has depth everywhere (the paper's domain).
+        let (w, h) = (40, 30);
+        let object = Grid::from_fn(w, h, |c, r| {
+            (c as f64 - 19.5).powi(2) + (r as f64 - 14.5).powi(2) < 100.0
+        });
+        let camera = Intrinsics::centred(60.0, w, h);
+        let geometry = LevelGeometry::new(20, 15, w, h, camera);
+        let level = LevelResult {
+            level: 0,
+            levels: 1,
+            depth: Grid::filled(20, 15, 3.0),
+            reprojection: Grid::filled(20, 15, 0.5),
+            geometry,
+            domain_pixels: 300,
+            energy: Energy::default(),
+            elapsed: std::time::Duration::ZERO,
+        };
+        let inputs = LevelInputs {
+            image: Arc::new(Grid::from_fn(w, h, |c, _| c as f64 / w as f64)),
+            ground_truth: None,
+            object: Some(Arc::new(object.clone())),
+        };
+        let built = prepare_level(MeshJob {
+            generation: 7,
+            level,
+            inputs,
+        });
+        let object_at_half = object_at_level(&object, (20, 15));
+        let inside = object_at_half.as_slice().iter().filter(|&&o| o).count();
+        assert!(inside > 50 && inside < 300 / 2, "{inside}");
+        assert_eq!(built.generation, 7);
+        assert_eq!(built.mesh.vertices().len(), inside);
+        // Vertices lie on the object's rays: framing sees the disc, not the
+        // image rectangle (half-width at depth 3: 20 px * 3 / 60 = 1).
+        let b = built.mesh.bounds();
+        assert!(b.max_world.x < 0.55 && b.min_world.x > -0.55, "{b:?}");
+        // The photo is the image at the level's size, its 99th percentile
+        // on the surface scaled to 1 (the image is c / 40 at column c).
+        let photos: Vec<f32> = built.mesh.vertices().iter().map(|v| v.photo).collect();
+        let brightest = photos.iter().cloned().fold(0.0, f32::max);
+        assert!(brightest > 0.99 && brightest < 1.2, "{brightest}");
+        assert!(photos.iter().all(|&p| p > 0.25), "{photos:?}");
+        assert_eq!(view_stride((512, 512)), 1);
+        let stride = view_stride((1920, 1080));
+        assert!(1920usize.div_ceil(stride) * 1080usize.div_ceil(stride) <= MAX_VIEW_VERTICES);
+        assert!(stride > 1);
     }
 }
