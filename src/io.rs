@@ -13,7 +13,9 @@ use npyz::{DType, NpyFile, NpyHeader, Order, TypeChar, WriteOptions, WriterBuild
 use serde::{Deserialize, Serialize};
 
 use crate::camera::Intrinsics;
+use crate::depth_mesh::DepthMesh;
 use crate::grid::Grid;
+use crate::model::LevelGeometry;
 
 /// Rec. 709 luminance weights for linear red, green and blue.
 const LUMA_709: [f64; 3] = [0.2126, 0.7152, 0.0722];
@@ -599,14 +601,15 @@ pub fn read_npy(path: &Path) -> Result<Grid<f64>, IoError> {
 
 /// Writes a triangle mesh of a depth map as a binary little-endian PLY.
 ///
-/// Every pixel with finite depth `z > 0` becomes the vertex
-/// `((i - cx) z / f, (j - cy) z / f, z)` (column `i`, row `j`). Each 2x2 block
-/// of valid pixels gives two triangles, a block with exactly three valid
-/// pixels one; no triangle spans a missing pixel. Triangles wind
-/// counter-clockwise as seen from the camera, so their normals
-/// `(v1 - v0) x (v2 - v0)` point towards it (negative z for a fronto-parallel
-/// plane). With `shade` (same size as `depth`, values in [0, 1], NaN as 0)
-/// each vertex gets grey `red`/`green`/`blue` uchar properties.
+/// The mesh is [`DepthMesh::new`]'s, the one the 3-D view draws: every
+/// pixel with finite depth `z > 0` becomes the vertex
+/// `((i - cx) z / f, (j - cy) z / f, z)` (column `i`, row `j`); triangles
+/// join neighbouring pixels but never cross a missing pixel or a depth jump
+/// (see [`crate::depth_mesh`]). Triangles wind counter-clockwise as seen
+/// from the camera, so their normals `(v1 - v0) x (v2 - v0)` point towards it
+/// (negative z for a fronto-parallel plane). With `shade` (same size as
+/// `depth`, values in [0, 1], NaN as 0) each vertex gets grey
+/// `red`/`green`/`blue` uchar properties.
 pub fn write_depth_ply(
     path: &Path,
     depth: &Grid<f64>,
@@ -626,108 +629,59 @@ pub fn write_depth_ply(
             ),
         ));
     }
-    // Vertex index of every valid pixel.
-    let (index, faces, count) = depth_mesh(path, depth)?;
+    let mesh = full_resolution_mesh(path, depth, camera)?;
 
     let err = |e: std::io::Error| write_error(path, e);
     let file = fs::File::create(path).map_err(err)?;
     let mut out = BufWriter::new(file);
     let mut header = format!(
         "ply\nformat binary_little_endian 1.0\ncomment sfs-studio depth mesh\n\
-         element vertex {count}\nproperty float x\nproperty float y\nproperty float z\n"
+         element vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+        mesh.vertex_count()
     );
     if shade.is_some() {
         header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
     }
     header.push_str(&format!(
         "element face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        faces.len()
+        mesh.triangles().len()
     ));
     out.write_all(header.as_bytes()).map_err(err)?;
-    for j in 0..h {
-        for i in 0..w {
-            if index[j * w + i].is_none() {
-                continue;
-            }
-            let z = *depth.at(i, j);
-            let (x, y) = camera.image_xy(i as f64, j as f64);
-            let p = camera.back_project(x, y, z);
-            for v in p {
-                out.write_all(&(v as f32).to_le_bytes()).map_err(err)?;
-            }
-            if let Some(s) = shade {
-                let g = quantise(*s.at(i, j), 255.0) as u8;
-                out.write_all(&[g, g, g]).map_err(err)?;
-            }
+    for (&(i, j), position) in mesh.vertex_pixels().iter().zip(mesh.positions_camera()) {
+        for &v in position {
+            out.write_all(&(v as f32).to_le_bytes()).map_err(err)?;
+        }
+        if let Some(s) = shade {
+            let g = quantise(*s.at(i, j), 255.0) as u8;
+            out.write_all(&[g, g, g]).map_err(err)?;
         }
     }
-    for f in &faces {
+    for triangle in mesh.triangles() {
         out.write_all(&[3u8]).map_err(err)?;
-        for &v in f {
+        for &v in triangle {
+            // Fits: the mesh has at most `depth_mesh::MAX_VERTICES` = i32::MAX.
             out.write_all(&(v as i32).to_le_bytes()).map_err(err)?;
         }
     }
     out.flush().map_err(err)
 }
 
-// ---------------------------------------------------------------------------
-// Camera / scene file and JSON
-// ---------------------------------------------------------------------------
-
-/// Vertex index of every pixel with a finite positive depth, the triangles
-/// of the depth grid (two per 2x2 block of vertices, one where a corner is
-/// missing) and the vertex count.
-#[allow(clippy::type_complexity)]
-fn depth_mesh(
+/// The mesh of a full-resolution depth map seen through `camera`.
+fn full_resolution_mesh(
     path: &Path,
     depth: &Grid<f64>,
-) -> Result<(Vec<Option<u32>>, Vec<[u32; 3]>, u32), IoError> {
+    camera: &Intrinsics,
+) -> Result<DepthMesh, IoError> {
     let (w, h) = depth.size();
-    let mut index: Vec<Option<u32>> = Vec::with_capacity(w * h);
-    let mut count: u32 = 0;
-    for &z in depth.as_slice() {
-        if z.is_finite() && z > 0.0 {
-            if count > i32::MAX as u32 {
-                return Err(write_error(path, "too many vertices for a PLY mesh"));
-            }
-            index.push(Some(count));
-            count += 1;
-        } else {
-            index.push(None);
-        }
-    }
-    let mut faces: Vec<[u32; 3]> = Vec::new();
-    for j in 0..h.saturating_sub(1) {
-        for i in 0..w.saturating_sub(1) {
-            let a = index[j * w + i];
-            let b = index[j * w + i + 1];
-            let c = index[(j + 1) * w + i];
-            let d = index[(j + 1) * w + i + 1];
-            // a b      image x to the right, y down; camera looks along +Z:
-            // c d      a -> c -> b is counter-clockwise seen from the camera.
-            match (a, b, c, d) {
-                (Some(a), Some(b), Some(c), Some(d)) => {
-                    faces.push([a, c, b]);
-                    faces.push([b, c, d]);
-                }
-                (None, Some(b), Some(c), Some(d)) => faces.push([b, c, d]),
-                (Some(a), None, Some(c), Some(d)) => faces.push([a, c, d]),
-                (Some(a), Some(b), None, Some(d)) => faces.push([a, d, b]),
-                (Some(a), Some(b), Some(c), None) => faces.push([a, c, b]),
-                _ => {}
-            }
-        }
-    }
-
-    Ok((index, faces, count))
+    let geometry = LevelGeometry::new(w, h, w, h, *camera);
+    DepthMesh::new(depth, &geometry).map_err(|e| write_error(path, e))
 }
 
 /// Writes the depth map as a Wavefront OBJ triangle mesh (camera
-/// coordinates: x right, y down, z forward, in depth units), triangulated
+/// coordinates: x right, y down, z forward, in depth units), the same mesh
 /// as [`write_depth_ply`].
 pub fn write_depth_obj(path: &Path, depth: &Grid<f64>, camera: &Intrinsics) -> Result<(), IoError> {
-    let (index, faces, _) = depth_mesh(path, depth)?;
-    let (w, h) = depth.size();
+    let mesh = full_resolution_mesh(path, depth, camera)?;
     let err = |e: std::io::Error| write_error(path, e);
     let file = fs::File::create(path).map_err(err)?;
     let mut out = BufWriter::new(file);
@@ -736,22 +690,18 @@ pub fn write_depth_obj(path: &Path, depth: &Grid<f64>, camera: &Intrinsics) -> R
         "# sfs-studio depth mesh, camera coordinates (x right, y down, z forward)"
     )
     .map_err(err)?;
-    for j in 0..h {
-        for i in 0..w {
-            if index[j * w + i].is_none() {
-                continue;
-            }
-            let z = *depth.at(i, j);
-            let (x, y) = camera.image_xy(i as f64, j as f64);
-            let [px, py, pz] = camera.back_project(x, y, z);
-            writeln!(out, "v {px} {py} {pz}").map_err(err)?;
-        }
+    for [px, py, pz] in mesh.positions_camera() {
+        writeln!(out, "v {px} {py} {pz}").map_err(err)?;
     }
-    for [a, b, c] in faces {
+    for [a, b, c] in mesh.triangles() {
         writeln!(out, "f {} {} {}", a + 1, b + 1, c + 1).map_err(err)?;
     }
     out.flush().map_err(err)
 }
+
+// ---------------------------------------------------------------------------
+// Camera / scene file and JSON
+// ---------------------------------------------------------------------------
 
 /// Writes depth as a 16-bit PNG for viewing: 1 (white) at the nearest depth,
 /// 0 at the farthest and off the object. Returns `(near, far)` or `None`

@@ -4,6 +4,7 @@
 //! Layers (see ARCHITECTURE.md): [`grid`], [`camera`], [`params`] are core
 //! types; [`model`] and [`metrics`] the image formation and error measures,
 //! [`denoise`] image noise and its removal;
+//! [`depth_mesh`] the one triangulation of a depth map (view and exports);
 //! [`solver`] the linearised coarse-to-fine Gauss-Newton scheme; [`scene`] and
 //! [`io`] synthetic scenes and files; [`worker`] the viewer's solver thread
 //! and [`mask_edit`] its mask editing model (both without egui); `render`
@@ -18,6 +19,7 @@ pub mod camera;
 pub mod cli;
 pub mod colour;
 pub mod denoise;
+pub mod depth_mesh;
 pub mod filters;
 pub mod fit;
 pub mod grid;

@@ -1,39 +1,41 @@
 //! The viewer: an eframe (wgpu) application for loading an image, painting
 //! masks, tuning parameters while a worker thread solves, and inspecting the
 //! levels as they arrive in 2-D and 3-D. The only module that uses egui.
+//!
+//! [`ViewerApp`] only wires four parts together, each with one job:
+//! - `session`: the open document (image, camera, masks, their autosave) and
+//!   its solve (worker, debounce, the job's state);
+//! - `level_prep`: the thread that turns each level into meshes and panel
+//!   images;
+//! - `panels`: the drawing (menu, controls, 2-D panels, 3-D view), which
+//!   edits the document in place and returns [`Action`]s for the rest;
+//! - `measure`: screenshots, frame statistics and latency trials.
 
 mod document;
 mod images;
+mod level_prep;
+mod measure;
+mod panels;
+mod session;
 mod settings;
-mod ui;
 mod view3d;
 
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use eframe::egui;
 
-use crate::grid::Grid;
-use crate::io;
-use crate::mask_edit::{self, ImagePoint, Layer, Masks};
-use crate::metrics;
+use crate::mask_edit::Layer;
 use crate::params::Alpha;
-use crate::solver::{LevelResult, Problem, Solution};
-use crate::worker::{Event, JobId, SolveRequest, Worker};
+use crate::worker::Worker;
 
 pub use document::{CameraSource, CameraState, Document, exif_focal_35mm, sample_image_path};
+pub use panels::{Action, Panel2d};
+pub use session::{EnergyPoint, Export, LevelView, Progress, SolveState, per_pixel};
 pub use settings::{InitialChoice, ParamSettings, Settings, Tool};
-pub use ui::Export;
 
 /// eframe application id (storage folder name).
 pub const APP_ID: &str = "sfs-studio";
-
-/// While a slider is dragged, solve after it rests this long.
-const DEBOUNCE: Duration = Duration::from_millis(200);
-/// Write the mask autosave this long after the last edit.
-const AUTOSAVE_DELAY: Duration = Duration::from_secs(1);
-/// Time per frame for draining worker events.
-const EVENT_BUDGET: Duration = Duration::from_millis(6);
 
 /// How the viewer starts.
 #[derive(Clone, Debug, Default)]
@@ -62,152 +64,21 @@ pub struct ViewerOptions {
     pub fresh_settings: bool,
 }
 
-/// Which 2-D panel is shown.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Panel2d {
-    /// The input with the mask overlay (paint here).
-    Input,
-    /// The reprojected image of the latest level.
-    Reprojection,
-    /// `|input - reprojection|`.
-    Difference,
-    /// Depth with a colour map.
-    Depth,
-    /// `|depth - ground truth|` (with ground truth).
-    DepthError,
-}
-
-/// One level as received.
-pub struct LevelView {
-    /// Level index (0 = coarsest).
-    pub level: usize,
-    /// Levels in the job.
-    pub levels: usize,
-    /// Depth at the level's size.
-    pub depth: Grid<f64>,
-    /// Reprojection at the level's size.
-    pub reprojection: Grid<f64>,
-}
-
-/// Progress of the running job.
-#[derive(Clone, Debug, Default)]
-pub struct Progress {
-    /// Level index and count.
-    pub level: usize,
-    /// Number of levels.
-    pub levels: usize,
-    /// Level size.
-    pub size: (usize, usize),
-    /// Outer iteration.
-    pub iteration: usize,
-    /// Total energy.
-    pub energy: f64,
-    /// Time since the job started.
-    pub elapsed: Duration,
-}
-
-/// State of the solve shown on screen.
-#[derive(Default)]
-pub struct SolveState {
-    /// The newest job.
-    pub job: Option<JobId>,
-    /// When it was submitted.
-    pub submitted: Option<Instant>,
-    /// Running (no terminal event yet).
-    pub running: bool,
-    /// Level sizes of the newest job as they arrived (coarse to fine).
-    pub arrived: Vec<(usize, usize)>,
-    /// Latest level.
-    pub latest: Option<LevelView>,
-    /// Energies of every outer iteration of the job.
-    pub energies: Vec<f64>,
-    /// Progress.
-    pub progress: Progress,
-    /// Final result.
-    pub finished: Option<Box<Solution>>,
-    /// RSE and RIE against the ground truth.
-    pub errors: Option<(f64, f64)>,
-    /// Why the last job failed.
-    pub failure: Option<String>,
-    /// Jobs finished so far (any outcome).
-    pub completed_jobs: usize,
-}
-
-/// Frame timing for `--stats`.
-#[derive(Default)]
-struct Stats {
-    last_frame: Option<Instant>,
-    frame_intervals_ms: Vec<f64>,
-    ui_ms: Vec<f64>,
-    busy_frame_intervals_ms: Vec<f64>,
-    idle_frame_intervals_ms: Vec<f64>,
-    latencies_ms: Vec<f64>,
-    trial_started: Option<Instant>,
-    /// Preparation generation of the current job's first level.
-    first_level_generation: Option<u64>,
-    trials_done: usize,
-}
-
-/// Full-size image and ground truth for preparing levels.
-type LevelInputs = (std::sync::Arc<Grid<f64>>, Option<std::sync::Arc<Grid<f64>>>);
-
-/// A screenshot that arrived, with where to save it.
-type Screenshot = (PathBuf, std::sync::Arc<egui::ColorImage>);
-
-/// A drag in the image panel in progress.
-enum Gesture {
-    Stroke,
-    Rectangle(ImagePoint),
-    Lasso(Vec<ImagePoint>),
-}
-
-/// Textures of the 2-D panels.
-#[derive(Default)]
-struct Textures {
-    input: Option<egui::TextureHandle>,
-    overlay: Option<(u64, egui::TextureHandle)>,
-    reprojection: Option<egui::TextureHandle>,
-    difference: Option<(egui::TextureHandle, [f64; 2])>,
-    depth: Option<(egui::TextureHandle, [f64; 2])>,
-    depth_error: Option<(egui::TextureHandle, [f64; 2])>,
-}
-
 /// The viewer application.
 pub struct ViewerApp {
     options: ViewerOptions,
     settings: Settings,
-    document: Option<Document>,
-    worker: Option<Worker>,
-    solve: SolveState,
-    textures: Textures,
-    panel: Panel2d,
-    zoom: f32,
-    pan: egui::Vec2,
-    gesture: Option<Gesture>,
-    dirty_since: Option<Instant>,
-    mask_revision_solved: u64,
-    autosave_due: Option<Instant>,
-    data_dir: Option<PathBuf>,
-    surface: view3d::SurfaceView,
-    meshes: Option<view3d::MeshBuilder>,
-    mesh_generation: u64,
-    /// The image and ground truth of the running job, shared with the
-    /// level-preparation thread.
-    level_inputs: Option<LevelInputs>,
+    session: session::Session,
+    levels: level_prep::LevelPrep,
+    panels: panels::Panels,
+    measure: measure::Measurement,
     notice: Option<String>,
-    screenshot_requested: bool,
-    screenshots: (
-        crossbeam_channel::Sender<Screenshot>,
-        crossbeam_channel::Receiver<Screenshot>,
-    ),
-    frames_after_finish: usize,
-    stats: Stats,
-    hover: Option<String>,
 }
 
 impl ViewerApp {
-    /// Builds the app: settings from storage, the worker, the 3-D renderer,
-    /// and the first document (the sample or `options.image`).
+    /// Builds the app: settings from storage, the worker, the level
+    /// preparation, the 3-D renderer, and the first document (the sample or
+    /// `options.image`).
     pub fn new(cc: &eframe::CreationContext<'_>, options: ViewerOptions) -> Self {
         let mut settings: Settings = if options.fresh_settings {
             Settings::default()
@@ -229,7 +100,7 @@ impl ViewerApp {
                 None
             }
         };
-        let meshes = view3d::MeshBuilder::spawn(waker).ok();
+        let (levels, _) = level_prep::LevelPrep::spawn(waker);
         let available = match cc.wgpu_render_state.as_ref() {
             Some(rs) => view3d::install(rs),
             None => Err("3-D view needs the wgpu renderer".into()),
@@ -239,30 +110,17 @@ impl ViewerApp {
             .clone()
             .or_else(|| eframe::storage_dir(APP_ID));
         let mut app = Self {
-            options: options.clone(),
             settings,
-            document: None,
-            worker,
-            solve: SolveState::default(),
-            textures: Textures::default(),
-            panel: Panel2d::Input,
-            zoom: 1.0,
-            pan: egui::Vec2::ZERO,
-            gesture: None,
-            dirty_since: None,
-            mask_revision_solved: 0,
-            autosave_due: None,
-            data_dir,
-            surface: view3d::SurfaceView::new(available),
-            meshes,
-            mesh_generation: 0,
-            level_inputs: None,
+            session: session::Session::new(worker, data_dir),
+            levels,
+            panels: panels::Panels::new(available),
+            measure: measure::Measurement::new(
+                options.screenshot.clone(),
+                options.stats.clone(),
+                options.latency_trials,
+            ),
             notice,
-            screenshot_requested: false,
-            screenshots: crossbeam_channel::unbounded(),
-            frames_after_finish: 0,
-            stats: Stats::default(),
-            hover: None,
+            options: options.clone(),
         };
         let path = options.image.clone().or_else(sample_image_path);
         match path {
@@ -287,12 +145,12 @@ impl ViewerApp {
 
     /// The open document.
     pub fn document(&self) -> Option<&Document> {
-        self.document.as_ref()
+        self.session.document.as_ref()
     }
 
     /// The solve shown on screen.
     pub fn solve_state(&self) -> &SolveState {
-        &self.solve
+        &self.session.solve
     }
 
     /// The current message (error or note), if any.
@@ -307,406 +165,194 @@ impl ViewerApp {
 
     /// Selects a 2-D panel.
     pub fn show_panel(&mut self, panel: Panel2d) {
-        self.panel = panel;
+        self.panels.show_panel(panel);
     }
 
     /// Opens an image by path (File > Open and drops end here). On failure
     /// the previous document stays and the error is shown.
     pub fn open(&mut self, ctx: &egui::Context, path: &Path) {
-        match Document::open(path, self.options.srgb) {
-            Ok(mut doc) => {
-                let mut notes = std::mem::take(&mut doc.notes);
-                if let Some(dir) = self.autosave_dir(&doc.path) {
-                    match Masks::restore(&dir, doc.size()) {
-                        Ok(Some(masks)) => {
-                            doc.masks = masks;
-                            notes.push("restored your painted masks from the autosave".into());
-                        }
-                        Ok(None) => {}
-                        Err(e) => notes.push(format!("autosave not restored: {e}")),
-                    }
-                }
+        match self.session.open(path, self.options.srgb) {
+            Ok(notes) => {
                 self.settings.remember(path.to_path_buf());
-                self.document = Some(doc);
-                self.solve = SolveState::default();
-                self.textures = Textures::default();
-                self.surface.clear();
-                self.zoom = 1.0;
-                self.pan = egui::Vec2::ZERO;
-                self.upload_input(ctx);
+                if let Some(doc) = &self.session.document {
+                    self.panels.document_opened(ctx, doc);
+                }
                 self.notice = (!notes.is_empty()).then(|| notes.join("; "));
-                self.request_solve();
             }
-            Err(e) => self.notice = Some(format!("{e:#}")),
+            Err(e) => self.notice = Some(e),
         }
-    }
-
-    fn autosave_dir(&self, image: &Path) -> Option<PathBuf> {
-        self.data_dir
-            .as_ref()
-            .map(|d| mask_edit::autosave_dir(image, d))
     }
 
     /// Applies a camera file to the open image.
     pub fn load_camera(&mut self, path: &Path) {
-        let Some(doc) = &mut self.document else {
-            return;
-        };
-        match doc.load_camera(path) {
-            Ok(()) => {
-                self.notice = None;
-                self.request_solve();
-            }
-            Err(e) => self.notice = Some(format!("{e:#}")),
-        }
+        self.notice = self.session.load_camera(path).err();
     }
 
     /// Loads a mask PNG into `layer` (undoable); a wrong size is refused.
     pub fn load_mask(&mut self, layer: Layer, path: &Path) {
-        let Some(doc) = &mut self.document else {
-            return;
-        };
-        match doc.masks.load_png(layer, path) {
-            Ok(_) => self.notice = None,
-            Err(e) => self.notice = Some(e.to_string()),
-        }
+        self.notice = self.session.load_mask(layer, path).err();
     }
 
     /// Marks parameters or masks as changed: a new solve starts after the
     /// debounce.
     pub fn request_solve(&mut self) {
-        self.dirty_since = Some(Instant::now());
+        self.session.request_solve();
     }
 
     /// Cancels the running solve.
     pub fn cancel_solve(&mut self) {
-        if let (Some(worker), Some(job)) = (&self.worker, self.solve.job) {
-            worker.cancel(job);
-        }
+        self.session.cancel_solve();
     }
 
     /// Submits a solve of the open document with the current parameters
     /// and masks now.
     pub fn start_solve(&mut self) {
-        self.dirty_since = None;
-        let (Some(doc), Some(worker)) = (&self.document, &mut self.worker) else {
-            return;
-        };
-        let problem = Problem {
-            image: doc.image.clone(),
-            camera: doc.camera.intrinsics(),
-            intensity_scale: doc.camera.intensity_scale,
-            object_mask: doc.masks.object_for_solver(),
-            confidence: doc.masks.confidence_for_solver(),
-            lights: Vec::new(),
-        };
-        let params = self.settings.params.to_params();
-        self.level_inputs = Some((
-            std::sync::Arc::new(doc.image.clone()),
-            doc.ground_truth.clone().map(std::sync::Arc::new),
-        ));
-        self.mask_revision_solved = doc.masks.revision();
-        let job = worker.submit(SolveRequest { problem, params });
-        self.solve.job = Some(job);
-        self.solve.submitted = Some(Instant::now());
-        self.solve.running = true;
-        self.solve.arrived.clear();
-        self.solve.energies.clear();
-        self.solve.failure = None;
-        self.solve.finished = None;
-        self.solve.errors = None;
+        self.session.start_solve(self.settings.params.to_params());
     }
 
-    fn upload_input(&mut self, ctx: &egui::Context) {
-        if let Some(doc) = &self.document {
-            self.textures.input = Some(ctx.load_texture(
-                "input",
-                images::grey_image(&doc.image),
-                egui::TextureOptions::NEAREST,
-            ));
-        }
-    }
-
-    /// Drains worker events (a few milliseconds at most).
-    fn handle_events(&mut self) {
-        let Some(worker) = &mut self.worker else {
-            return;
-        };
-        let latest = worker.latest_job();
-        let events: Vec<Event> = worker.drain(EVENT_BUDGET).collect();
-        for event in events {
-            if Some(event.job()) != latest || Some(event.job()) != self.solve.job {
-                continue; // a superseded job
-            }
-            match event {
-                Event::Started { .. } => {}
-                Event::Progress { report, .. } => {
-                    self.solve.energies.push(report.energy.total);
-                    self.solve.progress = Progress {
-                        level: report.level,
-                        levels: report.levels,
-                        size: (report.width, report.height),
-                        iteration: report.iteration,
-                        energy: report.energy.total,
-                        elapsed: report.elapsed,
-                    };
-                }
-                Event::Level { result, .. } => self.receive_level(result),
-                Event::Finished { solution, .. } => {
-                    self.solve.errors = self.document.as_ref().and_then(|doc| {
-                        let gt = doc.ground_truth.as_ref()?;
-                        metrics::errors(
-                            &solution.depth,
-                            gt,
-                            &doc.image,
-                            doc.camera.intrinsics(),
-                            doc.camera.intensity_scale,
-                        )
-                        .ok()
-                        .map(|e| (e.rse, e.rie))
-                    });
-                    self.solve.finished = Some(solution);
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
-                }
-                Event::Failed { error, .. } => {
-                    self.solve.failure = Some(error);
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
-                }
-                Event::Cancelled { .. } => {
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
-                }
-            }
-        }
-    }
-
-    fn receive_level(&mut self, result: LevelResult) {
-        let size = result.depth.size();
-        self.solve.arrived.push(size);
-        if self.solve.arrived.len() == 1 {
-            // The first level of this job: it is on screen when this
-            // generation comes back from the preparation thread.
-            self.stats.first_level_generation = Some(self.mesh_generation + 1);
-        }
-        let Some(doc) = &self.document else {
-            return;
-        };
-        let scale = size.0 as f64 / doc.size().0 as f64;
-        let camera = crate::camera::Intrinsics {
-            focal_px: doc.camera.focal_px * scale,
-            principal_x_px: (doc.camera.cx_px + 0.5) * scale - 0.5,
-            principal_y_px: (doc.camera.cy_px + 0.5) * size.1 as f64 / doc.size().1 as f64 - 0.5,
-        };
-        if let (Some(meshes), Some((image, ground_truth))) = (&self.meshes, &self.level_inputs) {
-            self.mesh_generation += 1;
-            meshes.submit(view3d::MeshJob {
-                generation: self.mesh_generation,
-                depth: result.depth.clone(),
-                reprojection: result.reprojection.clone(),
-                camera,
-                image: image.clone(),
-                ground_truth: ground_truth.clone(),
-            });
-        }
-        self.solve.latest = Some(LevelView {
-            level: result.level,
-            levels: result.levels,
-            depth: result.depth,
-            reprojection: result.reprojection,
+    /// Writes the finished result; the outcome goes to the status line.
+    pub fn export(&mut self, path: &Path, what: Export) {
+        self.notice = Some(match self.session.export(path, what) {
+            Ok(done) => done,
+            Err(e) => e,
         });
-    }
-
-    /// Uploads a prepared level's panel images.
-    fn show_panels(&mut self, ctx: &egui::Context, panels: view3d::LevelPanels) {
-        let options = egui::TextureOptions::NEAREST;
-        self.textures.reprojection =
-            Some(ctx.load_texture("reprojection", panels.reprojection, options));
-        let (difference, range) = panels.difference;
-        self.textures.difference =
-            Some((ctx.load_texture("difference", difference, options), range));
-        let (depth, range) = panels.depth;
-        self.textures.depth = Some((ctx.load_texture("depth", depth, options), range));
-        self.textures.depth_error = panels
-            .depth_error
-            .map(|(image, range)| (ctx.load_texture("depth-error", image, options), range));
-    }
-
-    fn error_range(&self) -> f32 {
-        self.textures
-            .difference
-            .as_ref()
-            .map_or(1.0, |(_, r)| r[1] as f32)
-    }
-
-    /// Debounced solve, autosave, screenshot and stats bookkeeping.
-    fn housekeeping(&mut self, ctx: &egui::Context) {
-        if let Some(doc) = &self.document {
-            let revision = doc.masks.revision();
-            if revision != self.mask_revision_solved && self.gesture.is_none() {
-                if self.dirty_since.is_none() {
-                    self.dirty_since = Some(Instant::now());
-                }
-                if self.autosave_due.is_none() {
-                    self.autosave_due = Some(Instant::now() + AUTOSAVE_DELAY);
-                }
-                self.mask_revision_solved = revision;
-            }
-        }
-        if let Some(since) = self.dirty_since {
-            let waited = since.elapsed();
-            // A released slider, a typed value or a button starts at once;
-            // while a slider is dragged, a pause of DEBOUNCE starts a solve.
-            let dragging = ctx.input(|i| i.pointer.any_down()) && self.gesture.is_none();
-            if !dragging || waited >= DEBOUNCE {
-                self.start_solve();
-            } else {
-                ctx.request_repaint_after(DEBOUNCE.saturating_sub(waited));
-            }
-        }
-        if let Some(due) = self.autosave_due {
-            if Instant::now() >= due {
-                self.autosave_due = None;
-                self.autosave();
-            } else {
-                ctx.request_repaint_after(due - Instant::now());
-            }
-        }
-        if let Some(built) = self.meshes.as_ref().and_then(|m| m.poll()) {
-            let generation = built.generation;
-            if let Some(panels) = self.surface.set_mesh(built) {
-                self.show_panels(ctx, panels);
-            }
-            if let (Some(started), Some(first)) =
-                (self.stats.trial_started, self.stats.first_level_generation)
-                && generation >= first
-            {
-                self.stats
-                    .latencies_ms
-                    .push(started.elapsed().as_secs_f64() * 1e3);
-                self.stats.trial_started = None;
-            }
-        }
-        self.latency_trials(ctx);
-        // Screenshot once the first solve is over and its last mesh is shown.
-        if self.options.screenshot.is_some() && !self.screenshot_requested {
-            let done = self.solve.completed_jobs > 0
-                && !self.solve.running
-                && self.stats.trials_done >= self.options.latency_trials
-                && self.stats.trial_started.is_none()
-                && self.dirty_since.is_none()
-                && (self.surface.generation() == Some(self.mesh_generation)
-                    || self.meshes.is_none());
-            if done {
-                self.frames_after_finish += 1;
-                // With --stats, also time 40 frames with nothing to solve.
-                let wait = if self.options.stats.is_some() { 42 } else { 3 };
-                if self.frames_after_finish > wait {
-                    self.screenshot_requested = true;
-                    if let Some(path) = self.options.screenshot.clone() {
-                        self.request_screenshot(ctx, path);
-                    }
-                }
-            }
-            ctx.request_repaint();
-        }
-    }
-
-    /// With `--stats`: after each finished solve, change alpha and time the
-    /// first new level.
-    fn latency_trials(&mut self, ctx: &egui::Context) {
-        if self.options.stats.is_none() || self.stats.trials_done >= self.options.latency_trials {
-            return;
-        }
-        if self.solve.running || self.stats.trial_started.is_some() || self.dirty_since.is_some() {
-            return;
-        }
-        if self.solve.completed_jobs == 0 {
-            return;
-        }
-        self.stats.trials_done += 1;
-        let chosen = self.solve.finished.as_ref().map_or(1e-7, |s| s.alpha);
-        self.settings.params.update(|p| {
-            p.alpha = match p.alpha {
-                Alpha::Value(v) => Alpha::Value(v * 1.1),
-                Alpha::Auto => Alpha::Value(chosen * 1.1),
-            }
-        });
-        self.stats.trial_started = Some(Instant::now());
-        self.stats.first_level_generation = None;
-        // As a slider release would: the debounce, then the solve.
-        self.request_solve();
-        ctx.request_repaint();
-    }
-
-    fn autosave(&mut self) {
-        let Some(doc) = &self.document else {
-            return;
-        };
-        let Some(dir) = self.autosave_dir(&doc.path) else {
-            return;
-        };
-        if let Err(e) = doc.masks.autosave(&dir, &doc.path) {
-            self.notice = Some(format!("mask autosave failed: {e}"));
-        }
     }
 
     /// Asks the integration for a screenshot of the window, saved to `path`
     /// when it arrives.
     pub fn request_screenshot(&mut self, ctx: &egui::Context, path: PathBuf) {
-        let sender = self.screenshots.0.clone();
-        let waker = ctx.clone();
-        ctx.request_screenshot(move |image| {
-            // The app owns the receiver; a closed app has nothing to save.
-            let _ = sender.send((path, image));
-            waker.request_repaint();
-        });
+        self.measure.request_screenshot(ctx, path);
     }
 
-    fn save_screenshot(&mut self, ctx: &egui::Context, image: &egui::ColorImage, path: &Path) {
-        let [w, h] = image.size;
-        let bytes: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
-        let result = image::RgbaImage::from_raw(w as u32, h as u32, bytes)
-            .ok_or_else(|| "screenshot has an inconsistent size".to_string())
-            .and_then(|img| img.save(path).map_err(|e| e.to_string()));
-        match result {
-            Ok(()) => eprintln!("saved screenshot {}", path.display()),
-            Err(e) => {
-                self.notice = Some(format!("cannot save screenshot {}: {e}", path.display()));
-                eprintln!("cannot save screenshot {}: {e}", path.display());
+    /// A dropped file: a camera JSON applies to the open image, a PNG whose
+    /// name contains `mask` or `confidence` loads into that layer, anything
+    /// else opens as a new image.
+    pub fn drop_file(&mut self, ctx: &egui::Context, path: &Path) {
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_lowercase())
+            .unwrap_or_default();
+        let has_doc = self.session.document.is_some();
+        if has_doc && name.ends_with(".json") {
+            self.load_camera(path);
+        } else if has_doc && name.contains("confidence") {
+            self.load_mask(Layer::Confidence, path);
+        } else if has_doc && name.contains("mask") {
+            self.load_mask(Layer::Object, path);
+        } else {
+            self.open(ctx, path);
+        }
+    }
+
+    /// Runs what the panels asked for.
+    fn apply(&mut self, ctx: &egui::Context, action: Action) {
+        match action {
+            Action::Open(path) => self.open(ctx, &path),
+            Action::LoadCamera(path) => self.load_camera(&path),
+            Action::LoadMask(layer, path) => self.load_mask(layer, &path),
+            Action::SaveMask(layer, path) => {
+                if let Err(e) = self.session.save_mask(layer, &path) {
+                    self.notice = Some(e);
+                }
+            }
+            Action::Export(path, what) => self.export(&path, what),
+            Action::Screenshot(path) => self.request_screenshot(ctx, path),
+            Action::CancelSolve => self.cancel_solve(),
+            Action::SolveNow => self.start_solve(),
+            Action::RequestSolve => self.request_solve(),
+            Action::Notice(text) => self.notice = Some(text),
+            Action::DismissNotice => self.notice = None,
+        }
+    }
+
+    /// Worker events to the session, its levels to the preparation thread.
+    fn receive_levels(&mut self) {
+        for arrived in self.session.drain_events() {
+            let generation = self.levels.submit(arrived.result, arrived.inputs);
+            if arrived.first_of_job {
+                // The first level of this job: it is on screen when this
+                // generation comes back from the preparation thread.
+                self.measure
+                    .first_level_submitted(generation.unwrap_or(self.levels.generation() + 1));
             }
         }
-        if self.options.screenshot.as_deref() == Some(path) {
-            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+    }
+
+    /// The debounced solve, the autosave, prepared levels, and the
+    /// measurement hooks.
+    fn housekeeping(&mut self, ctx: &egui::Context) {
+        let params = &self.settings.params;
+        let pointer_down = ctx.input(|i| i.pointer.any_down());
+        if let Some(error) = self.session.tick(
+            self.panels.gesture_in_progress(),
+            pointer_down,
+            || params.to_params(),
+            |after| ctx.request_repaint_after(after),
+        ) {
+            self.notice = Some(error);
+        }
+        if let Some(built) = self.levels.poll() {
+            let generation = built.generation;
+            self.panels.show_level(ctx, built);
+            self.measure.level_shown(generation);
+        }
+        if self.measure.start_latency_trial(&self.measured_state()) {
+            // As a slider release would: change alpha, the debounce, then
+            // the solve.
+            let chosen = self
+                .session
+                .solve
+                .finished
+                .as_ref()
+                .map_or(1e-7, |s| s.alpha);
+            self.settings.params.update(|p| {
+                p.alpha = match p.alpha {
+                    Alpha::Value(v) => Alpha::Value(v * 1.1),
+                    Alpha::Auto => Alpha::Value(chosen * 1.1),
+                }
+            });
+            self.request_solve();
+            ctx.request_repaint();
+        }
+        self.measure.after_frame(ctx, &self.measured_state());
+    }
+
+    fn measured_state(&self) -> measure::AppState {
+        measure::AppState {
+            completed_jobs: self.session.solve.completed_jobs,
+            running: self.session.solve.running,
+            solve_pending: self.session.solve_pending(),
+            newest_level_shown: self.panels.level_generation() == Some(self.levels.generation())
+                || !self.levels.is_running(),
         }
     }
 
-    fn write_stats(&self) {
-        let Some(path) = &self.options.stats else {
-            return;
-        };
-        let summary = |v: &[f64]| {
-            let mut s = v.to_vec();
-            s.sort_by(|a, b| a.total_cmp(b));
-            let pick = |q: f64| {
-                s.get(((s.len() as f64 - 1.0) * q).round() as usize)
-                    .copied()
-                    .unwrap_or(f64::NAN)
-            };
-            serde_json::json!({"count": s.len(), "median": pick(0.5), "p95": pick(0.95), "max": pick(1.0)})
-        };
-        let size = self.document.as_ref().map(|d| d.size());
-        let report = serde_json::json!({
-            "image_size": size,
-            "frame_interval_ms_while_solving": summary(&self.stats.busy_frame_intervals_ms),
-            "frame_interval_ms_all": summary(&self.stats.frame_intervals_ms),
-            "frame_interval_ms_idle": summary(&self.stats.idle_frame_intervals_ms),
-            "ui_cpu_ms": summary(&self.stats.ui_ms),
-            "change_to_first_level_ms": self.stats.latencies_ms,
+    /// Keyboard shortcuts, dropped files and screenshots.
+    fn handle_input(&mut self, ctx: &egui::Context) {
+        let (undo, redo, dropped) = ctx.input_mut(|i| {
+            let redo = i.consume_shortcut(&egui::KeyboardShortcut::new(
+                egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+                egui::Key::Z,
+            ));
+            let undo = i.consume_shortcut(&egui::KeyboardShortcut::new(
+                egui::Modifiers::COMMAND,
+                egui::Key::Z,
+            ));
+            (undo, redo, std::mem::take(&mut i.raw.dropped_files))
         });
-        if let Err(e) = io::write_json(path, &report) {
-            eprintln!("cannot write stats {}: {e}", path.display());
+        if let Some(doc) = &mut self.session.document {
+            if redo {
+                doc.masks.redo();
+            } else if undo {
+                doc.masks.undo();
+            }
+        }
+        for file in dropped {
+            let path = file.path().to_path_buf();
+            self.drop_file(ctx, &path);
+        }
+        if let Some(error) = self.measure.save_screenshots(ctx).pop() {
+            self.notice = Some(error);
         }
     }
 }
@@ -729,104 +375,45 @@ fn solver_leaving_a_core() -> crate::worker::SolveFn {
 
 impl eframe::App for ViewerApp {
     fn logic(&mut self, ctx: &egui::Context, _frame: &mut eframe::Frame) {
-        self.handle_events();
+        self.receive_levels();
         self.housekeeping(ctx);
     }
 
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let started = Instant::now();
         let ctx = ui.ctx().clone();
-        if let Some(last) = self.stats.last_frame {
-            let ms = last.elapsed().as_secs_f64() * 1e3;
-            self.stats.frame_intervals_ms.push(ms);
-            if self.solve.running {
-                self.stats.busy_frame_intervals_ms.push(ms);
-            } else if self.frames_after_finish > 1 {
-                // Continuous repaints while nothing is solved: the baseline.
-                self.stats.idle_frame_intervals_ms.push(ms);
-            }
-        }
-        self.stats.last_frame = Some(Instant::now());
-        if self.solve.running {
+        self.measure.frame_started(self.session.solve.running);
+        if self.session.solve.running {
             ctx.request_repaint();
         }
         self.handle_input(&ctx);
-        egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui));
-        egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui));
-        egui::Panel::left("controls")
-            .default_size(300.0)
-            .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls_ui(ui));
-            });
-        egui::Panel::right("view3d")
-            .default_size(480.0)
-            .resizable(true)
-            .show(ui, |ui| self.view3d_ui(ui));
-        egui::CentralPanel::default().show(ui, |ui| self.image_panel_ui(ui));
-        self.stats.ui_ms.push(started.elapsed().as_secs_f64() * 1e3);
+        let mut actions = Vec::new();
+        let mut cx = panels::UiContext {
+            session: &mut self.session,
+            settings: &mut self.settings,
+            notice: self.notice.as_deref(),
+            actions: &mut actions,
+        };
+        self.panels.ui(ui, &mut cx);
+        for action in actions {
+            self.apply(&ctx, action);
+        }
+        self.measure.frame_finished(started);
     }
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
         // Measurement runs change alpha themselves: not the user's settings.
-        if self.options.stats.is_some() || self.options.fresh_settings {
+        if self.measure.is_measuring() || self.options.fresh_settings {
             return;
         }
         eframe::set_value(storage, settings::STORAGE_KEY, &self.settings);
     }
 
     fn on_exit(&mut self) {
-        self.autosave();
-        self.write_stats();
-    }
-}
-
-impl ViewerApp {
-    /// Keyboard shortcuts, dropped files and screenshots.
-    fn handle_input(&mut self, ctx: &egui::Context) {
-        let (undo, redo, dropped) = ctx.input_mut(|i| {
-            let redo = i.consume_shortcut(&egui::KeyboardShortcut::new(
-                egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
-                egui::Key::Z,
-            ));
-            let undo = i.consume_shortcut(&egui::KeyboardShortcut::new(
-                egui::Modifiers::COMMAND,
-                egui::Key::Z,
-            ));
-            (undo, redo, std::mem::take(&mut i.raw.dropped_files))
-        });
-        if let Some(doc) = &mut self.document {
-            if redo {
-                doc.masks.redo();
-            } else if undo {
-                doc.masks.undo();
-            }
+        if let Err(e) = self.session.autosave() {
+            eprintln!("{e}");
         }
-        for file in dropped {
-            let path = file.path().to_path_buf();
-            self.drop_file(ctx, &path);
-        }
-        while let Ok((path, image)) = self.screenshots.1.try_recv() {
-            self.save_screenshot(ctx, &image, &path);
-        }
-    }
-
-    /// A dropped file: a camera JSON applies to the open image, a PNG whose
-    /// name contains `mask` or `confidence` loads into that layer, anything
-    /// else opens as a new image.
-    pub fn drop_file(&mut self, ctx: &egui::Context, path: &Path) {
-        let name = path
-            .file_name()
-            .map(|n| n.to_string_lossy().to_lowercase())
-            .unwrap_or_default();
-        let has_doc = self.document.is_some();
-        if has_doc && name.ends_with(".json") {
-            self.load_camera(path);
-        } else if has_doc && name.contains("confidence") {
-            self.load_mask(Layer::Confidence, path);
-        } else if has_doc && name.contains("mask") {
-            self.load_mask(Layer::Object, path);
-        } else {
-            self.open(ctx, path);
-        }
+        self.measure
+            .write_stats(self.session.document.as_ref().map(|d| d.size()));
     }
 }

@@ -157,6 +157,8 @@ pub struct ViewPrefs {
     pub colour: SurfaceColour,
     /// Draw edges instead of the filled surface.
     pub wireframe: bool,
+    /// Show the photograph on the surface instead of [`Self::colour`].
+    pub photo_texture: bool,
     /// Light direction: yaw in degrees (view space, 0 = headlight).
     pub light_yaw_deg: f32,
     /// Light direction: pitch in degrees.
@@ -168,6 +170,7 @@ impl Default for ViewPrefs {
         Self {
             colour: SurfaceColour::Shaded,
             wireframe: false,
+            photo_texture: false,
             light_yaw_deg: 25.0,
             light_pitch_deg: 20.0,
         }

@@ -1,182 +1,14 @@
 //! The bridge between egui and the wgpu surface renderer: a paint callback
-//! that renders in `prepare` and blits in `paint`, orbit/pan/zoom input, and a
-//! background thread that turns each level into a mesh and the 2-D panels'
-//! images, so that a large level never stalls a frame.
+//! that renders in `prepare` and blits in `paint`, and the 3-D view's
+//! orbit/pan/zoom input and framing; its meshes come from `level_prep`.
 
 use std::sync::Arc;
-use std::thread::JoinHandle;
 
-use crossbeam_channel::{Receiver, Sender, TryRecvError};
 use eframe::egui;
 use egui_wgpu::wgpu;
 
-use crate::camera::Intrinsics;
-use crate::grid::Grid;
+use super::level_prep::{BuiltMesh, LevelPanels};
 use crate::render::{Bounds, ColourMode, OrbitCamera, SurfaceMesh, SurfaceRenderer, ViewSettings};
-
-/// Meshes shown in the 3-D view have at most this many vertices; larger
-/// depth maps are point-sampled with a stride (display only).
-pub const MAX_VIEW_VERTICES: usize = 512 * 512;
-
-/// A level to prepare for display: its mesh and its 2-D panel images.
-pub struct MeshJob {
-    /// Increases with every job; the newest wins.
-    pub generation: u64,
-    /// Depth (NaN = no surface).
-    pub depth: Grid<f64>,
-    /// Reprojection at the level's size.
-    pub reprojection: Grid<f64>,
-    /// Camera at the depth map's resolution.
-    pub camera: Intrinsics,
-    /// The full-size input image.
-    pub image: Arc<Grid<f64>>,
-    /// Ground-truth depth at full size.
-    pub ground_truth: Option<Arc<Grid<f64>>>,
-}
-
-/// Images of the 2-D panels for one level, with the colour-map ranges.
-pub struct LevelPanels {
-    /// Reprojection, grey.
-    pub reprojection: egui::ColorImage,
-    /// |input - reprojection| at full size.
-    pub difference: (egui::ColorImage, [f64; 2]),
-    /// Depth.
-    pub depth: (egui::ColorImage, [f64; 2]),
-    /// |depth - ground truth| at full size.
-    pub depth_error: Option<(egui::ColorImage, [f64; 2])>,
-}
-
-/// A prepared level.
-pub struct BuiltMesh {
-    /// Generation of the job.
-    pub generation: u64,
-    /// The mesh.
-    pub mesh: Arc<SurfaceMesh>,
-    /// The panel images (absent for meshes made elsewhere, e.g. tests).
-    pub panels: Option<LevelPanels>,
-}
-
-/// The CPU work of a level: panel images, then the mesh (coloured by the
-/// reprojection error at the level's size).
-fn prepare_level(job: MeshJob) -> BuiltMesh {
-    use super::images;
-    let difference = images::abs_difference(&job.reprojection, &job.image);
-    let difference_range = [0.0, images::finite_range(&difference).map_or(1.0, |r| r[1])];
-    let depth_range = images::finite_range(&job.depth).unwrap_or([0.0, 1.0]);
-    let depth_error = job.ground_truth.as_ref().map(|gt| {
-        let error = images::abs_difference(&job.depth, gt);
-        let range = [0.0, images::finite_range(&error).map_or(1.0, |r| r[1])];
-        (images::colour_mapped(&error, range), range)
-    });
-    let panels = LevelPanels {
-        reprojection: images::grey_image(&job.reprojection),
-        difference: (
-            images::colour_mapped(&difference, difference_range),
-            difference_range,
-        ),
-        depth: (images::colour_mapped(&job.depth, depth_range), depth_range),
-        depth_error,
-    };
-    let level_difference = images::abs_difference(&job.image, &job.reprojection);
-    let (depth, camera, values) = decimate(job.depth, job.camera, Some(level_difference));
-    let mesh = SurfaceMesh::from_depth(&depth, &camera, values.as_ref());
-    BuiltMesh {
-        generation: job.generation,
-        mesh: Arc::new(mesh),
-        panels: Some(panels),
-    }
-}
-
-/// A named thread that builds meshes, newest job first.
-pub struct MeshBuilder {
-    jobs: Option<Sender<MeshJob>>,
-    meshes: Receiver<BuiltMesh>,
-    handle: Option<JoinHandle<()>>,
-}
-
-impl MeshBuilder {
-    /// Starts the thread; `waker` is called after every mesh.
-    pub fn spawn(waker: impl Fn() + Send + 'static) -> std::io::Result<Self> {
-        let (job_tx, job_rx) = crossbeam_channel::unbounded::<MeshJob>();
-        let (mesh_tx, mesh_rx) = crossbeam_channel::bounded::<BuiltMesh>(4);
-        let handle = std::thread::Builder::new()
-            .name("sfs-mesh".into())
-            .spawn(move || {
-                while let Ok(mut job) = job_rx.recv() {
-                    // Only the newest pending job matters.
-                    while let Ok(newer) = job_rx.try_recv() {
-                        job = newer;
-                    }
-                    let built = prepare_level(job);
-                    if mesh_tx.send(built).is_err() {
-                        return;
-                    }
-                    waker();
-                }
-            })?;
-        Ok(Self {
-            jobs: Some(job_tx),
-            meshes: mesh_rx,
-            handle: Some(handle),
-        })
-    }
-
-    /// Queues a job; never blocks and never drops one (the thread skips to
-    /// the newest, so at most the levels that arrive during one preparation
-    /// wait here).
-    pub fn submit(&self, job: MeshJob) {
-        if let Some(jobs) = &self.jobs {
-            // Fails only when the thread has ended (it then has nothing to show).
-            let _ = jobs.send(job);
-        }
-    }
-
-    /// The newest finished mesh, if any arrived.
-    pub fn poll(&self) -> Option<BuiltMesh> {
-        let mut newest = None;
-        loop {
-            match self.meshes.try_recv() {
-                Ok(m) => newest = Some(m),
-                Err(TryRecvError::Empty | TryRecvError::Disconnected) => return newest,
-            }
-        }
-    }
-}
-
-impl Drop for MeshBuilder {
-    fn drop(&mut self) {
-        // Closing the job channel ends the thread's loop.
-        self.jobs = None;
-        if let Some(handle) = self.handle.take() {
-            let _ = handle.join();
-        }
-    }
-}
-
-/// Point-samples a large depth map (and its values) with a stride so that
-/// the mesh stays below [`MAX_VIEW_VERTICES`]; scales the camera to match.
-fn decimate(
-    depth: Grid<f64>,
-    camera: Intrinsics,
-    values: Option<Grid<f64>>,
-) -> (Grid<f64>, Intrinsics, Option<Grid<f64>>) {
-    let (w, h) = depth.size();
-    if w * h <= MAX_VIEW_VERTICES {
-        return (depth, camera, values);
-    }
-    let stride = ((w * h) as f64 / MAX_VIEW_VERTICES as f64).sqrt().ceil() as usize;
-    let (sw, sh) = (w.div_ceil(stride), h.div_ceil(stride));
-    let sample = |g: &Grid<f64>| Grid::from_fn(sw, sh, |c, r| *g.at(c * stride, r * stride));
-    let s = stride as f64;
-    // Column c of the sampled grid is column c * stride of the original:
-    // x = (c s - cx) / f = (c - cx / s) / (f / s).
-    let camera = Intrinsics {
-        focal_px: camera.focal_px / s,
-        principal_x_px: camera.principal_x_px / s,
-        principal_y_px: camera.principal_y_px / s,
-    };
-    (sample(&depth), camera, values.as_ref().map(sample))
-}
 
 /// GPU state kept in egui-wgpu's callback resources.
 struct SurfaceResources {
@@ -272,7 +104,12 @@ pub struct SurfaceView {
     /// Orbit camera.
     pub camera: OrbitCamera,
     mesh: Option<(u64, Arc<SurfaceMesh>)>,
+    /// The bounds the camera framed (or is to frame at the next frame).
     framed_bounds: Option<Bounds>,
+    /// Framing waits for the view's size (its aspect).
+    needs_framing: bool,
+    /// Width / height of the view at the last frame.
+    aspect: f32,
     /// Whether the GPU renderer was installed.
     pub available: Result<(), String>,
 }
@@ -284,6 +121,8 @@ impl SurfaceView {
             camera: OrbitCamera::default(),
             mesh: None,
             framed_bounds: None,
+            needs_framing: false,
+            aspect: 1.0,
             available,
         }
     }
@@ -297,15 +136,15 @@ impl SurfaceView {
     pub fn clear(&mut self) {
         self.mesh = None;
         self.framed_bounds = None;
+        self.needs_framing = false;
     }
 
-    /// Shows a new mesh; frames it the first time (later meshes keep the
-    /// user's view).
+    /// Shows a new mesh; frames it (at the next frame, when the view's
+    /// aspect is known) the first time: later meshes keep the user's view.
     pub fn set_mesh(&mut self, built: BuiltMesh) -> Option<LevelPanels> {
         if self.framed_bounds.is_none() && !built.mesh.is_empty() {
-            let bounds = built.mesh.bounds();
-            self.camera = OrbitCamera::framing(&bounds);
-            self.framed_bounds = Some(bounds);
+            self.framed_bounds = Some(built.mesh.bounds());
+            self.needs_framing = true;
         }
         self.mesh = Some((built.generation, built.mesh));
         built.panels
@@ -326,6 +165,13 @@ impl SurfaceView {
         }
         let size = ui.available_size().max(egui::vec2(64.0, 64.0));
         let (rect, response) = ui.allocate_exact_size(size, egui::Sense::click_and_drag());
+        self.aspect = rect.width() / rect.height().max(1.0);
+        if self.needs_framing
+            && let Some(bounds) = &self.framed_bounds
+        {
+            self.camera = OrbitCamera::framing(bounds, self.aspect);
+            self.needs_framing = false;
+        }
         if response.dragged_by(egui::PointerButton::Primary) {
             let d = response.drag_delta();
             self.camera.orbit(-d.x * 0.01, d.y * 0.01);
@@ -351,6 +197,7 @@ impl SurfaceView {
             (rect.height() * ppp).round().max(1.0) as u32,
         ];
         let (colour_mode, value_range) = match prefs.colour {
+            _ if prefs.photo_texture => (ColourMode::Photo, [0.0, 1.0]),
             super::settings::SurfaceColour::Shaded => (ColourMode::Shaded, [0.0, 1.0]),
             super::settings::SurfaceColour::Depth => {
                 (ColourMode::Depth, self.depth_range().unwrap_or([0.0, 1.0]))
@@ -390,7 +237,7 @@ impl SurfaceView {
     /// Frames the current mesh again.
     pub fn reset(&mut self) {
         if let Some((_, mesh)) = &self.mesh {
-            self.camera = OrbitCamera::framing(&mesh.bounds());
+            self.camera = OrbitCamera::framing(&mesh.bounds(), self.aspect);
         }
     }
 }
@@ -437,25 +284,5 @@ mod tests {
         assert!(harness.state().view.available.is_ok(), "no 3-D renderer");
         harness.run_steps(3);
         harness.snapshot("surface_view_sombrero");
-    }
-
-    #[test]
-    fn decimation_keeps_geometry_consistent() {
-        let (w, h) = (1920, 1080);
-        let camera = Intrinsics::centred(1920.0, w, h);
-        let depth = Grid::from_fn(w, h, |c, r| 2.0 + (c + r) as f64 * 1e-4);
-        let (small, cam, _) = decimate(depth.clone(), camera, None);
-        assert!(small.len() <= MAX_VIEW_VERTICES);
-        let stride = w / small.width();
-        // The same pixel back-projects to the same ray in both cameras.
-        let (x0, y0) = camera.image_xy((10 * stride) as f64, (7 * stride) as f64);
-        let (x1, y1) = cam.image_xy(10.0, 7.0);
-        let p0 = camera.back_project(x0, y0, 2.0);
-        let p1 = cam.back_project(x1, y1, 2.0);
-        assert!(
-            p0.iter().zip(p1).all(|(a, b)| (a - b).abs() < 1e-12),
-            "{p0:?} {p1:?}"
-        );
-        assert_eq!(*small.at(10, 7), *depth.at(10 * stride, 7 * stride));
     }
 }

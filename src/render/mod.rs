@@ -89,6 +89,11 @@ pub enum ColourMode {
     /// [`ViewSettings::value_range`], lightly shaded. Vertices without a value
     /// ([`NO_VALUE`]) are grey.
     Error,
+    /// The photograph on the surface: each vertex's
+    /// [`SurfaceVertex::photo`] grey with the 2-D panels' display gamma
+    /// (2.2), barely shaded (the photograph has its own shading); vertices
+    /// without one are dark.
+    Photo,
 }
 
 /// Everything that changes how one frame looks (small, `Copy`, per frame).

@@ -7,7 +7,7 @@ use glam::{Mat4, Vec3};
 /// with the view direction.
 const MAX_PITCH_RAD: f32 = 89.0 * std::f32::consts::PI / 180.0;
 
-/// Room left around the bounding sphere by [`OrbitCamera::frame`].
+/// Room left around the framed box by [`OrbitCamera::frame`].
 const FRAME_MARGIN: f32 = 1.1;
 
 /// A camera orbiting `target_world` at `distance`, in world space.
@@ -33,16 +33,19 @@ pub struct OrbitCamera {
 }
 
 impl Default for OrbitCamera {
-    /// Frames [`Bounds::default`] with a 40 degree field of view.
+    /// Frames [`Bounds::default`] in a square view with a 40 degree field
+    /// of view.
     fn default() -> Self {
-        Self::framing(&Bounds::default())
+        Self::framing(&Bounds::default(), 1.0)
     }
 }
 
 impl OrbitCamera {
-    /// The default view of `bounds`: along the photo's optical axis, the
-    /// bounding sphere filling the vertical field of view (40 degrees).
-    pub fn framing(bounds: &Bounds) -> Self {
+    /// The default view of `bounds` in a view of width / height `aspect`:
+    /// along the photo's optical axis, the box filling the view as the
+    /// photo's object fills the photo (see [`Self::frame`]; 40 degree
+    /// vertical field of view).
+    pub fn framing(bounds: &Bounds, aspect: f32) -> Self {
         let mut camera = Self {
             target_world: Vec3::ZERO,
             distance: 1.0,
@@ -51,28 +54,47 @@ impl OrbitCamera {
             fov_y_rad: 40f32.to_radians(),
             scene_radius: 1.0,
         };
-        camera.frame(bounds);
+        camera.frame(bounds, aspect);
         camera
     }
 
-    /// Centres `bounds` and moves the eye so that its sphere fits the vertical
-    /// field of view; keeps the orientation and field of view.
-    pub fn frame(&mut self, bounds: &Bounds) {
+    /// Centres `bounds` and moves the eye so that the box, seen along the
+    /// photo's optical axis (`-z_world`), fits a view of width / height
+    /// `aspect` with a margin: its near face's width and height fit the
+    /// horizontal and vertical field of view. So a deep, slanted surface is
+    /// framed by what the photo shows of it, not by its bounding sphere.
+    /// Keeps the orientation and field of view; the sphere still sets the
+    /// near and far planes and the zoom limits.
+    pub fn frame(&mut self, bounds: &Bounds, aspect: f32) {
         let radius = if bounds.radius.is_finite() && bounds.radius > 0.0 {
             bounds.radius
         } else {
             1.0
         };
+        let aspect = if aspect.is_finite() && aspect > 0.0 {
+            aspect
+        } else {
+            1.0
+        };
+        let half = 0.5 * (bounds.max_world - bounds.min_world);
+        let tan_y = (0.5 * self.fov_y_rad).tan().max(1e-3);
+        let fit = (half.y / tan_y).max(half.x / (tan_y * aspect));
+        let sphere = FRAME_MARGIN * radius / (0.5 * self.fov_y_rad).sin().max(1e-3);
+        let distance = half.z + FRAME_MARGIN * fit;
         self.target_world = bounds.centre_world;
         self.scene_radius = radius;
-        self.distance = FRAME_MARGIN * radius / (0.5 * self.fov_y_rad).sin().max(1e-3);
+        self.distance = if distance.is_finite() && fit > 1e-3 * radius {
+            distance
+        } else {
+            sphere
+        };
     }
 
     /// Back to the default view of `bounds` (orientation and framing).
-    pub fn reset(&mut self, bounds: &Bounds) {
+    pub fn reset(&mut self, bounds: &Bounds, aspect: f32) {
         self.yaw_rad = 0.0;
         self.pitch_rad = 0.0;
-        self.frame(bounds);
+        self.frame(bounds, aspect);
     }
 
     /// Turns the eye about the target; pitch is clamped to +-89 degrees, yaw
@@ -166,7 +188,7 @@ mod tests {
 
     #[test]
     fn default_view_centres_the_surface_along_the_optical_axis() {
-        let camera = OrbitCamera::framing(&bounds());
+        let camera = OrbitCamera::framing(&bounds(), 1.0);
         let centre = ndc(camera.clip_from_world(1.5), bounds().centre_world);
         assert!(centre.x.abs() < 1e-5 && centre.y.abs() < 1e-5, "{centre}");
         assert!(centre.z > 0.0 && centre.z < 1.0);
@@ -177,19 +199,48 @@ mod tests {
         assert!(ndc(m, c - 0.5 * Vec3::Z).z > centre.z);
         assert!(ndc(m, c + 0.5 * Vec3::X).x > 0.0);
         assert!(ndc(m, c + 0.5 * Vec3::Y).y > 0.0);
-        // The whole sphere is in view.
-        for offset in [Vec3::X, Vec3::Y, -Vec3::X, -Vec3::Y, Vec3::Z, -Vec3::Z] {
-            let p = ndc(m, c + 1.5 * offset);
-            assert!(
-                p.x.abs() <= 1.0 && p.y.abs() <= 1.0 && (0.0..=1.0).contains(&p.z),
-                "{p}"
-            );
+    }
+
+    #[test]
+    fn framing_fits_the_box_tightly_at_any_aspect() {
+        // A deep, narrow box (a slanted face): 2 wide, 3 tall, 12 deep.
+        let (min_world, max_world) = (Vec3::new(-1.0, -1.5, -17.0), Vec3::new(1.0, 1.5, -5.0));
+        let centre_world = 0.5 * (min_world + max_world);
+        let deep = Bounds {
+            min_world,
+            max_world,
+            centre_world,
+            radius: 0.5 * (max_world - min_world).length(),
+        };
+        for aspect in [0.5, 1.0, 2.0] {
+            let m = OrbitCamera::framing(&deep, aspect).clip_from_world(aspect);
+            let mut largest = 0.0f32;
+            for corner in 0..8 {
+                let pick =
+                    |bit: usize, lo: f32, hi: f32| if corner >> bit & 1 == 0 { lo } else { hi };
+                let p = Vec3::new(
+                    pick(0, min_world.x, max_world.x),
+                    pick(1, min_world.y, max_world.y),
+                    pick(2, min_world.z, max_world.z),
+                );
+                let q = ndc(m, p);
+                assert!(
+                    q.x.abs() <= 1.0 && q.y.abs() <= 1.0 && (0.0..=1.0).contains(&q.z),
+                    "aspect {aspect}: {p} -> {q}"
+                );
+                largest = largest.max(q.x.abs()).max(q.y.abs());
+            }
+            // The near face fills the view up to the margin.
+            assert!(largest > 0.85, "aspect {aspect}: {largest}");
         }
+        // The bounding sphere would have shown the box much smaller.
+        let sphere_distance = FRAME_MARGIN * deep.radius / 20f32.to_radians().sin();
+        assert!(OrbitCamera::framing(&deep, 1.0).distance < 0.7 * sphere_distance);
     }
 
     #[test]
     fn orbit_zoom_and_pan_change_the_view() {
-        let start = OrbitCamera::framing(&bounds());
+        let start = OrbitCamera::framing(&bounds(), 1.0);
         let before = start.clip_from_world(1.0);
 
         let mut orbited = start;
@@ -215,13 +266,13 @@ mod tests {
 
         let mut reset = panned;
         reset.orbit(1.0, 1.0);
-        reset.reset(&bounds());
+        reset.reset(&bounds(), 1.0);
         assert_eq!(reset.clip_from_world(1.0), before);
     }
 
     #[test]
     fn pitch_is_clamped() {
-        let mut camera = OrbitCamera::framing(&bounds());
+        let mut camera = OrbitCamera::framing(&bounds(), 1.0);
         camera.orbit(0.0, 10.0);
         assert!((camera.pitch_rad - MAX_PITCH_RAD).abs() < 1e-6);
         camera.orbit(0.0, -20.0);

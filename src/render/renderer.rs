@@ -17,7 +17,7 @@ struct SurfaceUniforms {
     ambient: f32,
     value_min: f32,
     value_max: f32,
-    /// 0 shaded, 1 depth, 2 error.
+    /// 0 shaded, 1 depth, 2 error, 3 photo.
     colour_mode: u32,
     /// 1 when the target format is sRGB (the shader then outputs linear values).
     output_linear: u32,
@@ -46,6 +46,7 @@ impl SurfaceUniforms {
                 ColourMode::Shaded => 0,
                 ColourMode::Depth => 1,
                 ColourMode::Error => 2,
+                ColourMode::Photo => 3,
             },
             output_linear: u32::from(output_linear),
         }
@@ -208,7 +209,7 @@ impl SurfaceRenderer {
             immediate_size: 0,
         });
         let vertex_attributes =
-            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32];
+            wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32, 3 => Float32];
         let vertex_layout = wgpu::VertexBufferLayout {
             array_stride: size_of::<SurfaceVertex>() as u64,
             step_mode: wgpu::VertexStepMode::Vertex,
@@ -674,7 +675,7 @@ mod tests {
         let gpu = device();
         let mesh = sphere_mesh();
         let settings = ViewSettings {
-            camera: OrbitCamera::framing(&mesh.bounds()),
+            camera: OrbitCamera::framing(&mesh.bounds(), 1.0),
             ..Default::default()
         };
         let draw = |settings: ViewSettings| render_with(&gpu, Rgba8Unorm, Some(&mesh), &settings);

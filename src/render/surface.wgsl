@@ -8,7 +8,7 @@ struct SurfaceUniforms {
     ambient: f32,
     value_min: f32,
     value_max: f32,
-    // 0 shaded, 1 depth, 2 error (`ColourMode`).
+    // 0 shaded, 1 depth, 2 error, 3 photo (`ColourMode`).
     colour_mode: u32,
     // 1 when the target stores linear values (an sRGB format).
     output_linear: u32,
@@ -21,6 +21,7 @@ struct VertexIn {
     @location(0) position_world: vec3<f32>,
     @location(1) normal_world: vec3<f32>,
     @location(2) value: f32,
+    @location(3) photo: f32,
 }
 
 struct VertexOut {
@@ -28,6 +29,7 @@ struct VertexOut {
     @location(0) normal_world: vec3<f32>,
     @location(1) depth: f32,
     @location(2) value: f32,
+    @location(3) photo: f32,
 }
 
 @vertex
@@ -37,6 +39,7 @@ fn vs_surface(in: VertexIn) -> VertexOut {
     out.normal_world = in.normal_world;
     out.depth = -in.position_world.z;
     out.value = in.value;
+    out.photo = in.photo;
     return out;
 }
 
@@ -70,7 +73,14 @@ fn fs_surface(in: VertexOut, @builtin(front_facing) front_facing: bool) -> @loca
     let lambert = max(dot(normal, uniforms.light_dir_world), 0.0);
     let shade = uniforms.ambient + (1.0 - uniforms.ambient) * lambert;
     var colour = vec3<f32>(0.85 * shade);
-    if uniforms.colour_mode != 0u {
+    if uniforms.colour_mode == 3u {
+        // The photograph, display gamma as in the 2-D panels; NO_VALUE dark.
+        if in.photo > 1.0e30 {
+            colour = vec3<f32>(0.2 * shade);
+        } else {
+            colour = vec3<f32>(pow(clamp(in.photo, 0.0, 1.0), 1.0 / 2.2)) * (0.8 + 0.2 * shade);
+        }
+    } else if uniforms.colour_mode != 0u {
         let v = select(in.value, in.depth, uniforms.colour_mode == 1u);
         if v > 1.0e30 {
             colour = vec3<f32>(0.5 * shade);

@@ -1,15 +1,105 @@
 //! The viewer's panels: menu, status line, controls (camera, parameters,
 //! mask tools, progress, export), the 2-D image panels and the 3-D view.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use eframe::egui;
 
-use super::settings::{InitialChoice, SurfaceColour, Tool};
-use super::{CameraSource, Gesture, Panel2d, ViewerApp, images};
-use crate::io;
+use super::document::{CameraSource, Document};
+use super::images;
+use super::level_prep::BuiltMesh;
+use super::session::{Export, Session};
+use super::settings::{InitialChoice, Settings, SurfaceColour, Tool};
+use super::view3d::SurfaceView;
+use crate::grid::Grid;
 use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
 use crate::params::{PARAMS, ParamKind, ParamValue, SolverParams};
+
+/// Which 2-D panel is shown.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Panel2d {
+    /// The input with the mask overlay (paint here).
+    Input,
+    /// The reprojected image of the latest level.
+    Reprojection,
+    /// `|input - reprojection|`.
+    Difference,
+    /// Depth with a colour map.
+    Depth,
+    /// `|depth - ground truth|` (with ground truth).
+    DepthError,
+}
+
+/// What the panels ask the app to do after the frame (what needs more
+/// than the document being edited: files, the worker, the window).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// Open an image.
+    Open(PathBuf),
+    /// Apply a camera file.
+    LoadCamera(PathBuf),
+    /// Load a mask PNG into a layer.
+    LoadMask(Layer, PathBuf),
+    /// Save a mask layer as PNG.
+    SaveMask(Layer, PathBuf),
+    /// Export the finished result.
+    Export(PathBuf, Export),
+    /// Save a screenshot of the window.
+    Screenshot(PathBuf),
+    /// Cancel the running solve.
+    CancelSolve,
+    /// Solve now.
+    SolveNow,
+    /// Parameters or the camera changed: solve after the debounce.
+    RequestSolve,
+    /// Show a message on the status line.
+    Notice(String),
+    /// Clear the status line's message.
+    DismissNotice,
+}
+
+/// What the panels read and edit in one frame, and where they put what the
+/// app must do.
+pub struct UiContext<'a> {
+    /// The document and its solve (masks and camera are edited in place).
+    pub session: &'a mut Session,
+    /// Persisted settings (edited in place).
+    pub settings: &'a mut Settings,
+    /// The status line's message.
+    pub notice: Option<&'a str>,
+    /// Actions for the app, run after the frame.
+    pub actions: &'a mut Vec<Action>,
+}
+
+/// A drag in the image panel in progress.
+enum Gesture {
+    Stroke,
+    Rectangle(ImagePoint),
+    Lasso(Vec<ImagePoint>),
+}
+
+/// Textures of the 2-D panels.
+#[derive(Default)]
+struct Textures {
+    input: Option<egui::TextureHandle>,
+    overlay: Option<(u64, egui::TextureHandle)>,
+    reprojection: Option<egui::TextureHandle>,
+    difference: Option<(egui::TextureHandle, [f64; 2])>,
+    depth: Option<(egui::TextureHandle, [f64; 2])>,
+    depth_error: Option<(egui::TextureHandle, [f64; 2])>,
+}
+
+/// The panels' own state: which 2-D panel, its zoom and pan, the mask
+/// gesture in progress, the textures, the hover text and the 3-D view.
+pub struct Panels {
+    panel: Panel2d,
+    zoom: f32,
+    pan: egui::Vec2,
+    gesture: Option<Gesture>,
+    textures: Textures,
+    hover: Option<String>,
+    surface: SurfaceView,
+}
 
 /// A file dialog (kept behind one function: headless tests never open one).
 fn pick_open(filters: &[(&str, &[&str])]) -> Option<PathBuf> {
@@ -30,62 +120,149 @@ fn pick_save(name: &str, extension: &str) -> Option<PathBuf> {
 
 const IMAGE_EXTENSIONS: &[&str] = &["png", "tif", "tiff", "jpg", "jpeg"];
 
-impl ViewerApp {
-    pub(super) fn menu_ui(&mut self, ui: &mut egui::Ui) {
+/// The input image's texture.
+fn input_texture(ctx: &egui::Context, image: &Grid<f64>) -> egui::TextureHandle {
+    ctx.load_texture(
+        "input",
+        images::grey_image(image),
+        egui::TextureOptions::NEAREST,
+    )
+}
+
+impl Panels {
+    /// Panels with the 3-D view (`Err`: why it is unavailable).
+    pub fn new(surface_available: Result<(), String>) -> Self {
+        Self {
+            panel: Panel2d::Input,
+            zoom: 1.0,
+            pan: egui::Vec2::ZERO,
+            gesture: None,
+            textures: Textures::default(),
+            hover: None,
+            surface: SurfaceView::new(surface_available),
+        }
+    }
+
+    /// Selects a 2-D panel.
+    pub fn show_panel(&mut self, panel: Panel2d) {
+        self.panel = panel;
+    }
+
+    /// A mask gesture (stroke, rectangle, lasso) is in progress.
+    pub fn gesture_in_progress(&self) -> bool {
+        self.gesture.is_some()
+    }
+
+    /// Generation of the level shown in the 3-D view.
+    pub fn level_generation(&self) -> Option<u64> {
+        self.surface.generation()
+    }
+
+    /// A new document: forget the old one's textures and surface, show its
+    /// input.
+    pub fn document_opened(&mut self, ctx: &egui::Context, doc: &Document) {
+        self.textures = Textures::default();
+        self.surface.clear();
+        self.zoom = 1.0;
+        self.pan = egui::Vec2::ZERO;
+        self.textures.input = Some(input_texture(ctx, &doc.image));
+    }
+
+    /// Shows a prepared level: its mesh and its panel images.
+    pub fn show_level(&mut self, ctx: &egui::Context, built: BuiltMesh) {
+        let Some(panels) = self.surface.set_mesh(built) else {
+            return;
+        };
+        let options = egui::TextureOptions::NEAREST;
+        self.textures.reprojection =
+            Some(ctx.load_texture("reprojection", panels.reprojection, options));
+        let (difference, range) = panels.difference;
+        self.textures.difference =
+            Some((ctx.load_texture("difference", difference, options), range));
+        let (depth, range) = panels.depth;
+        self.textures.depth = Some((ctx.load_texture("depth", depth, options), range));
+        self.textures.depth_error = panels
+            .depth_error
+            .map(|(image, range)| (ctx.load_texture("depth-error", image, options), range));
+    }
+
+    fn error_range(&self) -> f32 {
+        self.textures
+            .difference
+            .as_ref()
+            .map_or(1.0, |(_, r)| r[1] as f32)
+    }
+
+    /// The whole window: menu, status line, controls, the 3-D view and the
+    /// 2-D image panel.
+    pub fn ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui, cx));
+        egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui, cx));
+        egui::Panel::left("controls")
+            .default_size(300.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls_ui(ui, cx));
+            });
+        egui::Panel::right("view3d")
+            .default_size(480.0)
+            .resizable(true)
+            .show(ui, |ui| self.view3d_ui(ui, cx));
+        egui::CentralPanel::default().show(ui, |ui| self.image_panel_ui(ui, cx));
+    }
+
+    pub(super) fn menu_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui.button("Open image…").clicked()
                     && let Some(path) = pick_open(&[("images", IMAGE_EXTENSIONS)])
                 {
-                    let ctx = ui.ctx().clone();
-                    self.open(&ctx, &path);
+                    cx.actions.push(Action::Open(path));
                 }
                 if ui.button("Open built-in sample").clicked()
                     && let Some(path) = super::sample_image_path()
                 {
-                    let ctx = ui.ctx().clone();
-                    self.open(&ctx, &path);
+                    cx.actions.push(Action::Open(path));
                 }
                 if ui.button("Load camera file…").clicked()
                     && let Some(path) = pick_open(&[("camera JSON", &["json"])])
                 {
-                    self.load_camera(&path);
+                    cx.actions.push(Action::LoadCamera(path));
                 }
                 ui.menu_button("Recent files", |ui| {
-                    let recent = self.settings.recent_files.clone();
+                    let recent = cx.settings.recent_files.clone();
                     if recent.is_empty() {
                         ui.label("none yet");
                     }
                     for path in recent {
                         if ui.button(path.display().to_string()).clicked() {
-                            let ctx = ui.ctx().clone();
-                            self.open(&ctx, &path);
+                            cx.actions.push(Action::Open(path));
                         }
                     }
                 });
                 ui.separator();
-                self.export_menu_ui(ui);
+                self.export_menu_ui(ui, cx);
                 ui.separator();
                 if ui.button("Quit").clicked() {
                     ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
                 }
             });
             ui.menu_button("Edit", |ui| {
-                let (can_undo, can_redo) = self
+                let (can_undo, can_redo) = cx
+                    .session
                     .document
                     .as_ref()
                     .map_or((false, false), |d| (d.masks.can_undo(), d.masks.can_redo()));
                 if ui
                     .add_enabled(can_undo, egui::Button::new("Undo mask edit (Ctrl+Z)"))
                     .clicked()
-                    && let Some(doc) = &mut self.document
+                    && let Some(doc) = &mut cx.session.document
                 {
                     doc.masks.undo();
                 }
                 if ui
                     .add_enabled(can_redo, egui::Button::new("Redo (Ctrl+Shift+Z)"))
                     .clicked()
-                    && let Some(doc) = &mut self.document
+                    && let Some(doc) = &mut cx.session.document
                 {
                     doc.masks.redo();
                 }
@@ -93,9 +270,10 @@ impl ViewerApp {
         });
     }
 
-    fn export_menu_ui(&mut self, ui: &mut egui::Ui) {
-        let has_result = self.solve.finished.is_some();
-        let name = self
+    fn export_menu_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let has_result = cx.session.solve.finished.is_some();
+        let name = cx
+            .session
             .document
             .as_ref()
             .and_then(|d| d.path.file_stem())
@@ -105,36 +283,35 @@ impl ViewerApp {
             if ui.button("Export depth (.npy)…").clicked()
                 && let Some(path) = pick_save(&format!("{name}-depth.npy"), "npy")
             {
-                self.export(&path, Export::DepthNpy);
+                cx.actions.push(Action::Export(path, Export::DepthNpy));
             }
             if ui.button("Export depth (16-bit PNG)…").clicked()
                 && let Some(path) = pick_save(&format!("{name}-depth16.png"), "png")
             {
-                self.export(&path, Export::DepthPng);
+                cx.actions.push(Action::Export(path, Export::DepthPng));
             }
             if ui.button("Export mesh (.ply)…").clicked()
                 && let Some(path) = pick_save(&format!("{name}.ply"), "ply")
             {
-                self.export(&path, Export::MeshPly);
+                cx.actions.push(Action::Export(path, Export::MeshPly));
             }
             if ui.button("Export mesh (.obj)…").clicked()
                 && let Some(path) = pick_save(&format!("{name}.obj"), "obj")
             {
-                self.export(&path, Export::MeshObj);
+                cx.actions.push(Action::Export(path, Export::MeshObj));
             }
             if ui.button("Export reprojection (16-bit PNG)…").clicked()
                 && let Some(path) = pick_save(&format!("{name}-reprojection.png"), "png")
             {
-                self.export(&path, Export::Reprojection);
+                cx.actions.push(Action::Export(path, Export::Reprojection));
             }
         });
         if ui.button("Save window screenshot…").clicked()
             && let Some(path) = pick_save(&format!("{name}-screenshot.png"), "png")
         {
-            let ctx = ui.ctx().clone();
-            self.request_screenshot(&ctx, path);
+            cx.actions.push(Action::Screenshot(path));
         }
-        let has_doc = self.document.is_some();
+        let has_doc = cx.session.document.is_some();
         ui.add_enabled_ui(has_doc, |ui| {
             for (label, layer, file) in [
                 ("Save confidence mask…", Layer::Confidence, "confidence.png"),
@@ -142,10 +319,8 @@ impl ViewerApp {
             ] {
                 if ui.button(label).clicked()
                     && let Some(path) = pick_save(file, "png")
-                    && let Some(doc) = &self.document
-                    && let Err(e) = doc.masks.save_png(layer, &path)
                 {
-                    self.notice = Some(e.to_string());
+                    cx.actions.push(Action::SaveMask(layer, path));
                 }
             }
             for (label, layer) in [
@@ -155,37 +330,15 @@ impl ViewerApp {
                 if ui.button(label).clicked()
                     && let Some(path) = pick_open(&[("mask PNG", &["png"])])
                 {
-                    self.load_mask(layer, &path);
+                    cx.actions.push(Action::LoadMask(layer, path));
                 }
             }
         });
     }
 
-    /// Writes the finished result; errors go to the status line.
-    pub fn export(&mut self, path: &Path, what: Export) {
-        let (Some(solution), Some(doc)) = (&self.solve.finished, &self.document) else {
-            self.notice = Some("nothing to export yet: the solve has not finished".into());
-            return;
-        };
-        let camera = doc.camera.intrinsics();
-        let result = match what {
-            Export::DepthNpy => io::write_npy_f32(path, &solution.depth),
-            Export::DepthPng => io::write_depth_png16(path, &solution.depth).map(|_| ()),
-            Export::MeshPly => {
-                io::write_depth_ply(path, &solution.depth, &camera, Some(&solution.reprojection))
-            }
-            Export::MeshObj => io::write_depth_obj(path, &solution.depth, &camera),
-            Export::Reprojection => io::write_png16(path, &solution.reprojection),
-        };
-        self.notice = Some(match result {
-            Ok(()) => format!("wrote {}", path.display()),
-            Err(e) => e.to_string(),
-        });
-    }
-
-    pub(super) fn status_ui(&mut self, ui: &mut egui::Ui) {
+    pub(super) fn status_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         ui.horizontal(|ui| {
-            if let Some(doc) = &self.document {
+            if let Some(doc) = &cx.session.document {
                 let (w, h) = doc.size();
                 ui.label(format!("{} ({w}x{h})", doc.path.display()));
                 ui.separator();
@@ -194,34 +347,34 @@ impl ViewerApp {
                 ui.monospace(hover);
                 ui.separator();
             }
-            if let Some(notice) = self.notice.clone() {
+            if let Some(notice) = cx.notice.map(str::to_string) {
                 ui.colored_label(ui.visuals().warn_fg_color, notice);
                 if ui.small_button("x").on_hover_text("dismiss").clicked() {
-                    self.notice = None;
+                    cx.actions.push(Action::DismissNotice);
                 }
             }
         });
     }
 
-    pub(super) fn controls_ui(&mut self, ui: &mut egui::Ui) {
-        self.progress_ui(ui);
+    pub(super) fn controls_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        self.progress_ui(ui, cx);
         ui.separator();
         egui::CollapsingHeader::new("Parameters")
             .default_open(true)
-            .show(ui, |ui| self.params_ui(ui));
+            .show(ui, |ui| self.params_ui(ui, cx));
         egui::CollapsingHeader::new("Mask")
             .default_open(true)
-            .show(ui, |ui| self.mask_ui(ui));
+            .show(ui, |ui| self.mask_ui(ui, cx));
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
-            .show(ui, |ui| self.camera_ui(ui));
+            .show(ui, |ui| self.camera_ui(ui, cx));
         egui::CollapsingHeader::new("3-D view")
             .default_open(true)
-            .show(ui, |ui| self.view_settings_ui(ui));
+            .show(ui, |ui| self.view_settings_ui(ui, cx));
     }
 
-    fn progress_ui(&mut self, ui: &mut egui::Ui) {
-        let s = &self.solve;
+    fn progress_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let s = &cx.session.solve;
         let running = s.running;
         ui.horizontal(|ui| {
             if s.running {
@@ -245,8 +398,8 @@ impl ViewerApp {
         });
         if s.running {
             ui.label(format!(
-                "energy {:.5}, {:.2} s",
-                s.progress.energy,
+                "energy per pixel {:.4e}, {:.2} s",
+                s.progress.energy_per_pixel,
                 s.progress.elapsed.as_secs_f64()
             ));
         }
@@ -261,19 +414,19 @@ impl ViewerApp {
                 .add_enabled(running, egui::Button::new("Cancel"))
                 .clicked()
             {
-                self.cancel_solve();
+                cx.actions.push(Action::CancelSolve);
             }
             if ui.button("Solve again").clicked() {
-                self.start_solve();
+                cx.actions.push(Action::SolveNow);
             }
         });
-        energy_plot(ui, &self.solve.energies);
+        energy_plot(ui, &cx.session.solve.energies);
     }
 
-    fn params_ui(&mut self, ui: &mut egui::Ui) {
+    fn params_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         let defaults = SolverParams::default();
-        let mut p = self.settings.params.to_params();
-        let chosen_alpha = self.solve.finished.as_ref().map(|s| s.alpha);
+        let mut p = cx.settings.params.to_params();
+        let chosen_alpha = cx.session.solve.finished.as_ref().map(|s| s.alpha);
         let mut changed = false;
         for spec in PARAMS {
             let Some((low, high)) = spec.slider else {
@@ -334,7 +487,7 @@ impl ViewerApp {
                 _ => {}
             }
         }
-        let initial = &mut self.settings.params.initial_depth;
+        let initial = &mut cx.settings.params.initial_depth;
         let before = *initial;
         ui.horizontal(|ui| {
             ui.label("start")
@@ -353,7 +506,7 @@ impl ViewerApp {
             }
         });
         if *initial != before {
-            p.initial_depth = self.settings.params.to_params().initial_depth;
+            p.initial_depth = cx.settings.params.to_params().initial_depth;
             changed = true;
         }
         if ui
@@ -365,13 +518,13 @@ impl ViewerApp {
             changed = true;
         }
         if changed {
-            self.settings.params = super::ParamSettings::from_params(&p);
-            self.request_solve();
+            cx.settings.params = super::ParamSettings::from_params(&p);
+            cx.actions.push(Action::RequestSolve);
         }
     }
 
-    fn mask_ui(&mut self, ui: &mut egui::Ui) {
-        let b = &mut self.settings.brush;
+    fn mask_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let b = &mut cx.settings.brush;
         ui.horizontal(|ui| {
             ui.label("paint into");
             ui.selectable_value(&mut b.layer, Layer::Confidence, "confidence")
@@ -403,7 +556,7 @@ impl ViewerApp {
         ui.add(egui::Slider::new(&mut b.overlay_opacity, 0.0..=1.0).text("overlay opacity"));
         let layer = b.layer;
         let threshold = &mut b.threshold;
-        let Some(doc) = &mut self.document else {
+        let Some(doc) = &mut cx.session.document else {
             return;
         };
         ui.horizontal(|ui| {
@@ -440,13 +593,13 @@ impl ViewerApp {
                 .clicked()
                 && let Err(e) = doc.masks.threshold(&doc.image, *threshold)
             {
-                self.notice = Some(e.to_string());
+                cx.actions.push(Action::Notice(e.to_string()));
             }
         });
     }
 
-    fn camera_ui(&mut self, ui: &mut egui::Ui) {
-        let Some(doc) = &mut self.document else {
+    fn camera_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let Some(doc) = &mut cx.session.document else {
             ui.label("no image");
             return;
         };
@@ -492,25 +645,28 @@ impl ViewerApp {
             match doc.set_srgb(srgb) {
                 Ok(()) => {
                     changed = true;
-                    let ctx = ui.ctx().clone();
-                    self.upload_input(&ctx);
+                    self.textures.input = Some(input_texture(ui.ctx(), &doc.image));
                 }
-                Err(e) => self.notice = Some(format!("{e:#}")),
+                Err(e) => cx.actions.push(Action::Notice(format!("{e:#}"))),
             }
         }
         if changed {
-            self.request_solve();
+            cx.actions.push(Action::RequestSolve);
         }
     }
 
-    fn view_settings_ui(&mut self, ui: &mut egui::Ui) {
-        let v = &mut self.settings.view;
+    fn view_settings_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let v = &mut cx.settings.view;
         ui.horizontal(|ui| {
             ui.selectable_value(&mut v.colour, SurfaceColour::Shaded, "shaded");
             ui.selectable_value(&mut v.colour, SurfaceColour::Depth, "depth");
             ui.selectable_value(&mut v.colour, SurfaceColour::Error, "error");
         });
         ui.checkbox(&mut v.wireframe, "wireframe");
+        ui.checkbox(&mut v.photo_texture, "photograph as texture")
+            .on_hover_text(
+                "Show the input image on the surface instead of the shading or colour map",
+            );
         ui.add(egui::Slider::new(&mut v.light_yaw_deg, -80.0..=80.0).text("light yaw (°)"));
         ui.add(egui::Slider::new(&mut v.light_pitch_deg, -80.0..=80.0).text("light pitch (°)"));
         if ui.button("reset view").clicked() {
@@ -518,15 +674,15 @@ impl ViewerApp {
         }
     }
 
-    pub(super) fn view3d_ui(&mut self, ui: &mut egui::Ui) {
+    pub(super) fn view3d_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         ui.heading("3-D surface");
         ui.weak("drag: orbit · right-drag: pan · scroll: zoom · double-click: reset");
         let range = self.error_range();
-        let prefs = self.settings.view.clone();
+        let prefs = cx.settings.view.clone();
         self.surface.ui(ui, &prefs, range);
     }
 
-    pub(super) fn image_panel_ui(&mut self, ui: &mut egui::Ui) {
+    pub(super) fn image_panel_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         ui.horizontal_wrapped(|ui| {
             for (panel, name) in [
                 (Panel2d::Input, "input + mask"),
@@ -536,7 +692,8 @@ impl ViewerApp {
                 (Panel2d::DepthError, "depth error"),
             ] {
                 let enabled = panel != Panel2d::DepthError
-                    || self
+                    || cx
+                        .session
                         .document
                         .as_ref()
                         .is_some_and(|d| d.ground_truth.is_some());
@@ -545,7 +702,7 @@ impl ViewerApp {
                 });
             }
         });
-        let Some((w, h)) = self.document.as_ref().map(|d| d.size()) else {
+        let Some((w, h)) = cx.session.document.as_ref().map(|d| d.size()) else {
             ui.label("Open an image (File > Open or drop a file here).");
             return;
         };
@@ -608,11 +765,11 @@ impl ViewerApp {
             );
         }
         if self.panel == Panel2d::Input {
-            self.update_overlay(ui.ctx());
+            self.update_overlay(ui.ctx(), cx);
             if let Some((_, overlay)) = &self.textures.overlay {
                 painter.image(overlay.id(), image_rect, uv, egui::Color32::WHITE);
             }
-            self.paint_input(ui, &response, &to_image, scale, origin);
+            self.paint_input(ui, cx, &response, &to_image, scale, origin);
         }
         if let Some(range) = range {
             let bar = egui::Rect::from_min_size(
@@ -624,40 +781,15 @@ impl ViewerApp {
         self.hover = response.hover_pos().and_then(|p| {
             let [x, y] = to_image(p);
             (x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h)
-                .then(|| self.describe_pixel(x as usize, y as usize))
+                .then(|| describe_pixel(cx.session, x as usize, y as usize))
         });
     }
 
-    /// Hover text: image, reprojection and depth at an image pixel.
-    fn describe_pixel(&self, c: usize, r: usize) -> String {
-        let mut text = format!("({c}, {r})");
-        let Some(doc) = &self.document else {
-            return text;
-        };
-        let (w, h) = doc.size();
-        text.push_str(&format!(" I {:.4}", doc.image.at(c, r)));
-        if let Some(level) = &self.solve.latest {
-            let (lw, lh) = level.depth.size();
-            let (lc, lr) = ((c * lw / w).min(lw - 1), (r * lh / h).min(lh - 1));
-            text.push_str(&format!(
-                "  R {:.4}  z {:.4}",
-                level.reprojection.at(lc, lr),
-                level.depth.at(lc, lr)
-            ));
-        }
-        if let Some(gt) = &doc.ground_truth {
-            text.push_str(&format!("  z_gt {:.4}", gt.at(c, r)));
-        }
-        text.push_str(&format!("  c {:.2}", doc.masks.confidence().at(c, r)));
-        text
-    }
-
-    fn update_overlay(&mut self, ctx: &egui::Context) {
-        let Some(doc) = &self.document else {
+    fn update_overlay(&mut self, ctx: &egui::Context, cx: &UiContext<'_>) {
+        let Some(doc) = &cx.session.document else {
             return;
         };
-        let key =
-            doc.masks.revision() ^ (self.settings.brush.overlay_opacity.to_bits() as u64) << 32;
+        let key = doc.masks.revision() ^ (cx.settings.brush.overlay_opacity.to_bits() as u64) << 32;
         if self
             .textures
             .overlay
@@ -667,7 +799,7 @@ impl ViewerApp {
             return;
         }
         let style = OverlayStyle {
-            opacity: self.settings.brush.overlay_opacity,
+            opacity: cx.settings.brush.overlay_opacity,
             ..OverlayStyle::default()
         };
         let rgba = doc.masks.overlay_rgba(&style);
@@ -683,13 +815,14 @@ impl ViewerApp {
     fn paint_input(
         &mut self,
         ui: &egui::Ui,
+        cx: &mut UiContext<'_>,
         response: &egui::Response,
         to_image: &dyn Fn(egui::Pos2) -> ImagePoint,
         scale: f32,
         origin: egui::Pos2,
     ) {
-        let b = self.settings.brush.clone();
-        let Some(doc) = &mut self.document else {
+        let b = cx.settings.brush.clone();
+        let Some(doc) = &mut cx.session.document else {
             return;
         };
         let pointer = response.interact_pointer_pos().or(response.hover_pos());
@@ -706,7 +839,7 @@ impl ViewerApp {
                     };
                     match doc.masks.begin_stroke(b.layer, brush, to_image(p)) {
                         Ok(()) => self.gesture = Some(Gesture::Stroke),
-                        Err(e) => self.notice = Some(e.to_string()),
+                        Err(e) => cx.actions.push(Action::Notice(e.to_string())),
                     }
                 }
                 if response.dragged_by(primary)
@@ -784,7 +917,7 @@ impl ViewerApp {
                         b.flood_tolerance,
                     )
                 {
-                    self.notice = Some(e.to_string());
+                    cx.actions.push(Action::Notice(e.to_string()));
                 }
             }
         }
@@ -807,19 +940,34 @@ impl ViewerApp {
     }
 }
 
-/// What [`ViewerApp::export`] writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Export {
-    /// Depth as float32 `.npy` (NaN = no surface).
-    DepthNpy,
-    /// Depth as 16-bit PNG (near = white).
-    DepthPng,
-    /// Triangle mesh, binary PLY with the reprojection as colour.
-    MeshPly,
-    /// Triangle mesh, Wavefront OBJ.
-    MeshObj,
-    /// Reprojected image, 16-bit linear PNG.
-    Reprojection,
+/// Hover text: image, reprojection and depth at an image pixel.
+fn describe_pixel(session: &Session, c: usize, r: usize) -> String {
+    let mut text = format!("({c}, {r})");
+    let Some(doc) = &session.document else {
+        return text;
+    };
+    let (w, h) = doc.size();
+    text.push_str(&format!(" I {:.4}", doc.image.at(c, r)));
+    if let Some(level) = &session.solve.latest {
+        let (lw, lh) = level.depth.size();
+        let (lc, lr) = ((c * lw / w).min(lw - 1), (r * lh / h).min(lh - 1));
+        // Off the object the solver's depth is no surface (the views hide it).
+        let z = if *doc.masks.object().at(c, r) {
+            *level.depth.at(lc, lr)
+        } else {
+            f64::NAN
+        };
+        text.push_str(&format!(
+            "  R {:.4}  z {:.4}",
+            level.reprojection.at(lc, lr),
+            z
+        ));
+    }
+    if let Some(gt) = &doc.ground_truth {
+        text.push_str(&format!("  z_gt {:.4}", gt.at(c, r)));
+    }
+    text.push_str(&format!("  c {:.2}", doc.masks.confidence().at(c, r)));
+    text
 }
 
 fn split(
@@ -831,8 +979,9 @@ fn split(
     }
 }
 
-/// log10 of the energy over all outer iterations of the job.
-fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
+/// log10 of the energy per pixel over all outer iterations of the job,
+/// levels coarse to fine, a faint line where a level starts.
+fn energy_plot(ui: &mut egui::Ui, energies: &[super::session::EnergyPoint]) {
     let (rect, _) =
         ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
     let painter = ui.painter_at(rect);
@@ -842,31 +991,42 @@ fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
         ui.visuals().widgets.noninteractive.bg_stroke,
         egui::StrokeKind::Inside,
     );
-    let values: Vec<f64> = energies
+    let points: Vec<(usize, f64)> = energies
         .iter()
-        .filter(|e| e.is_finite() && **e > 0.0)
-        .map(|e| e.log10())
+        .filter(|e| e.per_pixel.is_finite() && e.per_pixel > 0.0)
+        .map(|e| (e.level, e.per_pixel.log10()))
         .collect();
-    if values.len() < 2 {
+    let weak = ui.visuals().weak_text_color();
+    if points.len() < 2 {
         painter.text(
             rect.center(),
             egui::Align2::CENTER_CENTER,
-            "energy per iteration",
+            "energy per pixel, per iteration",
             egui::FontId::proportional(11.0),
-            ui.visuals().weak_text_color(),
+            weak,
         );
         return;
     }
-    let lo = values.iter().cloned().fold(f64::INFINITY, f64::min);
-    let hi = values.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let lo = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let hi = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
     let span = (hi - lo).max(1e-12);
-    let n = values.len() - 1;
-    let points: Vec<egui::Pos2> = values
+    let n = points.len() - 1;
+    let x = |i: usize| egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32);
+    for i in 1..points.len() {
+        if points[i].0 != points[i - 1].0 {
+            painter.vline(
+                x(i),
+                rect.y_range(),
+                egui::Stroke::new(1.0, weak.gamma_multiply(0.5)),
+            );
+        }
+    }
+    let line: Vec<egui::Pos2> = points
         .iter()
         .enumerate()
-        .map(|(i, v)| {
+        .map(|(i, &(_, v))| {
             egui::pos2(
-                egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32),
+                x(i),
                 egui::lerp(
                     rect.bottom() - 4.0..=rect.top() + 4.0,
                     ((v - lo) / span) as f32,
@@ -875,15 +1035,15 @@ fn energy_plot(ui: &mut egui::Ui, energies: &[f64]) {
         })
         .collect();
     painter.add(egui::Shape::line(
-        points,
+        line,
         egui::Stroke::new(1.5, ui.visuals().hyperlink_color),
     ));
     painter.text(
         rect.left_top() + egui::vec2(4.0, 2.0),
         egui::Align2::LEFT_TOP,
-        format!("log10 energy {hi:.2} … {lo:.2}"),
+        format!("log10 energy per pixel (total / level w·h) {hi:.2} … {lo:.2}"),
         egui::FontId::proportional(10.0),
-        ui.visuals().weak_text_color(),
+        weak,
     );
 }
 
