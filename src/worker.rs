@@ -62,6 +62,9 @@ pub struct SolveRequest {
     pub problem: Problem,
     /// Solver parameters (validated by the solver: bad ones end in `Failed`).
     pub params: SolverParams,
+    /// Estimate the intensity scale first (lights off the centre and no
+    /// scale given; see [`crate::solver::calibrate`]).
+    pub estimate_scale: bool,
 }
 
 /// The function a worker runs for each job ([`Worker::spawn`] uses
@@ -323,6 +326,18 @@ impl Runner {
             stopped: false,
         };
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
+            if request.estimate_scale && !request.problem.light_is_centred() {
+                let estimate = crate::solver::calibrate::estimate_intensity_scale(
+                    &request.problem,
+                    &request.params,
+                    &mut observer,
+                )?;
+                let problem = Problem {
+                    intensity_scale: estimate.intensity_scale,
+                    ..request.problem.clone()
+                };
+                return (self.solve_fn)(&problem, &request.params, &mut observer);
+            }
             (self.solve_fn)(&request.problem, &request.params, &mut observer)
         }));
         if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
@@ -569,7 +584,11 @@ mod tests {
             initial_depth: InitialDepth::FromImage,
             ..SolverParams::default()
         };
-        SolveRequest { problem, params }
+        SolveRequest {
+            problem,
+            params,
+            estimate_scale: false,
+        }
     }
 
     /// A 1x1 image: the solver rejects it.

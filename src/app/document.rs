@@ -10,6 +10,7 @@ use anyhow::{Context, Result, bail};
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::io;
+use crate::light::PointLight;
 use crate::mask_edit::{Layer, Masks};
 
 /// Where the camera values came from.
@@ -53,11 +54,29 @@ pub struct CameraState {
     pub cy_px: f64,
     /// Intensity scale `s`.
     pub intensity_scale: f64,
+    /// The lights of the camera file that took this image (empty: one
+    /// light at the optical centre).
+    pub lights: Vec<PointLight>,
+    /// Whether `intensity_scale` was given (camera file or the panel); when
+    /// not and the lights are off the centre, the worker estimates it.
+    pub scale_given: bool,
+    /// Whether the solve uses [`CameraState::lights`] (off: the paper's
+    /// centred light, to compare).
+    pub use_lights: bool,
     /// Origin of the values.
     pub source: CameraSource,
 }
 
 impl CameraState {
+    /// The lights the solve uses.
+    pub fn solve_lights(&self) -> Vec<PointLight> {
+        if self.use_lights {
+            self.lights.clone()
+        } else {
+            Vec::new()
+        }
+    }
+
     /// Pinhole intrinsics.
     pub fn intrinsics(&self) -> Intrinsics {
         Intrinsics {
@@ -101,9 +120,14 @@ impl Document {
         let (w, h) = image.size();
         let mut notes = Vec::new();
         let folder = path.parent().unwrap_or(Path::new("."));
-        let beside = folder.join("scene.json");
+        // A synth folder's scene.json, or a near_ps calibration.json.
+        let beside = ["scene.json", "calibration.json"]
+            .iter()
+            .map(|name| folder.join(name))
+            .find(|p| p.is_file())
+            .unwrap_or_else(|| folder.join("scene.json"));
         let camera = if beside.is_file() {
-            match read_camera(&beside, (w, h)) {
+            match read_camera_for(&beside, (w, h), path) {
                 Ok(c) => c,
                 Err(e) => {
                     notes.push(format!("ignored {}: {e:#}", beside.display()));
@@ -164,7 +188,7 @@ impl Document {
     /// Replaces the camera from a JSON file (keys of `scene.json`); the
     /// intrinsics must match the image size.
     pub fn load_camera(&mut self, path: &Path) -> Result<()> {
-        self.camera = read_camera(path, self.size())?;
+        self.camera = read_camera_for(path, self.size(), &self.path)?;
         Ok(())
     }
 
@@ -182,9 +206,17 @@ impl Document {
     }
 }
 
-/// Reads a camera file and checks it against the image size.
-pub fn read_camera(path: &Path, size: (usize, usize)) -> Result<CameraState> {
+/// Reads a camera file for the image at `image` (intrinsics scaled to
+/// `size`); its light is the camera file's light whose `image` is its file
+/// name (or the file's only light, or all of a synthetic set-up's).
+pub fn read_camera_for(path: &Path, size: (usize, usize), image: &Path) -> Result<CameraState> {
     let file = io::read_camera(path)?;
+    let name = image.file_name().map(|n| n.to_string_lossy().into_owned());
+    let lights = match file.lights_for(path, &[], name.as_deref()) {
+        Ok((lights, _)) => lights,
+        Err(_) if !file.lights.is_empty() => Vec::new(),
+        Err(e) => return Err(e.into()),
+    };
     // Intrinsics calibrated for another size of the same image are scaled.
     let camera = file.intrinsics_for(path, size)?;
     Ok(CameraState {
@@ -192,6 +224,9 @@ pub fn read_camera(path: &Path, size: (usize, usize)) -> Result<CameraState> {
         cx_px: camera.principal_x_px,
         cy_px: camera.principal_y_px,
         intensity_scale: file.intensity_scale.unwrap_or(1.0),
+        scale_given: file.intensity_scale.is_some(),
+        use_lights: !lights.is_empty(),
+        lights,
         source: CameraSource::File(path.to_path_buf()),
     })
 }
@@ -212,6 +247,9 @@ fn camera_from_exif_or_guess(path: &Path, width: usize, height: usize) -> Camera
         cx_px: (width as f64 - 1.0) / 2.0,
         cy_px: (height as f64 - 1.0) / 2.0,
         intensity_scale: 1.0,
+        scale_given: false,
+        lights: Vec::new(),
+        use_lights: false,
         source,
     }
 }

@@ -626,13 +626,46 @@ impl Panels {
                 .add(egui::DragValue::new(&mut c.cy_px).speed(0.5))
                 .changed();
         });
-        changed |= ui
+        let scale_changed = ui
             .add(
-                egui::Slider::new(&mut c.intensity_scale, 1e-3..=1e3)
+                egui::Slider::new(&mut c.intensity_scale, 1e-3..=1e6)
                     .logarithmic(true)
                     .text("intensity scale"),
             )
             .changed();
+        if scale_changed {
+            c.scale_given = true;
+        }
+        changed |= scale_changed;
+        if c.use_lights && !c.scale_given && c.lights.iter().any(|l| !l.is_centred()) {
+            ui.weak("intensity scale: estimated at each solve (lights off the centre)");
+        }
+        if c.lights.is_empty() {
+            ui.weak("light: at the optical centre (the paper's)");
+        } else {
+            for (k, light) in c.lights.iter().enumerate() {
+                ui.weak(format!(
+                    "light {}: ({:.1}, {:.1}, {:.1}){}",
+                    k + 1,
+                    light.position[0],
+                    light.position[1],
+                    light.position[2],
+                    if light.direction.is_some() && light.mu > 0.0 {
+                        format!(", mu {}", light.mu)
+                    } else {
+                        String::new()
+                    }
+                ));
+            }
+            changed |= ui
+                .checkbox(&mut c.use_lights, "solve with the lights where they are")
+                .on_hover_text(
+                    "Off: the paper's light at the optical centre, to compare. With lights \
+                     off the centre depth is metric: set the intensity scale (solve \
+                     --intensity-scale auto estimates it).",
+                )
+                .changed();
+        }
         if changed {
             c.source = CameraSource::Manual;
         }

@@ -245,7 +245,7 @@ impl Session {
             intensity_scale: doc.camera.intensity_scale,
             object_mask: doc.masks.object_for_solver(),
             confidence: doc.masks.confidence_for_solver(),
-            lights: Vec::new(),
+            lights: doc.camera.solve_lights(),
         };
         self.level_inputs = Some(LevelInputs {
             image: Arc::new(doc.image.clone()),
@@ -253,7 +253,12 @@ impl Session {
             object: problem.object_mask.clone().map(Arc::new),
         });
         self.mask_revision_solved = doc.masks.revision();
-        let job = worker.submit(SolveRequest { problem, params });
+        let estimate_scale = !doc.camera.scale_given;
+        let job = worker.submit(SolveRequest {
+            problem,
+            params,
+            estimate_scale,
+        });
         let solve = &mut self.solve;
         solve.job = Some(job);
         solve.submitted = Some(Instant::now());
