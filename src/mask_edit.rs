@@ -941,6 +941,25 @@ impl Masks {
         Ok(self.record(change.map(Change::Object)))
     }
 
+    /// Sets the confidence layer to `min(current, proposal)` (values clamped
+    /// to [0, 1], NaN ignored) as one undo step, so a suggestion can be
+    /// undone, erased or painted over; errors on another size. Returns
+    /// whether anything changed.
+    pub fn lower_confidence(&mut self, proposal: &Grid<f64>) -> Result<bool, MaskError> {
+        self.check_image(proposal)?;
+        self.end_stroke();
+        let change = region_edit(&mut self.confidence, whole(proposal), |c, r, current| {
+            let p = *proposal.at(c, r);
+            if p.is_finite() {
+                current.min(p.clamp(0.0, 1.0) as f32)
+            } else {
+                current
+            }
+        })
+        .map(Change::Confidence);
+        Ok(self.record(change))
+    }
+
     /// Saves `layer` as an 8-bit grey PNG (confidence `round(255 c)`, object
     /// 255 / background 0), written to a temporary file then renamed.
     pub fn save_png(&self, layer: Layer, path: &Path) -> Result<(), MaskError> {

@@ -189,3 +189,43 @@ fn bad_files_leave_the_open_image_and_say_why() {
     }
     harness.step();
 }
+
+#[test]
+fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    // The sample fits the model: a summary, no warning.
+    let fit = harness
+        .state()
+        .solve_state()
+        .fit
+        .clone()
+        .expect("a model-fit summary after the solve");
+    assert!(fit.rie_trusted < 0.05, "{fit:?}");
+    assert!(fit.warnings.is_empty(), "{fit:?}");
+    harness.get_by_label_contains("model fit: RIE");
+    let before = confidence(&harness);
+    harness.get_by_label("suggest confidence").click();
+    harness.step();
+    harness.step();
+    let suggested = confidence(&harness);
+    let lowered = suggested
+        .as_slice()
+        .iter()
+        .zip(before.as_slice())
+        .filter(|(a, b)| a < b)
+        .count();
+    assert!(lowered > 0, "the suggestion lowered nothing");
+    assert!(
+        suggested
+            .as_slice()
+            .iter()
+            .zip(before.as_slice())
+            .all(|(a, b)| a <= b),
+        "a suggestion only lowers the confidence"
+    );
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.step();
+    assert_eq!(confidence(&harness), before, "undo rejects the suggestion");
+}

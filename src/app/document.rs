@@ -11,7 +11,7 @@ use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::io;
 use crate::light::PointLight;
-use crate::mask_edit::{Layer, Masks};
+use crate::mask_edit::Masks;
 
 /// Where the camera values came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -100,6 +100,10 @@ pub struct Document {
     pub image: Grid<f64>,
     /// Whether the file was read as sRGB and linearised.
     pub srgb: bool,
+    /// Why (decided from the file, or asked for).
+    pub srgb_reason: String,
+    /// The photograph's own size (the image is at the working size).
+    pub full_size: (usize, usize),
     /// Camera and intensity scale.
     pub camera: CameraState,
     /// Object and confidence masks with undo history.
@@ -114,11 +118,30 @@ impl Document {
     /// Opens `path`; a `scene.json`, `mask.png` and `depth_gt.npy` beside it
     /// (a `synth` folder) are picked up; EXIF gives the focal length of a
     /// photograph without a camera file.
-    pub fn open(path: &Path, srgb: bool) -> Result<Self> {
-        let image = io::read_image(path, srgb)
+    ///
+    /// `srgb`: `None` decides from the file (`--srgb auto`); a photograph
+    /// whose longest side exceeds `max_side` is area-averaged down to it, the
+    /// camera and the mask beside it scaled alike.
+    pub fn open(path: &Path, srgb: Option<bool>, max_side: Option<usize>) -> Result<Self> {
+        let mode = match srgb {
+            None => io::SrgbMode::Auto,
+            Some(true) => io::SrgbMode::On,
+            Some(false) => io::SrgbMode::Off,
+        };
+        let (full, srgb, srgb_reason) = io::read_photo(path, mode)
             .with_context(|| format!("cannot open image {}", path.display()))?;
-        let (w, h) = image.size();
+        let full_size = full.size();
+        let (w, h) = crate::resample::working_size(full_size.0, full_size.1, max_side);
+        let image = crate::resample::resize_area(&full, w, h);
+        drop(full);
         let mut notes = Vec::new();
+        if (w, h) != full_size {
+            notes.push(format!(
+                "working at {w}x{h} (area-averaged from {}x{}; the working size is in the \
+                 Camera panel)",
+                full_size.0, full_size.1
+            ));
+        }
         let folder = path.parent().unwrap_or(Path::new("."));
         // A synth folder's scene.json, or a near_ps calibration.json.
         let beside = ["scene.json", "calibration.json"]
@@ -140,9 +163,12 @@ impl Document {
         let mut masks = Masks::new(w, h);
         let mask_beside = folder.join("mask.png");
         if mask_beside.is_file() && mask_beside != path {
-            match masks.load_png(Layer::Object, &mask_beside) {
-                Ok(_) => notes.push(format!("object mask from {}", mask_beside.display())),
-                Err(e) => notes.push(format!("ignored {}: {e}", mask_beside.display())),
+            match load_object_mask(&mask_beside, full_size, (w, h)) {
+                Ok(loaded) => {
+                    masks = loaded;
+                    notes.push(format!("object mask from {}", mask_beside.display()));
+                }
+                Err(e) => notes.push(format!("ignored {}: {e:#}", mask_beside.display())),
             }
         }
         let gt_path = folder.join("depth_gt.npy");
@@ -173,6 +199,8 @@ impl Document {
             path: path.to_path_buf(),
             image,
             srgb,
+            srgb_reason,
+            full_size,
             camera,
             masks,
             ground_truth,
@@ -197,13 +225,39 @@ impl Document {
     pub fn set_srgb(&mut self, srgb: bool) -> Result<()> {
         let image = io::read_image(&self.path, srgb)
             .with_context(|| format!("cannot re-read {}", self.path.display()))?;
-        if image.size() != self.image.size() {
+        if image.size() != self.full_size {
             bail!("{} changed size on disk", self.path.display());
         }
-        self.image = image;
+        let (w, h) = self.image.size();
+        self.image = crate::resample::resize_area(&image, w, h);
         self.srgb = srgb;
+        self.srgb_reason = if srgb {
+            "sRGB decoding on (set in the Camera panel)".into()
+        } else {
+            "read as linear (set in the Camera panel)".into()
+        };
         Ok(())
     }
+}
+
+/// The object mask at `path` (of the photograph's `full` size) at the
+/// working size `working` (area-averaged, then `>= 0.5`).
+fn load_object_mask(path: &Path, full: (usize, usize), working: (usize, usize)) -> Result<Masks> {
+    let values = io::read_mask(path)?;
+    if values.size() != full {
+        bail!(
+            "{}x{} but the photograph is {}x{}",
+            values.width(),
+            values.height(),
+            full.0,
+            full.1
+        );
+    }
+    let object = crate::resample::resize_area(&values, working.0, working.1).map(|&v| v >= 0.5);
+    Ok(Masks::from_layers(
+        Grid::filled(working.0, working.1, 1.0f32),
+        object,
+    )?)
 }
 
 /// Reads a camera file for the image at `image` (intrinsics scaled to
@@ -285,7 +339,7 @@ mod tests {
         let Some(path) = sample_image_path() else {
             panic!("assets/sombrero/image16.png is missing");
         };
-        let doc = match Document::open(&path, false) {
+        let doc = match Document::open(&path, Some(false), None) {
             Ok(d) => d,
             Err(e) => panic!("{e:#}"),
         };
@@ -299,7 +353,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
         let bad = dir.path().join("not-an-image.png");
         std::fs::write(&bad, b"hello").unwrap_or_else(|e| panic!("{e}"));
-        let err = match Document::open(&bad, false) {
+        let err = match Document::open(&bad, Some(false), None) {
             Ok(_) => panic!("opened a non-image"),
             Err(e) => format!("{e:#}"),
         };
@@ -307,7 +361,7 @@ mod tests {
         let Some(sample) = sample_image_path() else {
             panic!("sample missing")
         };
-        let mut doc = match Document::open(&sample, false) {
+        let mut doc = match Document::open(&sample, Some(false), None) {
             Ok(d) => d,
             Err(e) => panic!("{e:#}"),
         };

@@ -59,6 +59,24 @@ pub fn colour_mapped(values: &Grid<f64>, range: [f64; 2]) -> egui::ColorImage {
     egui::ColorImage::new([w, h], pixels)
 }
 
+/// `b - a` where both are finite, NaN elsewhere (`a` point-sampled to the
+/// size of `b`): the residual `I - R` with `a` the reprojection and `b` the
+/// image.
+pub fn signed_difference(a: &Grid<f64>, b: &Grid<f64>) -> Grid<f64> {
+    let (w, h) = b.size();
+    let (aw, ah) = a.size();
+    Grid::from_fn(w, h, |c, r| {
+        let ac = (c * aw / w).min(aw.saturating_sub(1));
+        let ar = (r * ah / h).min(ah.saturating_sub(1));
+        let (x, y) = (*a.at(ac, ar), *b.at(c, r));
+        if x.is_finite() && y.is_finite() {
+            y - x
+        } else {
+            f64::NAN
+        }
+    })
+}
+
 /// `|a - b|` where both are finite, NaN elsewhere; `a` is resampled to the
 /// size of `b` by point sampling when the sizes differ (a coarse level
 /// against the full image).

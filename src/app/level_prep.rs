@@ -160,13 +160,17 @@ fn prepare_level(job: MeshJob) -> BuiltMesh {
         }
         _ => level.depth,
     };
-    let mut difference = images::abs_difference(&level.reprojection, &inputs.image);
+    // The residual I - R (signed: positive where the image is brighter than
+    // the model explains), on a range symmetric about 0.
+    let mut difference = images::signed_difference(&level.reprojection, &inputs.image);
     if let Some(object) = &inputs.object
         && object.size() == difference.size()
     {
         difference = masked(&difference, object);
     }
-    let difference_range = [0.0, images::finite_range(&difference).map_or(1.0, |r| r[1])];
+    let largest = images::finite_range(&difference).map_or(1.0, |r| r[0].abs().max(r[1].abs()));
+    let largest = if largest > 0.0 { largest } else { 1.0 };
+    let difference_range = [-largest, largest];
     let depth_range = images::finite_range(&depth).unwrap_or([0.0, 1.0]);
     let depth_error = inputs.ground_truth.as_ref().map(|gt| {
         let error = images::abs_difference(&depth, gt);

@@ -46,8 +46,8 @@ pub struct ViewerOptions {
     pub camera: Option<PathBuf>,
     /// Object mask PNG to load after opening.
     pub mask: Option<PathBuf>,
-    /// Read the image as sRGB.
-    pub srgb: bool,
+    /// Read the image as sRGB (`None`: decide from the file).
+    pub srgb: Option<bool>,
     /// Alpha override.
     pub alpha: Option<Alpha>,
     /// Save a screenshot here when the first solve has finished, then exit.
@@ -171,7 +171,8 @@ impl ViewerApp {
     /// Opens an image by path (File > Open and drops end here). On failure
     /// the previous document stays and the error is shown.
     pub fn open(&mut self, ctx: &egui::Context, path: &Path) {
-        match self.session.open(path, self.options.srgb) {
+        let max_side = (self.settings.max_side > 0).then_some(self.settings.max_side);
+        match self.session.open(path, self.options.srgb, max_side) {
             Ok(notes) => {
                 self.settings.remember(path.to_path_buf());
                 if let Some(doc) = &self.session.document {
@@ -262,6 +263,9 @@ impl ViewerApp {
             Action::RequestSolve => self.request_solve(),
             Action::Notice(text) => self.notice = Some(text),
             Action::DismissNotice => self.notice = None,
+            Action::SuggestConfidence => {
+                self.notice = Some(self.session.suggest_confidence());
+            }
         }
     }
 

@@ -56,6 +56,8 @@ pub enum Action {
     Notice(String),
     /// Clear the status line's message.
     DismissNotice,
+    /// Lower the confidence where the model cannot hold (one undo step).
+    SuggestConfidence,
 }
 
 /// What the panels read and edit in one frame, and where they put what the
@@ -406,6 +408,26 @@ impl Panels {
         if let Some((rse, rie)) = s.errors {
             ui.label(format!("against ground truth: RSE {rse:.5}, RIE {rie:.5}"));
         }
+        if let Some(fit) = &s.fit {
+            ui.label(format!(
+                "model fit: RIE {:.3} on trusted pixels, {:.0} % badly explained, {:.0} % \
+                 near-black, {:.1} % saturated",
+                fit.rie_trusted,
+                100.0 * fit.poor_share,
+                100.0 * fit.near_black_share,
+                100.0 * fit.saturated_share
+            ))
+            .on_hover_text(
+                "RIE: relative image error of the reprojection over trusted object pixels; \
+                 badly explained: residual above 15 %. See the residual panel.",
+            );
+            for warning in &fit.warnings {
+                ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
+            }
+        }
+        if let Some(s_used) = s.intensity_scale_used {
+            ui.weak(format!("intensity scale used: {s_used:.4e}"));
+        }
         if let Some(failure) = &s.failure {
             ui.colored_label(ui.visuals().error_fg_color, failure.clone());
         }
@@ -579,6 +601,18 @@ impl Panels {
                 doc.masks.redo();
             }
         });
+        if ui
+            .button("suggest confidence")
+            .on_hover_text(
+                "Lower the confidence where the model cannot hold: saturated highlights, \
+                 near-black pixels, cast shadows (darker than half the model's prediction \
+                 after a solve, else than their surroundings) and the silhouette band. \
+                 One undo step: undo to reject, erase or paint over to edit.",
+            )
+            .clicked()
+        {
+            cx.actions.push(Action::SuggestConfidence);
+        }
         ui.horizontal(|ui| {
             ui.add(
                 egui::Slider::new(threshold, 0.0..=0.5)
@@ -683,6 +717,34 @@ impl Panels {
                 Err(e) => cx.actions.push(Action::Notice(format!("{e:#}"))),
             }
         }
+        ui.weak(&doc.srgb_reason);
+        let (w, h) = doc.size();
+        if (w, h) != doc.full_size {
+            ui.weak(format!(
+                "working at {w}x{h} of {}x{}",
+                doc.full_size.0, doc.full_size.1
+            ));
+        }
+        let path = doc.path.clone();
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::DragValue::new(&mut cx.settings.max_side)
+                    .range(0..=20000)
+                    .speed(10.0)
+                    .prefix("working size "),
+            )
+            .on_hover_text(
+                "Longest side photographs are solved at (area averaging; 0 = full size). \
+                 Applies when an image is opened.",
+            );
+            if ui
+                .button("reopen")
+                .on_hover_text("Open this image again at the working size (masks start anew)")
+                .clicked()
+            {
+                cx.actions.push(Action::Open(path));
+            }
+        });
         if changed {
             cx.actions.push(Action::RequestSolve);
         }
@@ -720,7 +782,7 @@ impl Panels {
             for (panel, name) in [
                 (Panel2d::Input, "input + mask"),
                 (Panel2d::Reprojection, "reprojection"),
-                (Panel2d::Difference, "difference"),
+                (Panel2d::Difference, "residual I − R"),
                 (Panel2d::Depth, "depth"),
                 (Panel2d::DepthError, "depth error"),
             ] {

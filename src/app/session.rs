@@ -94,6 +94,10 @@ pub struct SolveState {
     pub finished: Option<Box<Solution>>,
     /// RSE and RIE against the ground truth.
     pub errors: Option<(f64, f64)>,
+    /// How well the final result explains the image.
+    pub fit: Option<crate::fit::ModelFit>,
+    /// The intensity scale the final result used (estimated or given).
+    pub intensity_scale_used: Option<f64>,
     /// Why the last job failed.
     pub failure: Option<String>,
     /// Jobs finished so far (any outcome).
@@ -161,10 +165,15 @@ impl Session {
     /// Opens an image (masks restored from the autosave) and asks for a
     /// solve; returns notes for the status line. On failure the previous
     /// document stays and the error is returned.
-    pub fn open(&mut self, path: &Path, srgb: bool) -> Result<Vec<String>, String> {
-        let mut doc = Document::open(path, srgb).map_err(|e| format!("{e:#}"))?;
+    pub fn open(
+        &mut self,
+        path: &Path,
+        srgb: Option<bool>,
+        max_side: Option<usize>,
+    ) -> Result<Vec<String>, String> {
+        let mut doc = Document::open(path, srgb, max_side).map_err(|e| format!("{e:#}"))?;
         let mut notes = std::mem::take(&mut doc.notes);
-        if let Some(dir) = self.autosave_dir(&doc.path) {
+        if let Some(dir) = self.autosave_dir(&doc) {
             match Masks::restore(&dir, doc.size()) {
                 Ok(Some(masks)) => {
                     doc.masks = masks;
@@ -180,10 +189,56 @@ impl Session {
         Ok(notes)
     }
 
-    fn autosave_dir(&self, image: &Path) -> Option<PathBuf> {
-        self.data_dir
-            .as_ref()
-            .map(|d| mask_edit::autosave_dir(image, d))
+    /// Lowers the confidence layer where the model cannot hold
+    /// ([`crate::fit::suggest_confidence`]; cast shadows from the last
+    /// result's reprojection when there is one); returns a sentence for the
+    /// status line.
+    pub fn suggest_confidence(&mut self) -> String {
+        let reprojection = self.solve.finished.as_ref().map(|s| s.reprojection.clone());
+        let Some(doc) = &mut self.document else {
+            return "no image".into();
+        };
+        let object = doc
+            .masks
+            .object_for_solver()
+            .unwrap_or_else(|| Grid::filled(doc.image.width(), doc.image.height(), true));
+        let reprojection = reprojection.filter(|r| r.size() == doc.image.size());
+        let (proposal, count) =
+            crate::fit::suggest_confidence(&doc.image, &object, reprojection.as_ref());
+        // Off the object the confidence does not matter: keep what is there.
+        let proposal = Grid::from_fn(proposal.width(), proposal.height(), |c, r| {
+            if *object.at(c, r) {
+                *proposal.at(c, r)
+            } else {
+                f64::NAN
+            }
+        });
+        match doc.masks.lower_confidence(&proposal) {
+            Ok(true) => format!(
+                "confidence lowered: {} saturated, {} near-black, {} shadow, {} silhouette \
+                 pixels (undo to reject; erase or paint to edit)",
+                count.saturated, count.near_black, count.shadow, count.silhouette
+            ),
+            Ok(false) => "nothing to suggest: the confidence already covers it".into(),
+            Err(e) => format!("cannot suggest confidence: {e}"),
+        }
+    }
+
+    /// The autosave folder of a document: one per image and working size
+    /// (masks painted at one working size are never overwritten by those of
+    /// another; the full size keeps the plain folder).
+    fn autosave_dir(&self, doc: &Document) -> Option<PathBuf> {
+        self.data_dir.as_ref().map(|d| {
+            let dir = mask_edit::autosave_dir(&doc.path, d);
+            let (w, h) = doc.size();
+            if (w, h) == doc.full_size {
+                dir
+            } else {
+                let mut name = dir.file_name().unwrap_or_default().to_os_string();
+                name.push(format!("-{w}x{h}"));
+                dir.with_file_name(name)
+            }
+        })
     }
 
     /// Applies a camera file to the open image and asks for a solve.
@@ -317,17 +372,35 @@ impl Session {
                     }
                 }
                 Event::Finished { solution, .. } => {
+                    // s = I_ref Z^2 (the problem's scales), the estimated one
+                    // when the worker estimated it.
+                    let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
+                    self.solve.intensity_scale_used = s_used.is_finite().then_some(s_used);
                     self.solve.errors = self.document.as_ref().and_then(|doc| {
                         let gt = doc.ground_truth.as_ref()?;
-                        metrics::errors(
+                        let model =
+                            crate::light::LightModel::new(s_used, &doc.camera.solve_lights());
+                        metrics::errors_with_model(
                             &solution.depth,
                             gt,
                             &doc.image,
                             doc.camera.intrinsics(),
-                            doc.camera.intensity_scale,
+                            &model,
                         )
                         .ok()
                         .map(|e| (e.rse, e.rie))
+                    });
+                    self.solve.fit = self.document.as_ref().and_then(|doc| {
+                        (solution.reprojection.size() == doc.image.size()).then(|| {
+                            let domain = solution.depth.map(|z| z.is_finite());
+                            crate::fit::measure(
+                                &doc.image,
+                                &solution.reprojection,
+                                &domain,
+                                doc.masks.confidence_for_solver().as_ref(),
+                                solution.scales.intensity,
+                            )
+                        })
                     });
                     self.solve.finished = Some(solution);
                     self.solve.running = false;
@@ -416,7 +489,7 @@ impl Session {
         let Some(doc) = &self.document else {
             return Ok(());
         };
-        let Some(dir) = self.autosave_dir(&doc.path) else {
+        let Some(dir) = self.autosave_dir(doc) else {
             return Ok(());
         };
         doc.masks

@@ -178,9 +178,12 @@ impl Default for ViewPrefs {
 }
 
 /// Everything persisted.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct Settings {
+    /// Working size: photographs whose longest side exceeds this are opened
+    /// area-averaged down to it (0: full size).
+    pub max_side: usize,
     /// Solver parameters.
     pub params: ParamSettings,
     /// Brush and overlay.
@@ -189,6 +192,22 @@ pub struct Settings {
     pub view: ViewPrefs,
     /// Recently opened images, newest first.
     pub recent_files: Vec<PathBuf>,
+}
+
+/// The viewer's default working size (longest side, pixels): interactive at
+/// a photograph's size.
+pub const DEFAULT_MAX_SIDE: usize = 1500;
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            max_side: DEFAULT_MAX_SIDE,
+            params: ParamSettings::default(),
+            brush: BrushSettings::default(),
+            view: ViewPrefs::default(),
+            recent_files: Vec::new(),
+        }
+    }
 }
 
 impl Settings {

@@ -21,9 +21,11 @@ pub struct ViewArgs {
     /// Object mask PNG (255 = object).
     #[arg(long, value_parser = super::parse_path)]
     pub mask: Option<PathBuf>,
-    /// Linearise an sRGB photograph.
-    #[arg(long)]
-    pub srgb: bool,
+    /// sRGB decoding: `on`, `off` or `auto` (on for JPEG and 8-bit
+    /// photographs, off for 16-bit, float and linear-marked PNGs); `--srgb`
+    /// alone means on.
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on")]
+    pub srgb: super::solve::SrgbArg,
     /// Smoothness weight alpha in relative units, or `auto` (else the
     /// remembered value; default auto).
     #[arg(long)]
@@ -63,7 +65,11 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         image: Some(args.image.clone()),
         camera: args.camera.clone(),
         mask: args.mask.clone(),
-        srgb: args.srgb,
+        srgb: match args.srgb {
+            super::solve::SrgbArg::On => Some(true),
+            super::solve::SrgbArg::Off => Some(false),
+            super::solve::SrgbArg::Auto => None,
+        },
         alpha,
         screenshot: args.screenshot.clone(),
         stats: args.stats.clone(),
