@@ -284,17 +284,10 @@ fn clipped_pixels_are_not_trusted() {
 /// freely, so round-off picks slightly different points along that valley).
 #[test]
 fn numeric_and_exact_derivatives_agree_with_lights_off_centre() {
-    use sfs_studio::light::{LightModel, PointLight};
+    use sfs_studio::light::LightModel;
     use sfs_studio::model::{Spacing, neighbourhood};
     use sfs_studio::scene::sombrero::sombrero_lit;
-    let light = PointLight {
-        position: [0.5, -0.4, 0.0],
-        direction: Some([-0.2, 0.2, 1.0]),
-        mu: 1.0,
-        intensity: 1.0,
-    }
-    .validated(1)
-    .unwrap();
+    let light = led_beside_the_lens();
     let scene = sombrero_lit(48, 48, &[light]);
     let model = LightModel::new(scene.intensity_scale, &[light]);
     let geometry = LevelGeometry::new(48, 48, 48, 48, scene.camera);
@@ -375,14 +368,7 @@ fn upwind_differences_keep_their_sign_with_lights_off_centre() {
     use sfs_studio::light::{LightModel, PointLight};
     use sfs_studio::model::{Branch, Spacing, neighbourhood};
     use sfs_studio::scene::sombrero::sombrero_lit;
-    let light = PointLight {
-        position: [0.5, -0.4, 0.0],
-        direction: Some([-0.2, 0.2, 1.0]),
-        mu: 1.0,
-        intensity: 1.0,
-    }
-    .validated(1)
-    .unwrap();
+    let light = led_beside_the_lens();
     let size = 128;
     let residual = |lights: &[PointLight]| {
         let scene = sombrero_lit(size, size, lights);
@@ -417,4 +403,16 @@ fn upwind_differences_keep_their_sign_with_lights_off_centre() {
         }
     }
     assert_eq!(wrong, 0, "upwind differences against the central sign");
+}
+
+/// An LED (mu = 1) beside the lens, aimed at the Sombrero.
+fn led_beside_the_lens() -> sfs_studio::light::PointLight {
+    sfs_studio::light::PointLight {
+        position: [0.5, -0.4, 0.0],
+        direction: Some([-0.2, 0.2, 1.0]),
+        mu: 1.0,
+        intensity: 1.0,
+    }
+    .validated(1)
+    .unwrap()
 }

@@ -81,18 +81,7 @@ pub fn signed_difference(a: &Grid<f64>, b: &Grid<f64>) -> Grid<f64> {
 /// size of `b` by point sampling when the sizes differ (a coarse level
 /// against the full image).
 pub fn abs_difference(a: &Grid<f64>, b: &Grid<f64>) -> Grid<f64> {
-    let (w, h) = b.size();
-    let (aw, ah) = a.size();
-    Grid::from_fn(w, h, |c, r| {
-        let ac = (c * aw / w).min(aw.saturating_sub(1));
-        let ar = (r * ah / h).min(ah.saturating_sub(1));
-        let (x, y) = (*a.at(ac, ar), *b.at(c, r));
-        if x.is_finite() && y.is_finite() {
-            (x - y).abs()
-        } else {
-            f64::NAN
-        }
-    })
+    signed_difference(a, b).map(|v| v.abs())
 }
 
 /// Draws a vertical colour scale bar with its end values into `rect`.
