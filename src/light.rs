@@ -115,6 +115,21 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// An LED's emission towards a point at `l = S - P` (`d = |l|`):
+/// `(a, e, mu)` with `a = (e / d)^mu`, `e = D . (P - S)` and `mu` the
+/// effective exponent (0 and `a = 1` for an isotropic light); `None` behind
+/// the emitter.
+#[inline]
+fn emission(light: &PointLight, l: [f64; 3], d: f64) -> Option<(f64, f64, f64)> {
+    match light.direction {
+        Some(dir) if light.mu > 0.0 => {
+            let e = -dot(dir, l);
+            (e > 0.0).then(|| ((e / d).powf(light.mu), e, light.mu))
+        }
+        _ => Some((1.0, 1.0, 0.0)),
+    }
+}
+
 /// One light's irradiance at a surface point and the partial derivatives of
 /// its logarithm with respect to `(z, z_x, z_y)`; `None` where the light
 /// does not reach the surface (behind it, or outside the emitter's cone).
@@ -140,17 +155,11 @@ fn light_term(
         return None;
     }
     let d = d2.sqrt();
-    // mu is the effective exponent: 0 for an isotropic light.
-    let (aniso, dlog_aniso_dz, mu) = match light.direction {
-        Some(dir) if light.mu > 0.0 => {
-            // e = D . (P - S) = -D . L; de/dz = D . v.
-            let e = -dot(dir, l);
-            if e <= 0.0 {
-                return None;
-            }
-            ((e / d).powf(light.mu), light.mu * dot(dir, v) / e, light.mu)
-        }
-        _ => (1.0, 0.0, 0.0),
+    let (aniso, e, mu) = emission(light, l, d)?;
+    // d log a / dz = mu (de/dz) / e with e = -D . L, de/dz = D . v.
+    let dlog_aniso_dz = match light.direction {
+        Some(dir) if mu > 0.0 => mu * dot(dir, v) / e,
+        _ => 0.0,
     };
     let value = light.intensity * aniso * g / (w2.sqrt() * d2 * d);
     // d log I / d theta = mu e'/e - (mu + 3) d'/d + g'/g - W'/W.
@@ -275,17 +284,10 @@ pub fn irradiance(lights: &[PointLight], point: [f64; 3], normal: [f64; 3]) -> f
                 return 0.0;
             }
             let d = d2.sqrt();
-            let aniso = match light.direction {
-                Some(dir) if light.mu > 0.0 => {
-                    let e = -dot(dir, l) / d;
-                    if e <= 0.0 {
-                        return 0.0;
-                    }
-                    e.powf(light.mu)
-                }
-                _ => 1.0,
-            };
-            light.intensity * aniso * cos_n / (d2 * d)
+            match emission(light, l, d) {
+                Some((aniso, _, _)) => light.intensity * aniso * cos_n / (d2 * d),
+                None => 0.0,
+            }
         })
         .sum()
 }
