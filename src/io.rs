@@ -116,6 +116,15 @@ pub enum IoError {
         /// What went wrong.
         cause: std::io::Error,
     },
+    /// Another run holds the output folder's lock.
+    #[error(
+        "{} is being written by another sfs-studio run; wait for it to finish or choose another output folder",
+        path.display()
+    )]
+    Busy {
+        /// The output folder.
+        path: PathBuf,
+    },
 }
 
 fn write_error(path: &Path, cause: impl Into<Box<dyn std::error::Error + Send + Sync>>) -> IoError {
@@ -152,7 +161,23 @@ fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
         .map_err(read_error)?
         .with_guessed_format()
         .map_err(read_error)?;
-    reader.decode().map_err(|cause| match cause {
+    let is_tiff = reader.format() == Some(ImageFormat::Tiff);
+    reader.decode().or_else(|cause| match cause {
+        // Grey float32/float64 and 32-bit integer TIFFs, which `image` does
+        // not decode.
+        ImageError::Unsupported(_) if is_tiff => {
+            decode_tiff_samples(path).map_err(|reason| IoError::BadImage {
+                path: path.to_path_buf(),
+                reason,
+            })
+        }
+        cause => Err(cause_to_error(path, cause)),
+    })
+}
+
+/// A decoder error as the error naming `path`.
+fn cause_to_error(path: &Path, cause: ImageError) -> IoError {
+    match cause {
         ImageError::IoError(_) | ImageError::Limits(_) => IoError::ReadImage {
             path: path.to_path_buf(),
             cause,
@@ -161,20 +186,86 @@ fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
             path: path.to_path_buf(),
             cause,
         },
-    })
+    }
+}
+
+/// Decodes a TIFF with the `tiff` crate directly: grey, grey+alpha, RGB or
+/// RGBA with unsigned 8/16/32-bit or float 32/64-bit samples, returned as
+/// float RGB (integers divided by their type's maximum). The error says what
+/// the file holds.
+fn decode_tiff_samples(path: &Path) -> Result<DynamicImage, String> {
+    use tiff::ColorType;
+    use tiff::decoder::{Decoder, DecodingResult};
+    let file = fs::File::open(path).map_err(|e| e.to_string())?;
+    let mut decoder =
+        Decoder::new(std::io::BufReader::new(file)).map_err(|e| format!("bad TIFF: {e}"))?;
+    let (w, h) = decoder.dimensions().map_err(|e| format!("bad TIFF: {e}"))?;
+    let colour = decoder.colortype().map_err(|e| format!("bad TIFF: {e}"))?;
+    let (channels, rgb) = match colour {
+        ColorType::Gray(_) => (1, false),
+        ColorType::GrayA(_) => (2, false),
+        ColorType::RGB(_) => (3, true),
+        ColorType::RGBA(_) => (4, true),
+        other => return Err(format!("TIFF colour type {other:?} is not supported")),
+    };
+    let values: Vec<f32> = match decoder.read_image().map_err(|e| format!("bad TIFF: {e}"))? {
+        DecodingResult::U8(v) => v.iter().map(|&s| f32::from(s) / 255.0).collect(),
+        DecodingResult::U16(v) => v.iter().map(|&s| f32::from(s) / 65535.0).collect(),
+        DecodingResult::U32(v) => v
+            .iter()
+            .map(|&s| (f64::from(s) / f64::from(u32::MAX)) as f32)
+            .collect(),
+        DecodingResult::F32(v) => v,
+        DecodingResult::F64(v) => v.iter().map(|&s| s as f32).collect(),
+        _ => {
+            return Err(
+                "TIFF samples are signed, 64-bit integer or half float; unsigned 8/16/32-bit \
+                 and float 32/64-bit are supported"
+                    .into(),
+            );
+        }
+    };
+    let pixels = (w as usize) * (h as usize);
+    if values.len() != pixels * channels {
+        return Err(format!(
+            "the TIFF decoder gave {} samples for {w}x{h} pixels of {channels} channel(s)",
+            values.len()
+        ));
+    }
+    let rgb_values: Vec<f32> = values
+        .chunks_exact(channels)
+        .flat_map(|px| {
+            if rgb {
+                [px[0], px[1], px[2]]
+            } else {
+                [px[0]; 3]
+            }
+        })
+        .collect();
+    image::Rgb32FImage::from_raw(w, h, rgb_values)
+        .map(DynamicImage::ImageRgb32F)
+        .ok_or_else(|| format!("the TIFF's {w}x{h} pixels do not match its samples"))
 }
 
 /// Converts interleaved samples (`channels` per pixel, the first one grey or
 /// the first three red/green/blue) to linear grey in [0, 1].
 fn samples_to_grey<T: Copy + Into<f64>>(
-    width: usize,
-    height: usize,
+    path: &Path,
+    (width, height, channels): (usize, usize, usize),
     raw: &[T],
-    channels: usize,
     colour: bool,
     max: f64,
     srgb: bool,
-) -> Grid<f64> {
+) -> Result<Grid<f64>, IoError> {
+    if raw.len() != width * height * channels {
+        return Err(IoError::BadImage {
+            path: path.to_path_buf(),
+            reason: format!(
+                "the decoder gave {} samples for {width}x{height} pixels of {channels} channel(s)",
+                raw.len()
+            ),
+        });
+    }
     let lin = |s: T| {
         let v = (s.into() / max).clamp(0.0, 1.0);
         if srgb { srgb_to_linear(v) } else { v }
@@ -189,7 +280,13 @@ fn samples_to_grey<T: Copy + Into<f64>>(
             }
         })
         .collect();
-    Grid::from_vec(width, height, data).unwrap_or_else(|| Grid::filled(width, height, 0.0))
+    Grid::from_vec(width, height, data).ok_or_else(|| IoError::BadImage {
+        path: path.to_path_buf(),
+        reason: format!(
+            "the decoder gave {} samples for {width}x{height} pixels of {channels} channel(s)",
+            raw.len()
+        ),
+    })
 }
 
 fn image_to_grey(path: &Path, image: DynamicImage, srgb: bool) -> Result<Grid<f64>, IoError> {
@@ -201,14 +298,30 @@ fn image_to_grey(path: &Path, image: DynamicImage, srgb: bool) -> Result<Grid<f6
         });
     }
     let grid = match image {
-        DynamicImage::ImageLuma8(b) => samples_to_grey(w, h, b.as_raw(), 1, false, 255.0, srgb),
-        DynamicImage::ImageLumaA8(b) => samples_to_grey(w, h, b.as_raw(), 2, false, 255.0, srgb),
-        DynamicImage::ImageRgb8(b) => samples_to_grey(w, h, b.as_raw(), 3, true, 255.0, srgb),
-        DynamicImage::ImageRgba8(b) => samples_to_grey(w, h, b.as_raw(), 4, true, 255.0, srgb),
-        DynamicImage::ImageLuma16(b) => samples_to_grey(w, h, b.as_raw(), 1, false, 65535.0, srgb),
-        DynamicImage::ImageLumaA16(b) => samples_to_grey(w, h, b.as_raw(), 2, false, 65535.0, srgb),
-        DynamicImage::ImageRgb16(b) => samples_to_grey(w, h, b.as_raw(), 3, true, 65535.0, srgb),
-        DynamicImage::ImageRgba16(b) => samples_to_grey(w, h, b.as_raw(), 4, true, 65535.0, srgb),
+        DynamicImage::ImageLuma8(b) => {
+            samples_to_grey(path, (w, h, 1), b.as_raw(), false, 255.0, srgb)?
+        }
+        DynamicImage::ImageLumaA8(b) => {
+            samples_to_grey(path, (w, h, 2), b.as_raw(), false, 255.0, srgb)?
+        }
+        DynamicImage::ImageRgb8(b) => {
+            samples_to_grey(path, (w, h, 3), b.as_raw(), true, 255.0, srgb)?
+        }
+        DynamicImage::ImageRgba8(b) => {
+            samples_to_grey(path, (w, h, 4), b.as_raw(), true, 255.0, srgb)?
+        }
+        DynamicImage::ImageLuma16(b) => {
+            samples_to_grey(path, (w, h, 1), b.as_raw(), false, 65535.0, srgb)?
+        }
+        DynamicImage::ImageLumaA16(b) => {
+            samples_to_grey(path, (w, h, 2), b.as_raw(), false, 65535.0, srgb)?
+        }
+        DynamicImage::ImageRgb16(b) => {
+            samples_to_grey(path, (w, h, 3), b.as_raw(), true, 65535.0, srgb)?
+        }
+        DynamicImage::ImageRgba16(b) => {
+            samples_to_grey(path, (w, h, 4), b.as_raw(), true, 65535.0, srgb)?
+        }
         DynamicImage::ImageRgb32F(b) => float_to_grey(path, w, h, b.as_raw(), 3, srgb)?,
         DynamicImage::ImageRgba32F(b) => float_to_grey(path, w, h, b.as_raw(), 4, srgb)?,
         other => {
@@ -237,9 +350,7 @@ fn float_to_grey(
             reason: "it contains NaN values".into(),
         });
     }
-    Ok(samples_to_grey(
-        width, height, raw, channels, true, 1.0, srgb,
-    ))
+    samples_to_grey(path, (width, height, channels), raw, true, 1.0, srgb)
 }
 
 /// Reads a PNG, TIFF or JPEG (8-bit, 16-bit or float) as linear grey values
@@ -483,15 +594,29 @@ where
 }
 
 /// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
-/// float32.
+/// float32. NaN (no value) is written as NaN; a value that is infinite, or
+/// too large for float32, is an error and nothing is written.
 pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
+    refuse_infinite(path, grid, f64::from(f32::MAX))?;
     write_npy(path, grid, |v| v as f32)
 }
 
 /// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
-/// float64.
+/// float64. NaN is written as NaN; an infinite value is an error.
 pub fn write_npy_f64(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
+    refuse_infinite(path, grid, f64::MAX)?;
     write_npy(path, grid, |v| v)
+}
+
+/// An error naming `path` when a value of `grid` is beyond `±limit`.
+fn refuse_infinite(path: &Path, grid: &Grid<f64>, limit: f64) -> Result<(), IoError> {
+    match grid.as_slice().iter().find(|v| v.abs() > limit) {
+        Some(v) => Err(write_error(
+            path,
+            format!("the array holds {v:e}, which the file's number type cannot hold"),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// Reads all elements of `file` (whose data is known to be complete) as f64.
@@ -733,86 +858,6 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), IoError> {
     let mut text = serde_json::to_string_pretty(value).map_err(|e| write_error(path, e))?;
     text.push('\n');
     fs::write(path, text).map_err(|e| write_error(path, e))
-}
-
-// ---------------------------------------------------------------------------
-// Output staging
-// ---------------------------------------------------------------------------
-
-/// Collects output files under temporary names (`.NAME.partial` in the same
-/// folder) and renames them all into place only on [`OutputStage::commit`];
-/// dropping it without committing removes the temporaries.
-#[derive(Debug)]
-pub struct OutputStage {
-    dir: PathBuf,
-    /// `(temporary, final)` paths, in registration order.
-    entries: Vec<(PathBuf, PathBuf)>,
-}
-
-impl OutputStage {
-    /// Starts staging outputs into `dir`, creating it (and its parents) if
-    /// needed; the error names the folder.
-    pub fn new(dir: &Path) -> Result<Self, IoError> {
-        fs::create_dir_all(dir).map_err(|cause| IoError::CreateDir {
-            path: dir.to_path_buf(),
-            cause,
-        })?;
-        Ok(Self {
-            dir: dir.to_path_buf(),
-            entries: Vec::new(),
-        })
-    }
-
-    /// The folder the outputs go to.
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
-    /// Registers output `name` (a file name, or a relative path whose folders
-    /// already exist) and returns the temporary path to write it to.
-    /// Registering the same name twice returns the same temporary path.
-    pub fn path(&mut self, name: &str) -> PathBuf {
-        let target = self.dir.join(name);
-        let file_name = target
-            .file_name()
-            .map_or_else(|| name.to_string(), |f| f.to_string_lossy().into_owned());
-        let temporary = target.with_file_name(format!(".{file_name}.partial"));
-        if let Some((t, _)) = self.entries.iter().find(|(_, f)| *f == target) {
-            return t.clone();
-        }
-        self.entries.push((temporary.clone(), target));
-        temporary
-    }
-
-    /// Renames every registered temporary to its final name and returns the
-    /// final paths, in registration order. On failure the temporaries not yet
-    /// moved are removed.
-    pub fn commit(mut self) -> Result<Vec<PathBuf>, IoError> {
-        let entries = std::mem::take(&mut self.entries);
-        let mut done = Vec::with_capacity(entries.len());
-        for (k, (temporary, target)) in entries.iter().enumerate() {
-            if let Err(cause) = fs::rename(temporary, target) {
-                for (rest, _) in &entries[k..] {
-                    let _ = fs::remove_file(rest);
-                }
-                return Err(IoError::Rename {
-                    from: temporary.clone(),
-                    to: target.clone(),
-                    cause,
-                });
-            }
-            done.push(target.clone());
-        }
-        Ok(done)
-    }
-}
-
-impl Drop for OutputStage {
-    fn drop(&mut self) {
-        for (temporary, _) in &self.entries {
-            let _ = fs::remove_file(temporary);
-        }
-    }
 }
 
 // ---------------------------------------------------------------------------
@@ -1239,37 +1284,52 @@ mod tests {
     }
 
     #[test]
-    fn output_stage_commits_or_cleans_up() {
+    fn grey_float_and_uint32_tiffs_are_read() {
+        use tiff::encoder::{TiffEncoder, colortype};
         let dir = tempdir().unwrap();
-        let out = dir.path().join("out/deep");
-        let mut stage = OutputStage::new(&out).unwrap();
-        let a = stage.path("depth.npy");
-        assert_eq!(a, out.join(".depth.npy.partial"));
-        write_npy_f64(&a, &ramp(2, 2)).unwrap();
-        let b = stage.path("shade.png");
-        write_png8(&b, &ramp(2, 2)).unwrap();
-        let done = stage.commit().unwrap();
-        assert_eq!(done, vec![out.join("depth.npy"), out.join("shade.png")]);
-        assert_eq!(read_npy(&done[0]).unwrap(), ramp(2, 2));
-        assert!(read_image(&done[1], false).is_ok());
-        let names: Vec<_> = fs::read_dir(&out)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
-
-        let other = dir.path().join("other");
-        {
-            let mut stage = OutputStage::new(&other).unwrap();
-            write_json(&stage.path("report.json"), &[1, 2, 3]).unwrap();
-            assert!(other.join(".report.json.partial").exists());
+        let (w, h) = (4u32, 3u32);
+        let float_path = dir.path().join("grey32f.tif");
+        let values: Vec<f32> = (0..w * h).map(|k| k as f32 / 11.0).collect();
+        let mut encoder = TiffEncoder::new(fs::File::create(&float_path).unwrap()).unwrap();
+        encoder
+            .write_image::<colortype::Gray32Float>(w, h, &values)
+            .unwrap();
+        let grid = read_image(&float_path, false).unwrap();
+        assert_eq!(grid.size(), (4, 3));
+        for (k, v) in grid.as_slice().iter().enumerate() {
+            assert!((v - k as f64 / 11.0).abs() < 1e-6, "{k}: {v}");
         }
-        assert_eq!(fs::read_dir(&other).unwrap().count(), 0);
+        // Read as linear by the automatic sRGB decision.
+        assert!(!read_photo(&float_path, SrgbMode::Auto).unwrap().1);
 
-        let file = dir.path().join("plain-file");
-        fs::write(&file, "x").unwrap();
-        let under = file.join("sub");
-        let e = OutputStage::new(&under).unwrap_err().to_string();
-        assert!(e.contains(&under.display().to_string()), "{e}");
+        let uint_path = dir.path().join("grey32u.tif");
+        let values: Vec<u32> = (0..w * h).map(|k| k * (u32::MAX / 11)).collect();
+        let mut encoder = TiffEncoder::new(fs::File::create(&uint_path).unwrap()).unwrap();
+        encoder
+            .write_image::<colortype::Gray32>(w, h, &values)
+            .unwrap();
+        let grid = read_image(&uint_path, false).unwrap();
+        for (k, v) in grid.as_slice().iter().enumerate() {
+            assert!((v - k as f64 / 11.0).abs() < 1e-6, "{k}: {v}");
+        }
+
+        // Signed samples are refused with a reason naming the file.
+        let signed_path = dir.path().join("grey16i.tif");
+        let values: Vec<i16> = vec![5; (w * h) as usize];
+        let mut encoder = TiffEncoder::new(fs::File::create(&signed_path).unwrap()).unwrap();
+        encoder
+            .write_image::<colortype::GrayI16>(w, h, &values)
+            .unwrap();
+        let e = read_image(&signed_path, false).unwrap_err().to_string();
+        assert!(e.contains("grey16i.tif") && e.contains("signed"), "{e}");
+    }
+
+    #[test]
+    fn a_wrong_sample_count_is_an_error_not_a_black_image() {
+        let path = Path::new("odd.png");
+        let e = samples_to_grey(path, (3, 3, 1), &[0u8; 8], false, 255.0, false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("odd.png") && e.contains("8 samples"), "{e}");
     }
 }

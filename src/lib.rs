@@ -26,8 +26,10 @@ pub mod grid;
 pub mod io;
 pub mod light;
 pub mod mask_edit;
+pub mod memory;
 pub mod metrics;
 pub mod model;
+pub mod output;
 pub mod params;
 pub mod photo;
 #[cfg(feature = "gui")]

@@ -4,6 +4,12 @@
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
+    // Ctrl-C and SIGTERM remove a run's half-written outputs before exiting.
+    if let Err(e) = sfs_studio::output::install_interrupt_cleanup() {
+        eprintln!(
+            "warning: cannot catch Ctrl-C ({e}); an interrupted run may leave a hidden staging folder in its output folder"
+        );
+    }
     match sfs_studio::cli::run(std::env::args_os()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(error) => {

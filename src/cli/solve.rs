@@ -11,9 +11,11 @@ use serde_json::json;
 use crate::camera::Intrinsics;
 use crate::fit;
 use crate::grid::Grid;
-use crate::io::{self, OutputStage, SrgbMode};
+use crate::io::{self, SrgbMode};
 use crate::light::PointLight;
+use crate::memory;
 use crate::metrics;
+use crate::output::OutputStage;
 use crate::params::{self as parameters, InitialDepth, SolverParams};
 use crate::photo::{self, PhotoSetup, Vignetting};
 use crate::resample::{resize_area, scale_intrinsics};
@@ -379,8 +381,9 @@ fn camera_setup(args: &SolveArgs, full_size: (usize, usize)) -> Result<Setup> {
             let s: f64 = text
                 .parse()
                 .map_err(|_| anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`"))?;
-            if !(s.is_finite() && s > 0.0 && s < 1e100) {
-                bail!("--intensity-scale {text}: must be positive and finite (below 1e100)");
+            let (s_min, s_max) = solver::INTENSITY_SCALE_RANGE;
+            if !(s.is_finite() && (s_min..=s_max).contains(&s)) {
+                bail!("--intensity-scale {text}: must be a number in [{s_min:e}, {s_max:e}]");
             }
             Some(s)
         }
@@ -393,6 +396,41 @@ fn camera_setup(args: &SolveArgs, full_size: (usize, usize)) -> Result<Setup> {
         units: file.and_then(|(_, f)| f.units),
         notes,
     })
+}
+
+/// Every file `solve` can write into `--out`: those a run does not write are
+/// removed when it commits, so the folder holds one run's output.
+const SOLVE_OUTPUTS: &[&str] = &[
+    "depth.npy",
+    "reprojection.png",
+    "input_linear.png",
+    "residual.png",
+    "confidence_used.png",
+    "depth16.png",
+    "mesh.ply",
+    "report.json",
+];
+
+/// Refuses a solve that would not fit the free memory, before reading the
+/// image, with the working size that would.
+fn check_memory(full: (usize, usize), max_side: Option<usize>, images: usize) -> Result<()> {
+    let working = crate::resample::working_size(full.0, full.1, max_side);
+    let estimate = memory::solve_estimate(full, working, images);
+    let (allowed, _) = memory::allowance();
+    let way_out = match allowed.and_then(|a| memory::largest_fitting_side(full, images, a)) {
+        Some(side) => format!("solve at a smaller working size with --max-side {side} or less"),
+        None => "use a smaller image".to_string(),
+    };
+    let what = if working == full {
+        format!("solving {}x{} pixels", full.0, full.1)
+    } else {
+        format!(
+            "solving {}x{} pixels (working size of {}x{})",
+            working.0, working.1, full.0, full.1
+        )
+    };
+    memory::check(&what, estimate, &way_out)?;
+    Ok(())
 }
 
 /// Runs `solve`.
@@ -413,6 +451,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     let full_size = photo::full_size(&photo_setup)?;
     let mut setup = camera_setup(args, full_size)?;
+    check_memory(full_size, max_side, args.images.len())?;
+    // The destination is locked and checked writable before any work.
+    let mut stage = OutputStage::new(&args.out, SOLVE_OUTPUTS)?;
     let photo = photo::load(&photo_setup, Some(setup.camera))?;
     let size = photo.size();
     let camera = scale_intrinsics(setup.camera, full_size, size);
@@ -454,6 +495,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             None => suggested,
         });
         suggestion = Some(counts);
+    }
+    if let Some(reason) = fit::too_dark_to_solve(&photo.image, object_mask.as_ref()) {
+        bail!("cannot solve {}: {reason}", args.images[0].display());
     }
     let dark = fit::darkness_warning(&photo.image, object_mask.as_ref());
     if let Some(warning) = &dark
@@ -619,7 +663,6 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         solution.scales.intensity,
     );
 
-    let mut stage = OutputStage::new(&args.out)?;
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
     io::write_png16(&stage.path("reprojection.png"), &solution.reprojection)?;
     io::write_png16(&stage.path("input_linear.png"), &problem.image)?;

@@ -6,7 +6,8 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 use crate::calibration::LightEntry;
-use crate::io::{self, CameraFile, OutputStage};
+use crate::io::{self, CameraFile};
+use crate::output::OutputStage;
 use crate::scene::{self, Scene, mesh, sombrero};
 
 /// Arguments of `synth`.
@@ -69,6 +70,18 @@ pub fn render_scene(args: &SynthArgs) -> Result<Scene> {
     )?)
 }
 
+/// Every file `synth` can write into `--out`: those a run does not write
+/// (`noisy8.png` without `--noise`, say) are removed when it commits.
+const SYNTH_OUTPUTS: &[&str] = &[
+    "image16.png",
+    "image8.png",
+    "noisy8.png",
+    "confidence.png",
+    "mask.png",
+    "depth_gt.npy",
+    "scene.json",
+];
+
 /// Runs `synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
     if let Some(sigma) = args.noise
@@ -83,9 +96,16 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             "invalid parameter inpaint-disc = {cx},{cy},{r}: centre in [0,1], radius in (0,1]"
         );
     }
+    let (width, height) = args.size;
+    crate::memory::check(
+        &format!("rendering {width}x{height} pixels"),
+        crate::memory::synth_estimate(args.size),
+        "choose a smaller --size",
+    )?;
+    // The destination is locked and checked writable before any work.
+    let mut stage = OutputStage::new(&args.out, SYNTH_OUTPUTS)?;
     let scene = render_scene(args)?;
     let (w, h) = scene.image.size();
-    let mut stage = OutputStage::new(&args.out)?;
     io::write_png16(&stage.path("image16.png"), &scene.image)?;
     io::write_png8(&stage.path("image8.png"), &scene.image)?;
     if let Some(sigma) = args.noise {
