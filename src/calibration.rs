@@ -210,10 +210,14 @@ impl CameraFile {
             }
         }
         if let Some(s) = self.intensity_scale
-            && !(s.is_finite() && s > 0.0 && s < 1e100)
+            && !(s.is_finite()
+                && (crate::solver::INTENSITY_SCALE_RANGE.0
+                    ..=crate::solver::INTENSITY_SCALE_RANGE.1)
+                    .contains(&s))
         {
+            let (s_min, s_max) = crate::solver::INTENSITY_SCALE_RANGE;
             return bad(format!(
-                "`intensity_scale` must be a positive finite number, got {s}"
+                "`intensity_scale` must be a number in [{s_min:e}, {s_max:e}], got {s:e}"
             ));
         }
         for (key, v) in [("width", self.width), ("height", self.height)] {

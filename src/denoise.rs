@@ -38,9 +38,20 @@ pub fn estimate_noise_sigma(image: &Grid<f64>) -> f64 {
 /// Chambolle and Pock (2011, Algorithm 2, the data term being 1-strongly
 /// convex). `weight <= 0` returns the image unchanged.
 pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64> {
+    tv_denoise_cancellable(image, weight, iterations, &|| false).unwrap_or_else(|| image.clone())
+}
+
+/// [`tv_denoise`], polling `cancelled` every few iterations; `None` when it
+/// returned true.
+pub fn tv_denoise_cancellable(
+    image: &Grid<f64>,
+    weight: f64,
+    iterations: usize,
+    cancelled: &dyn Fn() -> bool,
+) -> Option<Grid<f64>> {
     let (w, h) = image.size();
     if !(weight > 0.0 && weight.is_finite()) || w == 0 || h == 0 {
-        return image.clone();
+        return Some(image.clone());
     }
     let f = image.as_slice();
     let n = w * h;
@@ -49,7 +60,10 @@ pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64
     let (mut px, mut py) = (vec![0.0; n], vec![0.0; n]);
     // ||grad||^2 <= 8.
     let (mut tau, mut sigma) = (0.25f64, 0.5f64);
-    for _ in 0..iterations {
+    for iteration in 0..iterations {
+        if iteration % 4 == 0 && cancelled() {
+            return None;
+        }
         // Dual ascent and projection onto |p| <= weight.
         for r in 0..h {
             for c in 0..w {
@@ -85,7 +99,7 @@ pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64
         tau *= theta;
         sigma /= theta;
     }
-    Grid::from_vec(w, h, u).unwrap_or_else(|| image.clone())
+    Some(Grid::from_vec(w, h, u).unwrap_or_else(|| image.clone()))
 }
 
 /// The default TV weight for an image: its estimated noise level
@@ -140,10 +154,20 @@ const ABS_NORMAL_LOWER_QUARTILE: f64 = 0.318_639_363_964_375;
 /// large holes fill in `O(log)` passes); known pixels keep their values.
 /// With no known pixel the image is returned unchanged.
 pub fn fill_unknown(image: &Grid<f64>, known: &Grid<bool>) -> Grid<f64> {
+    fill_unknown_cancellable(image, known, &|| false).unwrap_or_else(|| image.clone())
+}
+
+/// [`fill_unknown`], polling `cancelled` between sweeps; `None` when it
+/// returned true.
+pub fn fill_unknown_cancellable(
+    image: &Grid<f64>,
+    known: &Grid<bool>,
+    cancelled: &dyn Fn() -> bool,
+) -> Option<Grid<f64>> {
     let (w, h) = image.size();
     let count = known.as_slice().iter().filter(|&&k| k).count();
     if count == 0 || count == w * h {
-        return image.clone();
+        return Some(image.clone());
     }
     let mean = image
         .as_slice()
@@ -166,6 +190,9 @@ pub fn fill_unknown(image: &Grid<f64>, known: &Grid<bool>) -> Grid<f64> {
     let mut stride = w.max(h).next_power_of_two() / 2;
     while stride >= 1 {
         for _ in 0..8 {
+            if cancelled() {
+                return None;
+            }
             previous.as_mut_slice().copy_from_slice(u.as_slice());
             for r in 0..h {
                 for c in 0..w {
@@ -198,7 +225,7 @@ pub fn fill_unknown(image: &Grid<f64>, known: &Grid<bool>) -> Grid<f64> {
         }
         stride /= 2;
     }
-    u
+    Some(u)
 }
 
 #[cfg(test)]

@@ -58,6 +58,50 @@ fn median(mut values: Vec<f64>) -> f64 {
     *values.select_nth_unstable_by(middle, f64::total_cmp).1
 }
 
+/// Why an image cannot be solved at all because it holds no usable light:
+/// black on every object pixel, or dark (brightest object pixel below 1 %
+/// of full range) with fewer than [`MIN_GREY_LEVELS`] distinct values, i.e.
+/// a few quantisation steps of noise and no shading (a lens-cap frame, an
+/// 8-bit photograph with the light off). A dark 16-bit image keeps its
+/// hundreds of levels and is solved (with the darkness warning). `None`
+/// when there is light to work with.
+pub fn too_dark_to_solve(image: &Grid<f64>, object: Option<&Grid<bool>>) -> Option<String> {
+    let values: Vec<f64> = image
+        .as_slice()
+        .iter()
+        .enumerate()
+        .filter(|(q, _)| object.is_none_or(|o| o.as_slice()[*q]))
+        .map(|(_, v)| *v)
+        .collect();
+    let brightest = values.iter().copied().fold(0.0, f64::max);
+    if brightest <= 0.0 {
+        return Some(
+            "the image is black on every object pixel: there is no shading to explain".into(),
+        );
+    }
+    if brightest >= DARK_BRIGHTEST {
+        return None;
+    }
+    let mut levels: Vec<u64> = values.iter().map(|v| v.to_bits()).collect();
+    levels.sort_unstable();
+    levels.dedup();
+    (levels.len() < MIN_GREY_LEVELS).then(|| {
+        format!(
+            "the image holds no usable light: its brightest object pixel is {:.3} % of full \
+             range and it has only {} grey level(s); a lit photograph or a longer exposure is \
+             needed",
+            100.0 * brightest,
+            levels.len()
+        )
+    })
+}
+
+/// Brightest object value (fraction of full range) below which an image
+/// is checked for [`MIN_GREY_LEVELS`].
+const DARK_BRIGHTEST: f64 = 0.01;
+/// Fewest distinct grey values a dark image needs to carry any shading.
+pub const MIN_GREY_LEVELS: usize = 8;
+
 /// The warning for an image too dark to carry shape (before a solve), from
 /// the object pixels' brightness; `None` when it is bright enough.
 pub fn darkness_warning(image: &Grid<f64>, object: Option<&Grid<bool>>) -> Option<String> {

@@ -35,6 +35,9 @@ pub enum MetricsError {
     /// The result has no depth at some ground-truth pixel.
     #[error("the depth is missing (NaN) at {0} ground-truth pixels")]
     MissingDepth(usize),
+    /// The result is infinite at some ground-truth pixel.
+    #[error("the depth is infinite at {0} ground-truth pixels")]
+    InfiniteDepth(usize),
 }
 
 /// Relative L2 error of `depth` against `depth_gt` over pixels where the
@@ -42,17 +45,25 @@ pub enum MetricsError {
 pub fn rse(depth: &Grid<f64>, depth_gt: &Grid<f64>) -> Result<f64, MetricsError> {
     check_size("depth", depth.size(), depth_gt.size())?;
     let (mut num, mut den, mut count, mut missing) = (0.0, 0.0, 0usize, 0usize);
+    let mut infinite = 0usize;
     for (z, g) in depth.as_slice().iter().zip(depth_gt.as_slice()) {
         if !g.is_finite() {
             continue;
         }
-        if !z.is_finite() {
+        if z.is_infinite() {
+            infinite += 1;
+            continue;
+        }
+        if z.is_nan() {
             missing += 1;
             continue;
         }
         num += (z - g) * (z - g);
         den += g * g;
         count += 1;
+    }
+    if infinite > 0 {
+        return Err(MetricsError::InfiniteDepth(infinite));
     }
     if missing > 0 {
         return Err(MetricsError::MissingDepth(missing));

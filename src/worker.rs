@@ -526,12 +526,27 @@ impl Drop for Worker {
             // Disconnected: it has already ended.
             Ok(()) | Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {}
         }
-        if let Some(thread) = self.thread.take()
-            && thread.join().is_err()
-        {
-            // The thread itself panicked (outside the guarded solve); the
-            // panic hook has reported it and nothing is left to release.
+        if let Some(thread) = self.thread.take() {
+            join_within(thread, SHUTDOWN_WAIT);
         }
+    }
+}
+
+/// How long dropping a [`Worker`] waits for its thread: the solver polls
+/// cancellation every few milliseconds, so this is only reached when the
+/// thread is stuck in work that cannot poll (a very large allocation).
+pub const SHUTDOWN_WAIT: Duration = Duration::from_secs(2);
+
+/// Joins `thread` if it ends within `wait`; otherwise leaves it running
+/// detached, so a closing window never waits for it (the process ends
+/// with `main`). A panic inside the thread has been reported by the hook.
+pub fn join_within(thread: std::thread::JoinHandle<()>, wait: Duration) {
+    let deadline = Instant::now() + wait;
+    while !thread.is_finished() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    if thread.is_finished() {
+        let _ = thread.join();
     }
 }
 

@@ -186,7 +186,10 @@ fn check(case: &Case) -> Result<bool, TestCaseError> {
             prop_assert!(!e.to_string().is_empty());
             Ok(false)
         }
-        Err(e @ SolveError::Cancelled) => Err(TestCaseError::fail(format!("unexpected {e:?}"))),
+        // In-range parameters on a valid image must not diverge.
+        Err(e @ (SolveError::Cancelled | SolveError::Diverged(_))) => {
+            Err(TestCaseError::fail(format!("unexpected {e:?}")))
+        }
     }
 }
 

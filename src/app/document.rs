@@ -128,6 +128,31 @@ impl Document {
             Some(true) => io::SrgbMode::On,
             Some(false) => io::SrgbMode::Off,
         };
+        // Refused before decoding when it would not fit the free memory (a
+        // header that cannot be read is reported by the decoder below).
+        if let Ok((fw, fh)) = image::image_dimensions(path) {
+            let full = (fw as usize, fh as usize);
+            let working = crate::resample::working_size(full.0, full.1, max_side);
+            let (allowed, _) = crate::memory::allowance();
+            let way_out = match allowed
+                .and_then(|a| crate::memory::largest_fitting_side(full, 1, a))
+            {
+                Some(side) => format!("set the working size (Camera panel) to {side} px or less"),
+                None => "open a smaller image".into(),
+            };
+            crate::memory::check(
+                &format!(
+                    "opening {} ({}x{}, solved at {}x{})",
+                    path.display(),
+                    full.0,
+                    full.1,
+                    working.0,
+                    working.1
+                ),
+                crate::memory::solve_estimate(full, working, 1),
+                &way_out,
+            )?;
+        }
         let (full, srgb, srgb_reason) = io::read_photo(path, mode)
             .with_context(|| format!("cannot open image {}", path.display()))?;
         let full_size = full.size();

@@ -137,3 +137,54 @@ mod tests {
         assert_eq!(image.pixels[0], egui::Color32::from_gray(40));
     }
 }
+
+/// `image` as a texture, shrunk (nearest pixel) so that neither side exceeds
+/// the GPU's largest texture side (`ctx`'s `max_texture_side`, 8192 on many
+/// devices): only what is shown shrinks, the document keeps its pixels, and
+/// the panels map the pointer through the document's size.
+pub fn load_texture(
+    ctx: &egui::Context,
+    name: &str,
+    image: egui::ColorImage,
+    options: egui::TextureOptions,
+) -> egui::TextureHandle {
+    let max_side = ctx.input(|i| i.max_texture_side).max(1);
+    ctx.load_texture(name, fit_texture_side(image, max_side), options)
+}
+
+/// `image` with both sides at most `max_side` (nearest pixel), the aspect
+/// ratio kept as far as whole pixels allow.
+pub fn fit_texture_side(image: egui::ColorImage, max_side: usize) -> egui::ColorImage {
+    let [w, h] = image.size;
+    if w <= max_side && h <= max_side {
+        return image;
+    }
+    let shrink = (w.max(h) as f64 / max_side as f64).max(1.0);
+    let nw = ((w as f64 / shrink).floor() as usize).clamp(1, max_side);
+    let nh = ((h as f64 / shrink).floor() as usize).clamp(1, max_side);
+    let pixels = (0..nh)
+        .flat_map(|r| {
+            let sr = (r * h / nh).min(h - 1);
+            let image = &image;
+            (0..nw).map(move |c| image.pixels[sr * w + (c * w / nw).min(w - 1)])
+        })
+        .collect();
+    egui::ColorImage::new([nw, nh], pixels)
+}
+
+#[cfg(test)]
+mod texture_tests {
+    use super::*;
+
+    #[test]
+    fn textures_fit_the_device_limit() {
+        let wide = egui::ColorImage::new([9000, 4], vec![egui::Color32::WHITE; 36_000]);
+        let fitted = fit_texture_side(wide, 8192);
+        assert_eq!(fitted.size, [8192, 3]);
+        assert_eq!(fitted.pixels.len(), 8192 * 3);
+        let small = egui::ColorImage::new([5, 7], vec![egui::Color32::RED; 35]);
+        assert_eq!(fit_texture_side(small, 8192).size, [5, 7]);
+        let tall = egui::ColorImage::new([2, 100], vec![egui::Color32::RED; 200]);
+        assert_eq!(fit_texture_side(tall, 10).size, [1, 10]);
+    }
+}

@@ -267,7 +267,7 @@ impl Drop for MeshBuilder {
         // Closing the job channel ends the thread's loop.
         self.jobs = None;
         if let Some(handle) = self.handle.take() {
-            let _ = handle.join();
+            crate::worker::join_within(handle, crate::worker::SHUTDOWN_WAIT);
         }
     }
 }

@@ -39,6 +39,9 @@ pub struct AppState {
     pub solve_pending: bool,
     /// The newest prepared level is on screen (or levels are not prepared).
     pub newest_level_shown: bool,
+    /// Why there is nothing to show: no image open, or the last solve
+    /// failed.
+    pub failure: Option<String>,
 }
 
 /// Screenshots and statistics.
@@ -56,6 +59,8 @@ pub struct Measurement {
     ),
     frames_after_finish: usize,
     stats: Stats,
+    /// Where a `--screenshot` run's failure goes.
+    failure: super::ExitReport,
 }
 
 impl Measurement {
@@ -65,6 +70,7 @@ impl Measurement {
         screenshot_path: Option<PathBuf>,
         stats_path: Option<PathBuf>,
         latency_trials: usize,
+        failure: super::ExitReport,
     ) -> Self {
         Self {
             screenshot_path,
@@ -73,6 +79,7 @@ impl Measurement {
             screenshot_requested: false,
             screenshots: crossbeam_channel::unbounded(),
             frames_after_finish: 0,
+            failure,
             stats: Stats::default(),
         }
     }
@@ -142,17 +149,23 @@ impl Measurement {
 
     /// With `--screenshot`: once the first solve (and every latency trial)
     /// is over and its last level is shown, a few frames later, asks for
-    /// the screenshot (the app closes when it is saved).
+    /// the screenshot (the app closes when it is saved). When no image is
+    /// open or the solve failed, the screenshot shows the error and the
+    /// failure is recorded for the command to exit non-zero.
     pub fn after_frame(&mut self, ctx: &egui::Context, state: &AppState) {
         if self.screenshot_path.is_none() || self.screenshot_requested {
             return;
         }
-        let done = state.completed_jobs > 0
-            && !state.running
-            && self.stats.trials_done >= self.latency_trials
-            && self.stats.trial_started.is_none()
-            && !state.solve_pending
-            && state.newest_level_shown;
+        if let Some(failure) = &state.failure {
+            self.failure.set(failure.clone());
+        }
+        let done = (state.failure.is_some() && !state.running && !state.solve_pending)
+            || state.completed_jobs > 0
+                && !state.running
+                && self.stats.trials_done >= self.latency_trials
+                && self.stats.trial_started.is_none()
+                && !state.solve_pending
+                && state.newest_level_shown;
         if done {
             self.frames_after_finish += 1;
             // With --stats, also time 40 frames with nothing to solve.
@@ -189,6 +202,9 @@ impl Measurement {
                 Err(e) => {
                     let message = format!("cannot save screenshot {}: {e}", path.display());
                     eprintln!("{message}");
+                    if self.screenshot_path.as_deref() == Some(path.as_path()) {
+                        self.failure.set(message.clone());
+                    }
                     errors.push(message);
                 }
             }

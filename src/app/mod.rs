@@ -50,6 +50,8 @@ pub struct ViewerOptions {
     pub srgb: Option<bool>,
     /// Alpha override.
     pub alpha: Option<Alpha>,
+    /// Working-size override (longest side in pixels, 0 = full size).
+    pub max_side: Option<usize>,
     /// Save a screenshot here when the first solve has finished, then exit.
     pub screenshot: Option<PathBuf>,
     /// Write frame-time statistics here on exit (JSON); with
@@ -62,6 +64,27 @@ pub struct ViewerOptions {
     pub data_dir: Option<PathBuf>,
     /// Ignore persisted settings (tests).
     pub fresh_settings: bool,
+    /// Where a `--screenshot` run leaves why it failed (the image did not
+    /// open, the solve failed, the screenshot was not saved), for the
+    /// command to exit non-zero with it once the window has closed.
+    pub failure: ExitReport,
+}
+
+/// A message slot shared between the viewer and the code that launched it.
+#[derive(Clone, Debug, Default)]
+pub struct ExitReport(std::sync::Arc<std::sync::Mutex<Option<String>>>);
+
+impl ExitReport {
+    /// Records `message` (the first one wins).
+    pub fn set(&self, message: String) {
+        let mut slot = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        slot.get_or_insert(message);
+    }
+
+    /// The recorded message, if any.
+    pub fn get(&self) -> Option<String> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
 }
 
 /// The viewer application.
@@ -89,6 +112,9 @@ impl ViewerApp {
         };
         if let Some(alpha) = options.alpha {
             settings.params.update(|p| p.alpha = alpha);
+        }
+        if let Some(max_side) = options.max_side {
+            settings.max_side = max_side;
         }
         let ctx = cc.egui_ctx.clone();
         let waker = move || ctx.request_repaint();
@@ -118,6 +144,7 @@ impl ViewerApp {
                 options.screenshot.clone(),
                 options.stats.clone(),
                 options.latency_trials,
+                options.failure.clone(),
             ),
             notice,
             options: options.clone(),
@@ -328,6 +355,15 @@ impl ViewerApp {
             solve_pending: self.session.solve_pending(),
             newest_level_shown: self.panels.level_generation() == Some(self.levels.generation())
                 || !self.levels.is_running(),
+            failure: match &self.session.document {
+                None => Some(
+                    self.notice
+                        .clone()
+                        .unwrap_or_else(|| "no image is open".into()),
+                ),
+                Some(_) if !self.session.solve.running => self.session.solve.failure.clone(),
+                Some(_) => None,
+            },
         }
     }
 

@@ -124,7 +124,8 @@ const IMAGE_EXTENSIONS: &[&str] = &["png", "tif", "tiff", "jpg", "jpeg"];
 
 /// The input image's texture.
 fn input_texture(ctx: &egui::Context, image: &Grid<f64>) -> egui::TextureHandle {
-    ctx.load_texture(
+    images::load_texture(
+        ctx,
         "input",
         images::grey_image(image),
         egui::TextureOptions::NEAREST,
@@ -176,16 +177,25 @@ impl Panels {
             return;
         };
         let options = egui::TextureOptions::NEAREST;
-        self.textures.reprojection =
-            Some(ctx.load_texture("reprojection", panels.reprojection, options));
+        self.textures.reprojection = Some(images::load_texture(
+            ctx,
+            "reprojection",
+            panels.reprojection,
+            options,
+        ));
         let (difference, range) = panels.difference;
-        self.textures.difference =
-            Some((ctx.load_texture("difference", difference, options), range));
+        self.textures.difference = Some((
+            images::load_texture(ctx, "difference", difference, options),
+            range,
+        ));
         let (depth, range) = panels.depth;
-        self.textures.depth = Some((ctx.load_texture("depth", depth, options), range));
-        self.textures.depth_error = panels
-            .depth_error
-            .map(|(image, range)| (ctx.load_texture("depth-error", image, options), range));
+        self.textures.depth = Some((images::load_texture(ctx, "depth", depth, options), range));
+        self.textures.depth_error = panels.depth_error.map(|(image, range)| {
+            (
+                images::load_texture(ctx, "depth-error", image, options),
+                range,
+            )
+        });
     }
 
     fn error_range(&self) -> f32 {
@@ -902,7 +912,7 @@ impl Panels {
         let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
         self.textures.overlay = Some((
             key,
-            ctx.load_texture("overlay", image, egui::TextureOptions::NEAREST),
+            images::load_texture(ctx, "overlay", image, egui::TextureOptions::NEAREST),
         ));
     }
 

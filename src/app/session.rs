@@ -294,6 +294,13 @@ impl Session {
         let (Some(doc), Some(worker)) = (&self.document, &mut self.worker) else {
             return;
         };
+        let object = doc.masks.object_for_solver();
+        if let Some(reason) = crate::fit::too_dark_to_solve(&doc.image, object.as_ref()) {
+            self.solve.failure = Some(reason);
+            self.solve.running = false;
+            self.solve.completed_jobs += 1;
+            return;
+        }
         let problem = Problem {
             image: doc.image.clone(),
             camera: doc.camera.intrinsics(),

@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use crate::io;
@@ -40,7 +40,8 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let intrinsics = camera.intrinsics_for(&camera_path, gt.depth.size())?;
     let (lights, _) = camera.lights_for(&camera_path, &[], None)?;
     let model = LightModel::new(camera.intensity_scale.unwrap_or(1.0), &lights);
-    let errors = metrics::errors_with_model(&depth, &gt.depth, &gt.image, intrinsics, &model)?;
+    let errors = metrics::errors_with_model(&depth, &gt.depth, &gt.image, intrinsics, &model)
+        .with_context(|| format!("cannot evaluate {}", args.depth.display()))?;
     println!("{}", serde_json::to_string(&errors)?);
     Ok(())
 }

@@ -30,6 +30,11 @@ pub struct ViewArgs {
     /// remembered value; default auto).
     #[arg(long)]
     pub alpha: Option<String>,
+    /// Working size: a longer image side is area-averaged down to this many
+    /// pixels before solving (0 = full size; else the remembered value,
+    /// default 1500).
+    #[arg(long, value_name = "PIXELS")]
+    pub max_side: Option<usize>,
     /// Save a screenshot here once the solve has finished, then exit.
     #[arg(long, value_name = "PATH.png", value_parser = super::parse_path)]
     pub screenshot: Option<PathBuf>,
@@ -71,6 +76,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
             super::solve::SrgbArg::Auto => None,
         },
         alpha,
+        max_side: args.max_side,
         screenshot: args.screenshot.clone(),
         stats: args.stats.clone(),
         latency_trials: args.latency_trials,
@@ -99,10 +105,15 @@ fn launch(options: ViewerOptions, window: (usize, usize)) -> Result<()> {
         renderer: eframe::Renderer::Wgpu,
         ..Default::default()
     };
+    let failure = options.failure.clone();
     eframe::run_native(
         APP_ID,
         native,
         Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, options)))),
     )
-    .map_err(|e| anyhow!("cannot open the viewer window: {e}"))
+    .map_err(|e| anyhow!("cannot open the viewer window: {e}"))?;
+    match failure.get() {
+        Some(message) => Err(anyhow!("{message}")),
+        None => Ok(()),
+    }
 }

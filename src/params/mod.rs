@@ -300,12 +300,26 @@ impl SolverParams {
                 "must be at least kappa",
             ));
         }
+        let (z_min, z_max) = crate::solver::DEPTH_RANGE;
+        let in_range = |z: f64| z.is_finite() && (z_min..=z_max).contains(&z);
         match &self.initial_depth {
-            InitialDepth::Constant(z) if !(z.is_finite() && *z > 0.0 && *z < 1e150) => Err(error(
+            InitialDepth::Constant(z) if !in_range(*z) => Err(error(
                 "init-depth",
-                z.to_string(),
-                "must be finite, > 0 and < 1e150",
+                ParamValue::Real(*z).to_string(),
+                &format!("must be a depth in [{z_min:e}, {z_max:e}]"),
             )),
+            InitialDepth::Map(map)
+                if map
+                    .as_slice()
+                    .iter()
+                    .any(|&z| z.is_finite() && z > 0.0 && !in_range(z)) =>
+            {
+                Err(error(
+                    "init-depth",
+                    "depth map".into(),
+                    &format!("has a depth outside [{z_min:e}, {z_max:e}]"),
+                ))
+            }
             InitialDepth::Map(map) if !map.as_slice().iter().any(|z| z.is_finite() && *z > 0.0) => {
                 Err(error(
                     "init-depth",

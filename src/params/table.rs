@@ -49,6 +49,10 @@ pub enum ParamValue {
 impl std::fmt::Display for ParamValue {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            // Very large or small numbers in scientific notation.
+            ParamValue::Real(v) if *v != 0.0 && !(1e-4..1e6).contains(&v.abs()) => {
+                write!(f, "{v:e}")
+            }
             ParamValue::Real(v) => write!(f, "{v}"),
             ParamValue::Count(v) => write!(f, "{v}"),
             ParamValue::Choice(w) => write!(f, "{w}"),

@@ -50,12 +50,13 @@ fn solve_on_worker<M: Reflectance>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
-    let prepared = prepare(problem, params)?;
+    let prepared = prepare(problem, params, observer)?;
     let mut scheme = GaussNewton {
         model,
         params,
         prepared: &prepared,
-        z_floor: 1e-6 * prepared.initial_depth.abs().max(1e-9),
+        // Relative to the depth's own scale: any unit of depth works.
+        z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         phases: PhaseTimes::default(),
     };
     // A start computed by another method (fast marching) is shown to the
@@ -65,7 +66,7 @@ fn solve_on_worker<M: Reflectance>(
     let phases = scheme.phases;
     let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
     let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
-    Ok(Solution {
+    Solution {
         depth,
         reprojection,
         initial_energy: walk.initial_energy,
@@ -80,7 +81,8 @@ fn solve_on_worker<M: Reflectance>(
         alpha_px: prepared.alpha,
         lambda_px: prepared.lambda,
         scales: prepared.scales,
-    })
+    }
+    .checked()
 }
 
 /// One level of the linearised scheme: `kappa` (up to `kappa_max`) outer

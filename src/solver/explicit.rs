@@ -381,17 +381,18 @@ fn run<M: Reflectance>(
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
     explicit.validate()?;
-    let prepared = prepare(problem, params)?;
+    let prepared = prepare(problem, params, observer)?;
     let mut scheme = Descent {
         model,
         explicit,
         prepared: &prepared,
-        z_floor: 1e-6 * prepared.initial_depth.abs().max(1e-9),
+        // Relative to the depth's own scale: any unit of depth works.
+        z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         total_steps: 0,
     };
     let walk = coarse_to_fine(model, &prepared, false, start, observer, &mut scheme)?;
     let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
-    Ok(Solution {
+    Solution {
         depth,
         reprojection,
         initial_energy: walk.initial_energy,
@@ -406,7 +407,8 @@ fn run<M: Reflectance>(
         alpha_px: prepared.alpha,
         lambda_px: prepared.lambda,
         scales: prepared.scales,
-    })
+    }
+    .checked()
 }
 
 /// One level of the explicit scheme: alternating data and smoothness

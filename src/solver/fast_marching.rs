@@ -423,7 +423,7 @@ pub fn solve_fast_marching(
         energy,
         elapsed,
     });
-    Ok(Solution {
+    Solution {
         depth,
         reprojection,
         initial_energy: energy,
@@ -443,7 +443,8 @@ pub fn solve_fast_marching(
         alpha_px: f64::NAN,
         lambda_px: f64::NAN,
         scales,
-    })
+    }
+    .checked()
 }
 
 #[cfg(test)]

@@ -23,8 +23,8 @@ pub use explicit::{ExplicitParams, solve_explicit};
 pub use fast_marching::{FastMarchingParams, solve_fast_marching};
 pub use prepare::initial_depth_from_image;
 pub use problem::{
-    IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver,
+    DEPTH_RANGE, INTENSITY_SCALE_RANGE, IterationReport, LevelReport, LevelResult, PhaseTimes,
+    Problem, Solution, SolveError, SolveObserver,
 };
 
 /// A shape-from-shading scheme: the paper's method or a baseline.

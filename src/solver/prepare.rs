@@ -14,7 +14,7 @@ use crate::params::{
     Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
 };
 
-use super::problem::{LevelResult, Problem, SolveError, masked};
+use super::problem::{LevelResult, Problem, SolveError, SolveObserver, masked};
 use super::pyramid::{self, PyramidLevel};
 
 /// A validated problem ready for a coarse-to-fine scheme: its pyramid
@@ -63,7 +63,12 @@ impl Crop {
 }
 
 /// Validates `problem` and `params` and builds the pyramid and initial depth.
-pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepared, SolveError> {
+pub(crate) fn prepare(
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &dyn SolveObserver,
+) -> Result<Prepared, SolveError> {
+    let cancelled = || observer.is_cancelled();
     params.validate()?;
     let (domain, confidence) = problem.validate(params)?;
     let (w, h) = problem.image.size();
@@ -86,6 +91,7 @@ pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepar
             &finest,
             relative_noise * scales.intensity,
             relative_noise > FAST_MARCHING_DENOISE_ABOVE,
+            &cancelled,
         )?),
         _ => None,
     };
@@ -101,6 +107,9 @@ pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepar
     };
     let mut levels = vec![finest];
     for &(lw, lh) in &sizes[1..] {
+        if cancelled() {
+            return Err(SolveError::Cancelled);
+        }
         let geometry = LevelGeometry::new(lw, lh, w, h, problem.camera);
         let Some(finer) = levels.last() else { break };
         let source = if params.anti_alias_sigma == 0.0 {
@@ -136,7 +145,11 @@ pub(crate) fn prepare(problem: &Problem, params: &SolverParams) -> Result<Prepar
             )
         }
         _ => {
-            let z0 = initial_depth_from_image(coarsest, problem.intensity_scale);
+            // A coarsest level with no bright trusted pixel left (they
+            // averaged away) takes the same formula's median over the full
+            // image, which validation guarantees exists.
+            let z0 =
+                initial_depth_from_image(coarsest, problem.intensity_scale).unwrap_or(scales.depth);
             (
                 Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
                 z0,
@@ -194,11 +207,15 @@ fn fast_marching_start(
     finest: &PyramidLevel,
     noise_sigma: f64,
     denoise: bool,
+    cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Result<Grid<f64>, SolveError> {
     let trusted = finest.confidence.map(|&c| c >= 0.5);
-    let mut image = crate::denoise::fill_unknown(&problem.image, &trusted);
+    let mut image = crate::denoise::fill_unknown_cancellable(&problem.image, &trusted, cancelled)
+        .ok_or(SolveError::Cancelled)?;
     if denoise {
-        image = crate::denoise::tv_denoise(&image, noise_sigma, TV_ITERATIONS);
+        image =
+            crate::denoise::tv_denoise_cancellable(&image, noise_sigma, TV_ITERATIONS, cancelled)
+                .ok_or(SolveError::Cancelled)?;
     }
     let start = Problem {
         image,
@@ -209,7 +226,17 @@ fn fast_marching_start(
         lights: Vec::new(),
     };
     let settings = super::fast_marching::FastMarchingParams::default();
-    Ok(super::fast_marching::solve_fast_marching(&start, &settings, &mut ())?.depth)
+    let mut forward = ForwardCancel(cancelled);
+    Ok(super::fast_marching::solve_fast_marching(&start, &settings, &mut forward)?.depth)
+}
+
+/// An observer that only forwards cancellation.
+struct ForwardCancel<'a>(&'a (dyn Fn() -> bool + Sync));
+
+impl SolveObserver for ForwardCancel<'_> {
+    fn is_cancelled(&self) -> bool {
+        (self.0)()
+    }
 }
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.
@@ -253,8 +280,9 @@ pub(crate) fn problem_scales(problem: &Problem, confidence: &Grid<f64>) -> Probl
 
 /// The constant initial depth of [`InitialDepth::FromImage`] on a level: the
 /// brightest trusted domain pixel `b` is assumed to face the light,
-/// `z0 = Q_b sqrt(s / I_b)`.
-pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> f64 {
+/// `z0 = Q_b sqrt(s / I_b)`; `None` when the level has no trusted domain
+/// pixel brighter than black.
+pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> Option<f64> {
     let (w, h) = level.image.size();
     let mut best = (0.0, 1.0);
     for r in 0..h {
@@ -265,11 +293,7 @@ pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> f
             }
         }
     }
-    if best.0 > 0.0 {
-        best.1 * (intensity_scale / best.0).sqrt()
-    } else {
-        1.0
-    }
+    (best.0 > 0.0).then(|| best.1 * (intensity_scale / best.0).sqrt())
 }
 
 /// The constant initial depth for lights anywhere: the fronto-parallel

@@ -20,6 +20,21 @@ pub const SATURATED: f64 = 1.0;
 /// Smallest accepted image side.
 pub const MIN_IMAGE_SIDE: usize = 3;
 
+/// Accepted intensity scales `s`: depth grows as `sqrt(s)`, so within these
+/// bounds every depth stays inside [`DEPTH_RANGE`] for any brightness a
+/// 16-bit or float image holds.
+pub const INTENSITY_SCALE_RANGE: (f64, f64) = (1e-30, 1e30);
+
+/// Accepted depths (a constant initial depth, a depth map's values, a known
+/// depth), in the problem's unit of depth: far inside single precision
+/// (depth.npy is float32, about 3.4e38) and far above the solver's floor, so
+/// any unit from nanometres to light years fits.
+pub const DEPTH_RANGE: (f64, f64) = (1e-15, 1e25);
+
+/// The largest depth a solve may return: above [`DEPTH_RANGE`] (a solve may
+/// move beyond its start) and below float32's largest value (depth.npy).
+pub const MAX_SOLVED_DEPTH: f64 = 1e30;
+
 /// What the solver is asked to explain.
 #[derive(Clone, Debug)]
 pub struct Problem {
@@ -50,6 +65,11 @@ pub enum SolveError {
     /// The observer asked to stop.
     #[error("cancelled")]
     Cancelled,
+    /// The solve ended with depths no output can hold (infinite, not
+    /// positive, beyond [`MAX_SOLVED_DEPTH`], or none at all); nothing is
+    /// returned rather than a surface that is not one.
+    #[error("the solve diverged: {0}")]
+    Diverged(String),
 }
 
 /// Reported after every outer iteration.
@@ -169,10 +189,47 @@ fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> 
     s.serialize_f64(d.as_secs_f64())
 }
 
+impl Solution {
+    /// The solution if its depth holds at least one value and every value
+    /// that is not NaN (NaN: off the object) is positive and at most
+    /// [`MAX_SOLVED_DEPTH`], and its reprojection is finite.
+    pub(crate) fn checked(self) -> Result<Self, SolveError> {
+        let z_max = MAX_SOLVED_DEPTH;
+        let values = self.depth.as_slice().iter().filter(|z| !z.is_nan());
+        let (mut count, mut bad, mut worst) = (0usize, 0usize, 0.0f64);
+        for &z in values {
+            count += 1;
+            if !(z > 0.0 && z <= z_max) {
+                bad += 1;
+                worst = if z.abs() > worst.abs() || worst == 0.0 {
+                    z
+                } else {
+                    worst
+                };
+            }
+        }
+        if count == 0 {
+            return Err(SolveError::Diverged("no pixel has a depth".into()));
+        }
+        if bad > 0 {
+            return Err(SolveError::Diverged(format!(
+                "{bad} of {count} depths are not in (0, {z_max:e}] (e.g. {worst:e}); \
+                 check the intensity scale and the parameters"
+            )));
+        }
+        if self.reprojection.as_slice().iter().any(|v| !v.is_finite()) {
+            return Err(SolveError::Diverged(
+                "the reprojection is not finite".into(),
+            ));
+        }
+        Ok(self)
+    }
+}
+
 /// Receives progress from the solver; every method has a no-op default.
 ///
 /// Observers are `Send`: the solve runs on a worker of rayon's pool.
-pub trait SolveObserver: Send {
+pub trait SolveObserver: Send + Sync {
     /// After every outer iteration.
     fn on_iteration(&mut self, _report: &IterationReport) {}
     /// After every level.
@@ -219,8 +276,11 @@ impl Problem {
             return bad("principal point must be finite".into());
         }
         let s = self.intensity_scale;
-        if !(s.is_finite() && s > 0.0) {
-            return bad(format!("intensity scale must be finite and > 0 (got {s})"));
+        let (s_min, s_max) = INTENSITY_SCALE_RANGE;
+        if !(s.is_finite() && (s_min..=s_max).contains(&s)) {
+            return bad(format!(
+                "intensity scale must lie in [{s_min:e}, {s_max:e}] (got {s:e})"
+            ));
         }
         for (k, light) in self.lights.iter().enumerate() {
             light.validated(k + 1).map_err(SolveError::Input)?;

@@ -527,6 +527,9 @@ fn speedup(scene: &str, noise: f64, lin: &Outcome, exp: &Outcome) -> SpeedUp {
     }
 }
 
+/// Every scene `--scenes` can name.
+const SCENE_NAMES: &[&str] = &["sombrero", "bunny", "dragon", "suzanne", "highres"];
+
 /// Loads the scenes asked for; the missing ones go to `skipped`.
 /// Whether `--scenes` asks for `name` (no `--scenes`: every scene).
 fn wanted(args: &BenchArgs, name: &str) -> bool {
@@ -587,6 +590,19 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         && !(s.is_finite() && s > 0.0)
     {
         anyhow::bail!("--explicit-seconds must be a positive number of seconds (got {s})");
+    }
+    if let Some(list) = &args.scenes {
+        let unknown: Vec<&String> = list
+            .iter()
+            .filter(|s| !SCENE_NAMES.iter().any(|n| n.eq_ignore_ascii_case(s)))
+            .collect();
+        if !unknown.is_empty() || list.is_empty() {
+            anyhow::bail!(
+                "invalid --scenes {}: the scenes are {}",
+                list.join(","),
+                SCENE_NAMES.join(", ")
+            );
+        }
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output folder {}", args.out.display()))?;

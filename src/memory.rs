@@ -1,0 +1,210 @@
+//! The memory guard: an estimate of a job's peak memory from its image size,
+//! compared with the memory the machine has free before any large
+//! allocation, so an oversized image is refused with a message instead of
+//! driving the machine into swap or the out-of-memory killer.
+//!
+//! The per-pixel figures are measured peaks (resident set size of a release
+//! build, `/usr/bin/time -v`) with a margin; the README's "What the tool
+//! guarantees" section lists them. The free memory is Linux's
+//! `MemAvailable` and, inside a container, the cgroup's remaining limit;
+//! `SFS_STUDIO_MEMORY_MB` replaces it (0 turns the guard off). Elsewhere
+//! the guard is off unless that variable is set.
+
+use std::fs;
+
+/// Peak bytes per pixel of a solve at its working size (every pyramid
+/// level, the Gauss-Newton system, the fast-marching start; measured 270 to
+/// 350 at 1024x1024).
+pub const SOLVE_BYTES_PER_PIXEL: u64 = 400;
+/// Peak bytes per pixel of the full-size photograph while it is read and
+/// area-averaged to the working size: the decoder's buffer (1 for 8-bit
+/// grey up to 16 for float RGBA) and the linear grey copy (8); measured 9
+/// for a 100-megapixel 8-bit grey PNG.
+pub const LOAD_BYTES_PER_PIXEL: u64 = 24;
+/// Peak bytes per pixel of `synth` (the rendered image, its depth, mask,
+/// noise and the PNG encoders; measured 28 to 32 at 2048x2048).
+pub const SYNTH_BYTES_PER_PIXEL: u64 = 48;
+/// The program's own memory besides the image (code, mesh, buffers).
+pub const BASE_BYTES: u64 = 64 << 20;
+/// The environment variable that sets the memory the guard allows, in MiB
+/// (0: no guard).
+pub const LIMIT_VARIABLE: &str = "SFS_STUDIO_MEMORY_MB";
+
+/// A job that would not fit the memory there is.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "{what} would need about {} but only {} is available{}; {way_out}",
+    format_bytes(*.estimate_bytes),
+    format_bytes(*.available_bytes),
+    if *.from_variable { " (set by SFS_STUDIO_MEMORY_MB)" } else { "" }
+)]
+pub struct MemoryError {
+    /// The job, naming its size (e.g. "solving 10000x10000 pixels").
+    pub what: String,
+    /// Estimated peak.
+    pub estimate_bytes: u64,
+    /// Memory available.
+    pub available_bytes: u64,
+    /// The limit came from [`LIMIT_VARIABLE`].
+    pub from_variable: bool,
+    /// What the user can do.
+    pub way_out: String,
+}
+
+/// Estimated peak bytes of solving a photograph of `full` pixels at the
+/// working size `working` (both `(width, height)`), `images` of them summed.
+pub fn solve_estimate(full: (usize, usize), working: (usize, usize), images: usize) -> u64 {
+    let full_px = (full.0 as u64).saturating_mul(full.1 as u64);
+    let working_px = (working.0 as u64).saturating_mul(working.1 as u64);
+    let load = full_px.saturating_mul(LOAD_BYTES_PER_PIXEL);
+    // Summed images keep one working-size sum besides the image being read.
+    let sum = working_px.saturating_mul(8 * images.saturating_sub(1).min(1) as u64);
+    BASE_BYTES
+        .saturating_add(load)
+        .saturating_add(sum)
+        .saturating_add(working_px.saturating_mul(SOLVE_BYTES_PER_PIXEL))
+}
+
+/// The largest working size (longest side, a multiple of 100 px) at which
+/// solving a photograph of `full` pixels fits in `allowed` bytes; `None`
+/// when even reading it does not fit.
+pub fn largest_fitting_side(full: (usize, usize), images: usize, allowed: u64) -> Option<usize> {
+    let longest = full.0.max(full.1);
+    (1..=longest / 100).rev().map(|k| k * 100).find(|&side| {
+        let working = crate::resample::working_size(full.0, full.1, Some(side));
+        solve_estimate(full, working, images) <= allowed
+    })
+}
+
+/// Estimated peak bytes of `synth` at `size`.
+pub fn synth_estimate(size: (usize, usize)) -> u64 {
+    let px = (size.0 as u64).saturating_mul(size.1 as u64);
+    BASE_BYTES.saturating_add(px.saturating_mul(SYNTH_BYTES_PER_PIXEL))
+}
+
+/// The memory a job may use: [`LIMIT_VARIABLE`] when set (`Some(None)`
+/// for 0: no guard), else what the system reports free. The flag says
+/// whether the variable decided.
+pub fn allowance() -> (Option<u64>, bool) {
+    if let Ok(text) = std::env::var(LIMIT_VARIABLE)
+        && let Ok(mib) = text.trim().parse::<u64>()
+    {
+        return ((mib > 0).then(|| mib.saturating_mul(1 << 20)), true);
+    }
+    (available(), false)
+}
+
+/// Memory the system can give this process now: `MemAvailable` from
+/// `/proc/meminfo`, lowered to the cgroup's remaining limit where there is
+/// one; `None` where neither can be read.
+pub fn available() -> Option<u64> {
+    let meminfo = fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|text| meminfo_available(&text));
+    let cgroup = cgroup_remaining();
+    match (meminfo, cgroup) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        (a, b) => a.or(b),
+    }
+}
+
+/// `MemAvailable` (in bytes) from the text of `/proc/meminfo`.
+fn meminfo_available(text: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// The cgroup v2 limit minus the usage, when a limit is set.
+fn cgroup_remaining() -> Option<u64> {
+    let max = fs::read_to_string("/sys/fs/cgroup/memory.max").ok()?;
+    let max: u64 = max.trim().parse().ok()?; // "max": no limit
+    let current: u64 = fs::read_to_string("/sys/fs/cgroup/memory.current")
+        .ok()?
+        .trim()
+        .parse()
+        .ok()?;
+    Some(max.saturating_sub(current))
+}
+
+/// Refuses a job whose `estimate_bytes` exceeds the allowance
+/// ([`allowance`]); `what` names the job and its size, `way_out` what to do.
+pub fn check(what: &str, estimate_bytes: u64, way_out: &str) -> Result<(), MemoryError> {
+    let (allowed, from_variable) = allowance();
+    check_against(what, estimate_bytes, allowed, from_variable, way_out)
+}
+
+/// [`check`] against a given allowance (`None`: no guard).
+pub fn check_against(
+    what: &str,
+    estimate_bytes: u64,
+    allowed: Option<u64>,
+    from_variable: bool,
+    way_out: &str,
+) -> Result<(), MemoryError> {
+    match allowed {
+        Some(available_bytes) if estimate_bytes > available_bytes => Err(MemoryError {
+            what: what.to_string(),
+            estimate_bytes,
+            available_bytes,
+            from_variable,
+            way_out: way_out.to_string(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Bytes in MiB or GiB, one decimal.
+pub fn format_bytes(bytes: u64) -> String {
+    let mib = bytes as f64 / f64::from(1u32 << 20);
+    if mib >= 1024.0 {
+        format!("{:.1} GiB", mib / 1024.0)
+    } else {
+        format!("{mib:.0} MiB")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn estimates_grow_with_the_pixels_and_refuse_what_does_not_fit() {
+        let small = solve_estimate((256, 256), (256, 256), 1);
+        let large = solve_estimate((10_000, 10_000), (10_000, 10_000), 1);
+        assert!(large > 1000 * (small - BASE_BYTES));
+        // Working at a smaller size costs the load only.
+        let reduced = solve_estimate((10_000, 10_000), (2000, 2000), 1);
+        assert!(reduced < large / 10);
+        let e = check_against(
+            "solving 10000x10000 pixels",
+            large,
+            Some(8 << 30),
+            false,
+            "use --max-side",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("10000x10000") && e.contains("only 8.0 GiB is available"),
+            "{e}"
+        );
+        assert!(e.contains("--max-side"), "{e}");
+        assert!(check_against("x", small, Some(8 << 30), false, "").is_ok());
+        let side = largest_fitting_side((10_000, 10_000), 1, 8 << 30).unwrap();
+        let working = crate::resample::working_size(10_000, 10_000, Some(side));
+        assert!(solve_estimate((10_000, 10_000), working, 1) <= 8 << 30);
+        let bigger = crate::resample::working_size(10_000, 10_000, Some(side + 100));
+        assert!(solve_estimate((10_000, 10_000), bigger, 1) > 8 << 30);
+        assert_eq!(largest_fitting_side((10_000, 10_000), 1, 1 << 20), None);
+        assert!(check_against("x", u64::MAX, None, true, "").is_ok());
+        assert_eq!(synth_estimate((usize::MAX, usize::MAX)), u64::MAX);
+    }
+
+    #[test]
+    fn meminfo_is_read_in_kib() {
+        let text = "MemTotal:       24000000 kB\nMemAvailable:    1000 kB\n";
+        assert_eq!(meminfo_available(text), Some(1_024_000));
+        assert_eq!(meminfo_available("nothing"), None);
+    }
+}
