@@ -53,17 +53,34 @@ pub struct MemoryError {
 
 /// Estimated peak bytes of solving a photograph of `full` pixels at the
 /// working size `working` (both `(width, height)`), `images` of them summed.
-pub fn solve_estimate(full: (usize, usize), working: (usize, usize), images: usize) -> u64 {
+/// `pyramid_factor`: the pyramid's total pixels over the working size's
+/// (about 5.3 at the default eta 0.9, up to 50 at eta 0.99); beyond the
+/// default's, each further level pixel costs [`LEVEL_BYTES_PER_PIXEL`].
+pub fn solve_estimate(
+    full: (usize, usize),
+    working: (usize, usize),
+    images: usize,
+    pyramid_factor: f64,
+) -> u64 {
+    let extra_levels = (pyramid_factor - DEFAULT_PYRAMID_FACTOR).max(0.0);
     let full_px = (full.0 as u64).saturating_mul(full.1 as u64);
     let working_px = (working.0 as u64).saturating_mul(working.1 as u64);
     let load = full_px.saturating_mul(LOAD_BYTES_PER_PIXEL);
     // Summed images keep one working-size sum besides the image being read.
     let sum = working_px.saturating_mul(8 * images.saturating_sub(1).min(1) as u64);
+    let levels = (working_px as f64 * extra_levels * LEVEL_BYTES_PER_PIXEL as f64) as u64;
     BASE_BYTES
         .saturating_add(load)
         .saturating_add(sum)
+        .saturating_add(levels)
         .saturating_add(working_px.saturating_mul(SOLVE_BYTES_PER_PIXEL))
 }
+
+/// The pyramid factor [`SOLVE_BYTES_PER_PIXEL`] was measured at (eta 0.9).
+pub const DEFAULT_PYRAMID_FACTOR: f64 = 5.3;
+/// Bytes per pixel of a pyramid level (image, confidence, domain, kept for
+/// the whole solve).
+pub const LEVEL_BYTES_PER_PIXEL: u64 = 24;
 
 /// The largest working size (longest side, a multiple of 100 px) at which
 /// solving a photograph of `full` pixels fits in `allowed` bytes; `None`
@@ -72,7 +89,7 @@ pub fn largest_fitting_side(full: (usize, usize), images: usize, allowed: u64) -
     let longest = full.0.max(full.1);
     (1..=longest / 100).rev().map(|k| k * 100).find(|&side| {
         let working = crate::resample::working_size(full.0, full.1, Some(side));
-        solve_estimate(full, working, images) <= allowed
+        solve_estimate(full, working, images, DEFAULT_PYRAMID_FACTOR) <= allowed
     })
 }
 
@@ -170,11 +187,11 @@ mod tests {
 
     #[test]
     fn estimates_grow_with_the_pixels_and_refuse_what_does_not_fit() {
-        let small = solve_estimate((256, 256), (256, 256), 1);
-        let large = solve_estimate((10_000, 10_000), (10_000, 10_000), 1);
+        let small = solve_estimate((256, 256), (256, 256), 1, 5.3);
+        let large = solve_estimate((10_000, 10_000), (10_000, 10_000), 1, 5.3);
         assert!(large > 1000 * (small - BASE_BYTES));
         // Working at a smaller size costs the load only.
-        let reduced = solve_estimate((10_000, 10_000), (2000, 2000), 1);
+        let reduced = solve_estimate((10_000, 10_000), (2000, 2000), 1, 5.3);
         assert!(reduced < large / 10);
         let e = check_against(
             "solving 10000x10000 pixels",
@@ -193,10 +210,12 @@ mod tests {
         assert!(check_against("x", small, Some(8 << 30), false, "").is_ok());
         let side = largest_fitting_side((10_000, 10_000), 1, 8 << 30).unwrap();
         let working = crate::resample::working_size(10_000, 10_000, Some(side));
-        assert!(solve_estimate((10_000, 10_000), working, 1) <= 8 << 30);
+        assert!(solve_estimate((10_000, 10_000), working, 1, 5.3) <= 8 << 30);
         let bigger = crate::resample::working_size(10_000, 10_000, Some(side + 100));
-        assert!(solve_estimate((10_000, 10_000), bigger, 1) > 8 << 30);
+        assert!(solve_estimate((10_000, 10_000), bigger, 1, 5.3) > 8 << 30);
         assert_eq!(largest_fitting_side((10_000, 10_000), 1, 1 << 20), None);
+        // A finer pyramid (eta near 0.99) costs more.
+        assert!(solve_estimate((2000, 2000), (2000, 2000), 1, 50.0) > 2 * (large / 25));
         assert!(check_against("x", u64::MAX, None, true, "").is_ok());
         assert_eq!(synth_estimate((usize::MAX, usize::MAX)), u64::MAX);
     }

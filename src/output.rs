@@ -33,7 +33,27 @@ const JOURNAL_NAME: &str = "COMMIT";
 
 /// Staging folders of this process that are not committed, and the lock on
 /// committing: an interrupt removes them, but never during a commit.
-static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+static PENDING: Mutex<Vec<Pending>> = Mutex::new(Vec::new());
+
+/// What an interrupt removes for one uncommitted stage.
+struct Pending {
+    staging: PathBuf,
+    lock_path: PathBuf,
+    /// The destination, when the run created it.
+    created_dir: Option<PathBuf>,
+}
+
+impl Pending {
+    /// Removes the staging folder, the lock file and a destination the run
+    /// created (if it is empty).
+    fn remove(&self) {
+        let _ = fs::remove_dir_all(&self.staging);
+        let _ = fs::remove_file(&self.lock_path);
+        if let Some(dir) = &self.created_dir {
+            let _ = fs::remove_dir(dir);
+        }
+    }
+}
 
 /// Makes Ctrl-C and SIGTERM remove this process's uncommitted staging
 /// folders and exit with status 130; a commit in progress finishes first, so
@@ -44,8 +64,8 @@ pub fn install_interrupt_cleanup() -> Result<(), String> {
         let pending = PENDING
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        for dir in pending.iter() {
-            let _ = fs::remove_dir_all(dir);
+        for stage in pending.iter() {
+            stage.remove();
         }
         if pending.is_empty() {
             eprintln!("interrupted");
@@ -57,7 +77,7 @@ pub fn install_interrupt_cleanup() -> Result<(), String> {
     .map_err(|e| e.to_string())
 }
 
-fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+fn pending() -> std::sync::MutexGuard<'static, Vec<Pending>> {
     PENDING
         .lock()
         .unwrap_or_else(|poisoned| poisoned.into_inner())
@@ -132,7 +152,11 @@ impl OutputStage {
             path: staging.clone(),
             cause,
         })?;
-        pending().push(staging.clone());
+        pending().push(Pending {
+            staging: staging.clone(),
+            lock_path: stage.lock_path.clone(),
+            created_dir: created.then(|| dir.to_path_buf()),
+        });
         stage.staging = staging;
         Ok(stage)
     }
@@ -190,7 +214,7 @@ impl OutputStage {
         })?;
         // From here the journal lets a later run finish what a kill stops.
         let result = apply_journal(&self.dir, &self.staging);
-        pending.retain(|p| *p != self.staging);
+        pending.retain(|p| p.staging != self.staging);
         result?;
         self.created = false; // the folder now holds this run's output
         Ok(self.names.iter().map(|n| self.dir.join(n)).collect())
@@ -201,7 +225,7 @@ impl Drop for OutputStage {
     fn drop(&mut self) {
         // After a commit the folder is gone already; otherwise the run failed.
         let mut pending = pending();
-        if let Some(k) = pending.iter().position(|p| *p == self.staging) {
+        if let Some(k) = pending.iter().position(|p| p.staging == self.staging) {
             pending.remove(k);
             let _ = fs::remove_dir_all(&self.staging);
         }

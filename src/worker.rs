@@ -573,6 +573,19 @@ impl Iterator for Drain<'_> {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn join_within_leaves_a_stuck_thread_behind() {
+        let (release, stuck_on) = crossbeam_channel::bounded::<()>(0);
+        let stuck = std::thread::spawn(move || {
+            let _ = stuck_on.recv();
+        });
+        // Would never return if it joined: the thread waits for `release`.
+        join_within(stuck, Duration::from_millis(20));
+        drop(release);
+        let quick = std::thread::spawn(|| {});
+        join_within(quick, SHUTDOWN_WAIT);
+    }
     use std::sync::atomic::AtomicUsize;
 
     use crate::camera::Intrinsics;

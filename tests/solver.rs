@@ -262,6 +262,32 @@ fn cancel_stops_within_one_sweep() {
 }
 
 #[test]
+fn cancel_reaches_the_fast_marching_start_and_its_denoising() {
+    // A noisy image: the default start TV-denoises, fills and marches
+    // before the first SOR sweep; each of them polls.
+    let scene = sombrero(96, 96);
+    let noisy = sfs_studio::scene::add_noise(&scene.image, 25.0, 3);
+    let mut p = problem(&scene);
+    p.image = noisy;
+    for cancel_at in [1, 2, 5] {
+        let mut recorder = Recorder {
+            cancel_at_poll: Some(cancel_at),
+            ..Default::default()
+        };
+        let result = solve(&p, &SolverParams::default(), &mut recorder);
+        assert!(matches!(result, Err(SolveError::Cancelled)), "{result:?}");
+        assert_eq!(
+            recorder.polls.load(std::sync::atomic::Ordering::Relaxed),
+            cancel_at
+        );
+        assert!(
+            recorder.levels.is_empty(),
+            "no level before the start is done"
+        );
+    }
+}
+
+#[test]
 fn clipped_pixels_are_not_trusted() {
     // A highlight clipped at the top of the range: the solve must be the
     // one with those pixels painted as confidence 0, not one that bends the

@@ -229,3 +229,59 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     harness.step();
     assert_eq!(confidence(&harness), before, "undo rejects the suggestion");
 }
+
+#[test]
+fn a_screenshot_run_records_why_it_failed() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // Not an image: nothing opens, the run must fail with the reason.
+    let text = dir.path().join("text.png");
+    std::fs::write(&text, "hello").expect("write");
+    let failure = sfs_studio::app::ExitReport::default();
+    let mut first = harness(ViewerOptions {
+        image: Some(text),
+        screenshot: Some(dir.path().join("shot.png")),
+        failure: failure.clone(),
+        ..options(dir.path())
+    });
+    for _ in 0..10 {
+        first.step();
+    }
+    let message = failure.get().expect("a failure is recorded");
+    assert!(message.contains("text.png"), "{message}");
+
+    // A black image opens but cannot be solved: the reason is recorded.
+    let black = dir.path().join("black.png");
+    sfs_studio::io::write_png8(&black, &sfs_studio::grid::Grid::filled(16, 16, 0.0))
+        .expect("write");
+    let failure = sfs_studio::app::ExitReport::default();
+    let mut harness = harness(ViewerOptions {
+        image: Some(black),
+        screenshot: Some(dir.path().join("shot2.png")),
+        failure: failure.clone(),
+        ..options(dir.path())
+    });
+    step_until(&mut harness, |app| app.solve_state().failure.is_some());
+    harness.step();
+    let message = failure.get().expect("a failure is recorded");
+    assert!(message.contains("black"), "{message}");
+}
+
+#[test]
+fn an_image_wider_than_the_texture_limit_opens() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let wide = dir.path().join("wide.png");
+    let image =
+        sfs_studio::grid::Grid::from_fn(9000, 6, |c, r| 0.2 + 0.5 * ((c + r) % 7) as f64 / 7.0);
+    sfs_studio::io::write_png8(&wide, &image).expect("write");
+    let mut harness = harness(ViewerOptions {
+        image: Some(wide),
+        max_side: Some(0),
+        ..options(dir.path())
+    });
+    step_until(&mut harness, |app| app.solve_state().completed_jobs > 0);
+    harness.step();
+    assert_eq!(
+        harness.state().document().map(|d| d.size()),
+        Some((9000, 6))
+    );
+}

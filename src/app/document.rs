@@ -149,7 +149,12 @@ impl Document {
                     working.0,
                     working.1
                 ),
-                crate::memory::solve_estimate(full, working, 1),
+                crate::memory::solve_estimate(
+                    full,
+                    working,
+                    1,
+                    crate::memory::DEFAULT_PYRAMID_FACTOR,
+                ),
                 &way_out,
             )?;
         }

@@ -413,9 +413,20 @@ const SOLVE_OUTPUTS: &[&str] = &[
 
 /// Refuses a solve that would not fit the free memory, before reading the
 /// image, with the working size that would.
-fn check_memory(full: (usize, usize), max_side: Option<usize>, images: usize) -> Result<()> {
+fn check_memory(
+    full: (usize, usize),
+    max_side: Option<usize>,
+    images: usize,
+    params: &SolverParams,
+) -> Result<()> {
     let working = crate::resample::working_size(full.0, full.1, max_side);
-    let estimate = memory::solve_estimate(full, working, images);
+    let factor = crate::solver::pyramid::pyramid_factor(
+        working.0,
+        working.1,
+        params.eta,
+        params.min_level_side,
+    );
+    let estimate = memory::solve_estimate(full, working, images, factor);
     let (allowed, _) = memory::allowance();
     let way_out = match allowed.and_then(|a| memory::largest_fitting_side(full, images, a)) {
         Some(side) => format!("solve at a smaller working size with --max-side {side} or less"),
@@ -451,7 +462,8 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     let full_size = photo::full_size(&photo_setup)?;
     let mut setup = camera_setup(args, full_size)?;
-    check_memory(full_size, max_side, args.images.len())?;
+    let eta_levels = args.params.to_params()?;
+    check_memory(full_size, max_side, args.images.len(), &eta_levels)?;
     // The destination is locked and checked writable before any work.
     let mut stage = OutputStage::new(&args.out, SOLVE_OUTPUTS)?;
     let photo = photo::load(&photo_setup, Some(setup.camera))?;

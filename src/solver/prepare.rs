@@ -105,6 +105,17 @@ pub(crate) fn prepare(
     } else {
         pyramid::level_sizes(w, h, params.eta, params.min_level_side)
     };
+    if sizes.len() > pyramid::MAX_LEVELS {
+        return Err(SolveError::Param(crate::params::ParamError {
+            name: "eta",
+            value: params.eta.to_string(),
+            reason: format!(
+                "gives {} pyramid levels at {w}x{h} (at most {}); lower eta or raise min-level-side",
+                sizes.len(),
+                pyramid::MAX_LEVELS
+            ),
+        }));
+    }
     let mut levels = vec![finest];
     for &(lw, lh) in &sizes[1..] {
         if cancelled() {

@@ -18,6 +18,22 @@ pub struct PyramidLevel {
     pub domain: Grid<bool>,
 }
 
+/// The most pyramid levels a solve builds: eta near its bound of 0.99 on a
+/// large image asks for hundreds of levels whose total size is up to 50
+/// times the image (an hour's work for no gain); the solve is refused
+/// instead, naming eta.
+pub const MAX_LEVELS: usize = 400;
+
+/// Total pixels of all `level_sizes` over the finest level's pixels.
+pub fn pyramid_factor(width: usize, height: usize, eta: f64, min_side: usize) -> f64 {
+    let finest = (width * height).max(1) as f64;
+    level_sizes(width, height, eta, min_side)
+        .iter()
+        .map(|&(w, h)| (w * h) as f64)
+        .sum::<f64>()
+        / finest
+}
+
 /// Level sizes from finest (the full image) to coarsest: `round(side *
 /// eta^l)` while both sides stay at least `min_side`, strictly decreasing.
 pub fn level_sizes(width: usize, height: usize, eta: f64, min_side: usize) -> Vec<(usize, usize)> {

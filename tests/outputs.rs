@@ -1,0 +1,266 @@
+//! The binary's outputs are whole or absent: a second run into a busy
+//! folder is refused at once, Ctrl-C and SIGTERM leave nothing behind, a
+//! killed run is cleaned up by the next one, a bad destination is refused
+//! before any work, and `synth` into a reused folder leaves no stale files.
+#![cfg(unix)]
+
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_sfs-studio");
+
+fn run(args: &[&str]) -> Output {
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("start sfs-studio")
+}
+
+fn spawn(args: &[&str]) -> Child {
+    Command::new(BIN)
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start sfs-studio")
+}
+
+fn names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect()
+        })
+        .unwrap_or_default();
+    names.sort();
+    names
+}
+
+fn staging_folders(dir: &Path) -> usize {
+    names(dir)
+        .iter()
+        .filter(|n| n.starts_with(".sfs-studio-staging-"))
+        .count()
+}
+
+/// Waits until a run has locked `dir` and started staging (a hang check).
+fn wait_for_staging(dir: &Path, child: &mut Child) {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while staging_folders(dir) == 0 {
+        assert!(
+            child.try_wait().expect("poll").is_none(),
+            "the run ended before staging"
+        );
+        assert!(Instant::now() < deadline, "no staging folder in 60 s");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
+/// A scene large enough that its solve takes a while (about a second).
+fn scene(tmp: &Path) -> (PathBuf, PathBuf) {
+    let dir = tmp.join("scene");
+    let out = run(&[
+        "synth",
+        "sombrero",
+        "--size",
+        "640x640",
+        "--out",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (dir.join("image16.png"), dir.join("scene.json"))
+}
+
+fn solve_args<'a>(image: &'a Path, camera: &'a Path, out: &'a Path) -> Vec<&'a str> {
+    vec![
+        "solve",
+        image.to_str().unwrap(),
+        "--camera",
+        camera.to_str().unwrap(),
+        "--quiet",
+        "--out",
+        out.to_str().unwrap(),
+    ]
+}
+
+const SOLVE_OUTPUTS: [&str; 7] = [
+    "depth.npy",
+    "depth16.png",
+    "input_linear.png",
+    "mesh.ply",
+    "report.json",
+    "reprojection.png",
+    "residual.png",
+];
+
+#[test]
+fn a_second_run_into_a_busy_folder_is_refused_and_the_first_is_whole() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    let out = tmp.path().join("out");
+    let mut first = spawn(&solve_args(&image, &camera, &out));
+    wait_for_staging(&out, &mut first);
+    let second = run(&solve_args(&image, &camera, &out));
+    assert!(!second.status.success());
+    let message = String::from_utf8_lossy(&second.stderr);
+    assert!(
+        message.contains("being written by another sfs-studio run") && message.contains("out"),
+        "{message}"
+    );
+    let status = first.wait().unwrap();
+    assert!(status.success());
+    assert_eq!(names(&out), SOLVE_OUTPUTS);
+}
+
+#[test]
+fn an_interrupted_run_leaves_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    for signal in ["-INT", "-TERM"] {
+        // Into a new folder: it is gone again.
+        let out = tmp.path().join(format!("new{signal}"));
+        let mut child = spawn(&solve_args(&image, &camera, &out));
+        wait_for_staging(&out, &mut child);
+        let kill = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "{signal}");
+        assert!(!out.exists(), "{signal}: {:?}", names(&out));
+    }
+    // Into a folder with an earlier result: it stays as it was.
+    let out = tmp.path().join("kept");
+    assert!(run(&solve_args(&image, &camera, &out)).status.success());
+    let before = fs::read(out.join("depth.npy")).unwrap();
+    let mut child = spawn(&solve_args(&image, &camera, &out));
+    wait_for_staging(&out, &mut child);
+    Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+    assert_eq!(names(&out), SOLVE_OUTPUTS);
+    assert_eq!(fs::read(out.join("depth.npy")).unwrap(), before);
+}
+
+#[test]
+fn a_killed_run_is_cleaned_up_by_the_next() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    let out = tmp.path().join("out");
+    let mut child = spawn(&solve_args(&image, &camera, &out));
+    wait_for_staging(&out, &mut child);
+    child.kill().unwrap(); // SIGKILL: nothing runs
+    child.wait().unwrap();
+    assert_eq!(staging_folders(&out), 1);
+    let mut args = solve_args(&image, &camera, &out);
+    args.extend(["--max-side", "200"]);
+    let next = run(&args);
+    assert!(
+        next.status.success(),
+        "{}",
+        String::from_utf8_lossy(&next.stderr)
+    );
+    assert_eq!(names(&out), SOLVE_OUTPUTS);
+}
+
+#[test]
+fn a_bad_destination_is_refused_before_solving() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    let file = tmp.path().join("a-file");
+    fs::write(&file, "x").unwrap();
+    for out in [file.clone(), file.join("below")] {
+        let result = run(&solve_args(&image, &camera, &out));
+        assert!(!result.status.success());
+        let message = String::from_utf8_lossy(&result.stderr);
+        assert!(message.contains("a-file"), "{message}");
+        // Refused up front: no solve ran, so nothing was reported solved.
+        assert!(!message.contains("solved"), "{message}");
+    }
+    assert_eq!(fs::read_to_string(&file).unwrap(), "x");
+}
+
+#[test]
+fn synth_into_a_reused_folder_leaves_no_stale_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("scene");
+    let o = out.to_str().unwrap();
+    let first = run(&[
+        "synth",
+        "sombrero",
+        "--size",
+        "32x32",
+        "--noise",
+        "5",
+        "--inpaint-disc",
+        "0.5,0.5,0.2",
+        "--out",
+        o,
+    ]);
+    assert!(first.status.success());
+    assert!(out.join("noisy8.png").exists() && out.join("confidence.png").exists());
+    fs::write(out.join("notes.txt"), "mine").unwrap();
+    let second = run(&["synth", "sombrero", "--size", "32x32", "--out", o]);
+    assert!(second.status.success());
+    assert_eq!(
+        names(&out),
+        [
+            "depth_gt.npy",
+            "image16.png",
+            "image8.png",
+            "mask.png",
+            "notes.txt",
+            "scene.json"
+        ]
+    );
+}
+
+#[test]
+fn oversized_jobs_are_refused_with_the_estimate_and_the_way_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("big");
+    let result = Command::new(BIN)
+        .args([
+            "synth",
+            "sombrero",
+            "--size",
+            "8000x8000",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .env("SFS_STUDIO_MEMORY_MB", "500")
+        .output()
+        .unwrap();
+    assert!(!result.status.success());
+    let message = String::from_utf8_lossy(&result.stderr);
+    assert!(
+        message.contains("8000x8000") && message.contains("500 MiB") && message.contains("--size"),
+        "{message}"
+    );
+    assert!(!out.exists());
+    // A solve names the working size that would fit.
+    let (image, camera) = scene(tmp.path());
+    let result = Command::new(BIN)
+        .args(solve_args(&image, &camera, &out))
+        .env("SFS_STUDIO_MEMORY_MB", "150")
+        .output()
+        .unwrap();
+    assert!(!result.status.success());
+    let message = String::from_utf8_lossy(&result.stderr);
+    assert!(
+        message.contains("640x640") && message.contains("--max-side"),
+        "{message}"
+    );
+    assert!(!out.exists());
+}
