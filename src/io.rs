@@ -175,6 +175,25 @@ fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
     })
 }
 
+/// An image's `(width, height)` from its header, without decoding it
+/// (TIFFs that `image` does not decode through the `tiff` crate).
+pub fn image_size(path: &Path) -> Result<(usize, usize), IoError> {
+    match image::image_dimensions(path) {
+        Ok((w, h)) => Ok((w as usize, h as usize)),
+        Err(ImageError::Unsupported(cause)) => {
+            let tiff_size = fs::File::open(path)
+                .ok()
+                .and_then(|f| tiff::decoder::Decoder::new(std::io::BufReader::new(f)).ok())
+                .and_then(|mut d| d.dimensions().ok());
+            match tiff_size {
+                Some((w, h)) => Ok((w as usize, h as usize)),
+                None => Err(cause_to_error(path, ImageError::Unsupported(cause))),
+            }
+        }
+        Err(cause) => Err(cause_to_error(path, cause)),
+    }
+}
+
 /// A decoder error as the error naming `path`.
 fn cause_to_error(path: &Path, cause: ImageError) -> IoError {
     match cause {
@@ -1296,6 +1315,7 @@ mod tests {
             .unwrap();
         let grid = read_image(&float_path, false).unwrap();
         assert_eq!(grid.size(), (4, 3));
+        assert_eq!(image_size(&float_path).unwrap(), (4, 3));
         for (k, v) in grid.as_slice().iter().enumerate() {
             assert!((v - k as f64 / 11.0).abs() < 1e-6, "{k}: {v}");
         }

@@ -85,11 +85,16 @@ pub const LEVEL_BYTES_PER_PIXEL: u64 = 24;
 /// The largest working size (longest side, a multiple of 100 px) at which
 /// solving a photograph of `full` pixels fits in `allowed` bytes; `None`
 /// when even reading it does not fit.
-pub fn largest_fitting_side(full: (usize, usize), images: usize, allowed: u64) -> Option<usize> {
+pub fn largest_fitting_side(
+    full: (usize, usize),
+    images: usize,
+    pyramid_factor: f64,
+    allowed: u64,
+) -> Option<usize> {
     let longest = full.0.max(full.1);
     (1..=longest / 100).rev().map(|k| k * 100).find(|&side| {
         let working = crate::resample::working_size(full.0, full.1, Some(side));
-        solve_estimate(full, working, images, DEFAULT_PYRAMID_FACTOR) <= allowed
+        solve_estimate(full, working, images, pyramid_factor) <= allowed
     })
 }
 
@@ -132,7 +137,8 @@ fn meminfo_available(text: &str) -> Option<u64> {
     Some(kib.saturating_mul(1024))
 }
 
-/// The cgroup v2 limit minus the usage, when a limit is set.
+/// The cgroup v2 limit minus the usage, when a limit is set; the usage
+/// without the inactive page cache, which the kernel reclaims on demand.
 fn cgroup_remaining() -> Option<u64> {
     let max = fs::read_to_string("/sys/fs/cgroup/memory.max").ok()?;
     let max: u64 = max.trim().parse().ok()?; // "max": no limit
@@ -141,7 +147,17 @@ fn cgroup_remaining() -> Option<u64> {
         .trim()
         .parse()
         .ok()?;
-    Some(max.saturating_sub(current))
+    let reclaimable = fs::read_to_string("/sys/fs/cgroup/memory.stat")
+        .ok()
+        .and_then(|text| stat_value(&text, "inactive_file"))
+        .unwrap_or(0);
+    Some(max.saturating_sub(current.saturating_sub(reclaimable)))
+}
+
+/// The value of `key` in a cgroup `memory.stat` text.
+fn stat_value(text: &str, key: &str) -> Option<u64> {
+    text.lines()
+        .find_map(|l| l.strip_prefix(key)?.strip_prefix(' ')?.trim().parse().ok())
 }
 
 /// Refuses a job whose `estimate_bytes` exceeds the allowance
@@ -208,12 +224,15 @@ mod tests {
         );
         assert!(e.contains("--max-side"), "{e}");
         assert!(check_against("x", small, Some(8 << 30), false, "").is_ok());
-        let side = largest_fitting_side((10_000, 10_000), 1, 8 << 30).unwrap();
+        let side = largest_fitting_side((10_000, 10_000), 1, 5.3, 8 << 30).unwrap();
         let working = crate::resample::working_size(10_000, 10_000, Some(side));
         assert!(solve_estimate((10_000, 10_000), working, 1, 5.3) <= 8 << 30);
         let bigger = crate::resample::working_size(10_000, 10_000, Some(side + 100));
         assert!(solve_estimate((10_000, 10_000), bigger, 1, 5.3) > 8 << 30);
-        assert_eq!(largest_fitting_side((10_000, 10_000), 1, 1 << 20), None);
+        assert_eq!(
+            largest_fitting_side((10_000, 10_000), 1, 5.3, 1 << 20),
+            None
+        );
         // A finer pyramid (eta near 0.99) costs more.
         assert!(solve_estimate((2000, 2000), (2000, 2000), 1, 50.0) > 2 * (large / 25));
         assert!(check_against("x", u64::MAX, None, true, "").is_ok());
@@ -225,5 +244,8 @@ mod tests {
         let text = "MemTotal:       24000000 kB\nMemAvailable:    1000 kB\n";
         assert_eq!(meminfo_available(text), Some(1_024_000));
         assert_eq!(meminfo_available("nothing"), None);
+        let stat = "active_file 5\ninactive_file 4096\ninactive_anon 7\n";
+        assert_eq!(stat_value(stat, "inactive_file"), Some(4096));
+        assert_eq!(stat_value(stat, "file"), None);
     }
 }

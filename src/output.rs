@@ -8,14 +8,17 @@
 //!   once (before any work), naming the folder;
 //! - the destination is created and checked writable before the work starts;
 //! - a failed run, an error, Ctrl-C or SIGTERM leaves the destination as it
-//!   was (the staging folder is removed; see [`install_interrupt_cleanup`]);
-//! - on success the files this run wrote replace the earlier ones and the
-//!   command's other outputs left by an earlier run (say `noisy8.png` from a
-//!   run with noise) are removed, so the folder holds one run's output;
-//! - a run killed outright (`kill -9`, power loss) can leave a staging
-//!   folder; the next run into the destination finishes its commit if it had
-//!   started one (a `COMMIT` journal lists the moves) and removes it
-//!   otherwise, so no mix of two runs survives.
+//!   was (the staging folder, the lock and the folders the run created are
+//!   removed; see [`install_interrupt_cleanup`]);
+//! - on success the files this run wrote replace the earlier ones, and the
+//!   files the command's previous run here wrote (its manifest,
+//!   `.sfs-studio-outputs`) that this run did not (say `noisy8.png` from a
+//!   run with noise) are removed, unless this run reads them; nothing else
+//!   is ever removed;
+//! - a run killed outright (`kill -9`) can leave a staging folder; the next
+//!   run into the destination finishes its commit if it had started one
+//!   (the `COMMIT` journal, flushed to disk before any move, lists the
+//!   moves) and removes it otherwise, so no mix of two runs survives.
 
 use std::fs::{self, File};
 use std::path::{Path, PathBuf};
@@ -30,6 +33,9 @@ const STAGING_PREFIX: &str = ".sfs-studio-staging-";
 /// The journal a commit writes before it moves anything: the names to move,
 /// then a line `-`, then the names to remove.
 const JOURNAL_NAME: &str = "COMMIT";
+/// The list of files the last run of a command wrote into a folder: only
+/// these are ever removed as stale by a later run.
+const MANIFEST_NAME: &str = ".sfs-studio-outputs";
 
 /// Staging folders of this process that are not committed, and the lock on
 /// committing: an interrupt removes them, but never during a commit.
@@ -39,17 +45,17 @@ static PENDING: Mutex<Vec<Pending>> = Mutex::new(Vec::new());
 struct Pending {
     staging: PathBuf,
     lock_path: PathBuf,
-    /// The destination, when the run created it.
-    created_dir: Option<PathBuf>,
+    /// The folders the run created, deepest first (removed when empty).
+    created: Vec<PathBuf>,
 }
 
 impl Pending {
-    /// Removes the staging folder, the lock file and a destination the run
-    /// created (if it is empty).
+    /// Removes the staging folder, the lock file and the folders the run
+    /// created (those that are empty).
     fn remove(&self) {
         let _ = fs::remove_dir_all(&self.staging);
         let _ = fs::remove_file(&self.lock_path);
-        if let Some(dir) = &self.created_dir {
+        for dir in &self.created {
             let _ = fs::remove_dir(dir);
         }
     }
@@ -91,11 +97,14 @@ pub struct OutputStage {
     lock_path: PathBuf,
     /// Held for the stage's life: the exclusive lock on `dir`.
     _lock: File,
-    /// `dir` did not exist before: a failed run removes it again.
-    created: bool,
-    /// Every file name the command can write; those this run does not write
-    /// are removed from `dir` on commit.
+    /// The lock file is still ours to remove (not after a commit removed it).
+    lock_file_ours: bool,
+    /// Folders this run created, deepest first: a failed run removes them.
+    created: Vec<PathBuf>,
+    /// Every file name the command can write.
     owned: Vec<String>,
+    /// Files this run reads (never removed as stale).
+    inputs: Vec<PathBuf>,
     /// Registered names, in registration order.
     names: Vec<String>,
 }
@@ -116,8 +125,21 @@ impl OutputStage {
                 "it exists and is not a folder",
             )));
         }
-        let created = !dir.exists();
-        fs::create_dir_all(dir).map_err(create_error)?;
+        let mut created = Vec::new();
+        let mut missing = Some(dir);
+        while let Some(d) = missing.filter(|d| !d.as_os_str().is_empty() && !d.exists()) {
+            created.push(d.to_path_buf());
+            missing = d.parent();
+        }
+        let remove_created = |created: &[PathBuf]| {
+            for d in created {
+                let _ = fs::remove_dir(d);
+            }
+        };
+        fs::create_dir_all(dir).map_err(|cause| {
+            remove_created(&created);
+            create_error(cause)
+        })?;
         let lock_path = dir.join(LOCK_NAME);
         let lock = match take_lock(&lock_path) {
             Ok(Some(lock)) => lock,
@@ -127,43 +149,54 @@ impl OutputStage {
                 });
             }
             Err(cause) => {
-                if created {
-                    let _ = fs::remove_dir(dir);
-                }
-                return Err(create_error(cause));
+                remove_created(&created);
+                return Err(IoError::Write {
+                    path: lock_path,
+                    cause: format!("cannot lock the output folder: {cause}").into(),
+                });
             }
         };
-        let mut stage = Self {
-            dir: dir.to_path_buf(),
-            staging: PathBuf::new(),
-            lock_path,
-            _lock: lock,
-            created,
-            owned: owned.iter().map(|s| s.to_string()).collect(),
-            names: Vec::new(),
-        };
-        recover(dir)?;
         let staging = dir.join(format!(
             "{STAGING_PREFIX}{}-{}",
             std::process::id(),
             unique_suffix()
         ));
-        fs::create_dir(&staging).map_err(|cause| IoError::CreateDir {
-            path: staging.clone(),
-            cause,
-        })?;
+        // Registered before anything else is created, so an interrupt from
+        // here on removes all of it.
         pending().push(Pending {
             staging: staging.clone(),
-            lock_path: stage.lock_path.clone(),
-            created_dir: created.then(|| dir.to_path_buf()),
+            lock_path: lock_path.clone(),
+            created: created.clone(),
         });
-        stage.staging = staging;
+        let stage = Self {
+            dir: dir.to_path_buf(),
+            staging,
+            lock_path,
+            _lock: lock,
+            lock_file_ours: true,
+            created,
+            owned: owned.iter().map(|s| s.to_string()).collect(),
+            inputs: Vec::new(),
+            names: Vec::new(),
+        };
+        recover(dir)?;
+        fs::create_dir(&stage.staging).map_err(|cause| IoError::CreateDir {
+            path: stage.staging.clone(),
+            cause,
+        })?;
         Ok(stage)
     }
 
     /// The folder the outputs go to.
     pub fn dir(&self) -> &Path {
         &self.dir
+    }
+
+    /// Files this run reads: never removed as stale outputs, even when
+    /// their name is one of the command's (`--confidence out/confidence_used.png`).
+    pub fn keep_inputs<'a>(&mut self, paths: impl IntoIterator<Item = &'a Path>) {
+        self.inputs
+            .extend(paths.into_iter().filter_map(|p| fs::canonicalize(p).ok()));
     }
 
     /// Registers output `name` (a plain file name) and returns the path to
@@ -180,63 +213,100 @@ impl OutputStage {
         self.staging.join(name)
     }
 
-    /// Moves every registered file into place, removes the command's other
-    /// outputs left by an earlier run, and returns the final paths in
-    /// registration order. A registered name that was never written is an
+    /// Moves every registered file into place, removes the outputs the
+    /// command's previous run in this folder wrote and this one did not
+    /// (listed in its manifest; never a file of this run's inputs), and
+    /// returns the final paths in registration order. A registered name
+    /// that was never written, or whose destination is a folder, is an
     /// error, and then nothing is moved.
     pub fn commit(mut self) -> Result<Vec<PathBuf>, IoError> {
         let mut pending = pending();
         for name in &self.names {
             let staged = self.staging.join(name);
-            if !staged.is_file() {
+            let target = self.dir.join(name);
+            let problem = if !staged.is_file() {
+                Some("the output was never written")
+            } else if target.is_dir() {
+                Some("a folder of that name is in the way")
+            } else {
+                None
+            };
+            if let Some(problem) = problem {
                 return Err(IoError::Rename {
                     from: staged,
-                    to: self.dir.join(name),
-                    cause: std::io::Error::other("the output was never written"),
+                    to: target,
+                    cause: std::io::Error::other(problem),
                 });
             }
         }
-        let stale: Vec<&String> = self
-            .owned
-            .iter()
-            .filter(|o| !self.names.contains(o))
+        let previous = fs::read_to_string(self.dir.join(MANIFEST_NAME)).unwrap_or_default();
+        let stale: Vec<&str> = previous
+            .lines()
+            .filter(|n| self.owned.iter().any(|o| o == n))
+            .filter(|n| !self.names.iter().any(|w| w == n))
+            .filter(|n| fs::canonicalize(self.dir.join(n)).is_ok_and(|p| !self.inputs.contains(&p)))
             .collect();
+        let manifest_path = self.staging.join(MANIFEST_NAME);
+        let mut manifest = self.names.join("\n");
+        manifest.push('\n');
+        let written = fs::write(&manifest_path, manifest);
         let mut journal = self.names.join("\n");
-        journal.push_str("\n-\n");
+        journal.push('\n');
+        if written.is_ok() {
+            journal.push_str(MANIFEST_NAME);
+            journal.push('\n');
+        }
+        journal.push_str("-\n");
         for name in &stale {
             journal.push_str(name);
             journal.push('\n');
         }
-        let journal_path = self.staging.join(JOURNAL_NAME);
-        fs::write(&journal_path, journal).map_err(|cause| IoError::Write {
-            path: journal_path.clone(),
-            cause: cause.into(),
-        })?;
+        write_synced(&self.staging.join(JOURNAL_NAME), &journal)?;
         // From here the journal lets a later run finish what a kill stops.
         let result = apply_journal(&self.dir, &self.staging);
+        // The lock file goes before an interrupt may end the process.
+        let _ = fs::remove_file(&self.lock_path);
+        self.lock_file_ours = false;
         pending.retain(|p| p.staging != self.staging);
         result?;
-        self.created = false; // the folder now holds this run's output
+        self.created.clear(); // the folders now hold this run's output
         Ok(self.names.iter().map(|n| self.dir.join(n)).collect())
     }
 }
 
 impl Drop for OutputStage {
     fn drop(&mut self) {
-        // After a commit the folder is gone already; otherwise the run failed.
+        // After a commit the staging folder is gone already; otherwise the
+        // run failed.
         let mut pending = pending();
         if let Some(k) = pending.iter().position(|p| p.staging == self.staging) {
             pending.remove(k);
-            let _ = fs::remove_dir_all(&self.staging);
         }
+        let _ = fs::remove_dir_all(&self.staging);
         // The lock file goes while the lock is held (a run that opened it
-        // meanwhile sees it replaced and retries, see `take_lock`), and a
-        // folder this failed run created goes when nothing else is in it.
-        let _ = fs::remove_file(&self.lock_path);
-        if self.created {
-            let _ = fs::remove_dir(&self.dir);
+        // meanwhile sees it replaced and retries, see `take_lock`), and the
+        // folders this failed run created go when nothing else is in them.
+        if self.lock_file_ours {
+            let _ = fs::remove_file(&self.lock_path);
+        }
+        for dir in &self.created {
+            let _ = fs::remove_dir(dir);
         }
     }
+}
+
+/// Writes `text` to `path` through a temporary name, flushed to the disk
+/// before it gets its name, so `path` is either absent or complete.
+fn write_synced(path: &Path, text: &str) -> Result<(), IoError> {
+    let error = |cause: std::io::Error| IoError::Write {
+        path: path.to_path_buf(),
+        cause: cause.into(),
+    };
+    let temporary = path.with_extension("partial");
+    let mut file = File::create(&temporary).map_err(error)?;
+    std::io::Write::write_all(&mut file, text.as_bytes()).map_err(error)?;
+    file.sync_all().map_err(error)?;
+    fs::rename(&temporary, path).map_err(error)
 }
 
 /// Opens and exclusively locks `path` (created if needed); `None` when
@@ -253,7 +323,11 @@ fn take_lock(path: &Path) -> std::io::Result<Option<File>> {
         match file.try_lock() {
             Ok(()) => {}
             Err(fs::TryLockError::WouldBlock) => return Ok(None),
-            Err(fs::TryLockError::Error(cause)) => return Err(cause),
+            Err(fs::TryLockError::Error(cause)) => {
+                drop(file);
+                let _ = fs::remove_file(path);
+                return Err(cause);
+            }
         }
         if same_file(&file, path) {
             return Ok(Some(file));
@@ -382,14 +456,14 @@ mod tests {
         let done = stage.commit().unwrap();
         assert_eq!(done, vec![out.join("a.npy"), out.join("b.json")]);
         assert_eq!(read_npy(&done[0]).unwrap(), grid);
-        assert_eq!(names_in(&out), vec!["a.npy", "b.json"]);
+        assert_eq!(names_in(&out), vec![MANIFEST_NAME, "a.npy", "b.json"]);
 
         // A failed run (dropped uncommitted) leaves the earlier output alone.
         {
             let mut stage = OutputStage::new(&out, &["a.npy", "b.json"]).unwrap();
             write_json(&stage.path("b.json"), &[3]).unwrap();
         }
-        assert_eq!(names_in(&out), vec!["a.npy", "b.json"]);
+        assert_eq!(names_in(&out), vec![MANIFEST_NAME, "a.npy", "b.json"]);
         assert_eq!(
             fs::read_to_string(out.join("b.json")).unwrap(),
             "[\n  1,\n  2\n]\n"
@@ -401,18 +475,47 @@ mod tests {
         let mut stage = OutputStage::new(&out, &["a.npy", "b.json"]).unwrap();
         write_json(&stage.path("b.json"), &[4]).unwrap();
         stage.commit().unwrap();
-        assert_eq!(names_in(&out), vec!["b.json", "user.txt"]);
+        assert_eq!(names_in(&out), vec![MANIFEST_NAME, "b.json", "user.txt"]);
 
         // A name registered but never written fails the commit, moving nothing.
         let mut stage = OutputStage::new(&out, &["a.npy", "b.json"]).unwrap();
         write_json(&stage.path("b.json"), &[5]).unwrap();
         let _ = stage.path("a.npy");
         assert!(stage.commit().is_err());
-        assert_eq!(names_in(&out), vec!["b.json", "user.txt"]);
+        assert_eq!(names_in(&out), vec![MANIFEST_NAME, "b.json", "user.txt"]);
         assert_eq!(
             fs::read_to_string(out.join("b.json")).unwrap(),
             "[\n  4\n]\n"
         );
+    }
+
+    #[test]
+    fn only_files_the_previous_run_wrote_are_removed_and_never_inputs() {
+        let dir = tempdir().unwrap();
+        let out = dir.path();
+        let owned = ["a.txt", "b.txt", "c.txt"];
+        // The user's own b.txt, never written by a run: kept.
+        fs::write(out.join("b.txt"), "mine").unwrap();
+        let mut stage = OutputStage::new(out, &owned).unwrap();
+        fs::write(stage.path("a.txt"), "run 1").unwrap();
+        fs::write(stage.path("c.txt"), "run 1").unwrap();
+        stage.commit().unwrap();
+        // Run 2 writes only a.txt and reads c.txt: c.txt stays.
+        let mut stage = OutputStage::new(out, &owned).unwrap();
+        stage.keep_inputs([out.join("c.txt").as_path()]);
+        fs::write(stage.path("a.txt"), "run 2").unwrap();
+        stage.commit().unwrap();
+        assert_eq!(
+            names_in(out),
+            vec![MANIFEST_NAME, "a.txt", "b.txt", "c.txt"]
+        );
+        // Run 3 writes a.txt again: c.txt (run 1's, not an input) is not in
+        // run 2's manifest, so it stays too; b.txt never goes.
+        let mut stage = OutputStage::new(out, &owned).unwrap();
+        fs::write(stage.path("a.txt"), "run 3").unwrap();
+        stage.commit().unwrap();
+        assert_eq!(fs::read_to_string(out.join("b.txt")).unwrap(), "mine");
+        assert!(out.join("c.txt").exists());
     }
 
     #[test]
@@ -453,10 +556,10 @@ mod tests {
     #[test]
     fn a_failed_run_leaves_no_folder_it_created() {
         let dir = tempdir().unwrap();
-        let out = dir.path().join("new");
+        let out = dir.path().join("new/deeper");
         drop(OutputStage::new(&out, &[]).unwrap());
-        assert!(!out.exists());
-        fs::create_dir(&out).unwrap();
+        assert!(!dir.path().join("new").exists());
+        fs::create_dir_all(&out).unwrap();
         drop(OutputStage::new(&out, &[]).unwrap());
         assert!(out.is_dir(), "a folder that was there stays");
         assert!(names_in(&out).is_empty());

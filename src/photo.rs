@@ -179,9 +179,5 @@ pub fn full_size(setup: &PhotoSetup) -> Result<(usize, usize), IoError> {
             reason: "no photograph given".into(),
         });
     };
-    let (w, h) = image::image_dimensions(first).map_err(|cause| IoError::ReadImage {
-        path: first.clone(),
-        cause,
-    })?;
-    Ok((w as usize, h as usize))
+    crate::io::image_size(first)
 }

@@ -15,8 +15,10 @@ use tempfile::{TempDir, tempdir};
 /// The binary under test.
 const BIN: &str = env!("CARGO_BIN_EXE_sfs-studio");
 
-/// Files `synth` writes (with `--noise` and `--inpaint-disc`).
-const SYNTH_FILES: [&str; 7] = [
+/// Files `synth` writes (with `--noise` and `--inpaint-disc`), the hidden
+/// manifest of the run's outputs included.
+const SYNTH_FILES: [&str; 8] = [
+    ".sfs-studio-outputs",
     "image16.png",
     "image8.png",
     "noisy8.png",
@@ -26,8 +28,9 @@ const SYNTH_FILES: [&str; 7] = [
     "scene.json",
 ];
 
-/// Files `solve` writes.
-const SOLVE_FILES: [&str; 7] = [
+/// Files `solve` writes, the hidden manifest of the run's outputs included.
+const SOLVE_FILES: [&str; 8] = [
+    ".sfs-studio-outputs",
     "depth.npy",
     "depth16.png",
     "input_linear.png",

@@ -91,7 +91,8 @@ fn solve_args<'a>(image: &'a Path, camera: &'a Path, out: &'a Path) -> Vec<&'a s
     ]
 }
 
-const SOLVE_OUTPUTS: [&str; 7] = [
+const SOLVE_OUTPUTS: [&str; 8] = [
+    ".sfs-studio-outputs",
     "depth.npy",
     "depth16.png",
     "input_linear.png",
@@ -181,7 +182,12 @@ fn a_bad_destination_is_refused_before_solving() {
     let file = tmp.path().join("a-file");
     fs::write(&file, "x").unwrap();
     for out in [file.clone(), file.join("below")] {
-        let result = run(&solve_args(&image, &camera, &out));
+        // Not quiet: a solve that ran would print its summary.
+        let args: Vec<&str> = solve_args(&image, &camera, &out)
+            .into_iter()
+            .filter(|a| *a != "--quiet")
+            .collect();
+        let result = run(&args);
         assert!(!result.status.success());
         let message = String::from_utf8_lossy(&result.stderr);
         assert!(message.contains("a-file"), "{message}");
@@ -216,6 +222,7 @@ fn synth_into_a_reused_folder_leaves_no_stale_files() {
     assert_eq!(
         names(&out),
         [
+            ".sfs-studio-outputs",
             "depth_gt.npy",
             "image16.png",
             "image8.png",
@@ -263,4 +270,56 @@ fn oversized_jobs_are_refused_with_the_estimate_and_the_way_out() {
         "{message}"
     );
     assert!(!out.exists());
+}
+
+#[test]
+fn an_input_named_like_an_output_is_never_removed() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    let out = tmp.path().join("out");
+    let mut args = solve_args(&image, &camera, &out);
+    args.extend(["--auto-confidence"]);
+    assert!(run(&args).status.success());
+    let confidence = out.join("confidence_used.png");
+    assert!(confidence.exists());
+    // The next run reads it (and writes no confidence_used.png itself).
+    let mut args = solve_args(&image, &camera, &out);
+    args.extend(["--confidence", confidence.to_str().unwrap()]);
+    let result = run(&args);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    assert!(
+        confidence.exists(),
+        "an input was removed as a stale output"
+    );
+}
+
+#[test]
+fn a_grey_float32_tiff_solves() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    let grid = sfs_studio::io::read_image(&image, false).unwrap();
+    let path = tmp.path().join("float.tif");
+    let values: Vec<f32> = grid.as_slice().iter().map(|&v| v as f32).collect();
+    let mut encoder = tiff::encoder::TiffEncoder::new(fs::File::create(&path).unwrap()).unwrap();
+    encoder
+        .write_image::<tiff::encoder::colortype::Gray32Float>(
+            grid.width() as u32,
+            grid.height() as u32,
+            &values,
+        )
+        .unwrap();
+    let out = tmp.path().join("out");
+    let mut args = solve_args(&path, &camera, &out);
+    args.extend(["--max-side", "160"]);
+    let result = run(&args);
+    assert!(
+        result.status.success(),
+        "{}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    assert!(out.join("depth.npy").exists());
 }

@@ -130,13 +130,17 @@ impl Document {
         };
         // Refused before decoding when it would not fit the free memory (a
         // header that cannot be read is reported by the decoder below).
-        if let Ok((fw, fh)) = image::image_dimensions(path) {
-            let full = (fw as usize, fh as usize);
+        if let Ok(full) = io::image_size(path) {
             let working = crate::resample::working_size(full.0, full.1, max_side);
             let (allowed, _) = crate::memory::allowance();
-            let way_out = match allowed
-                .and_then(|a| crate::memory::largest_fitting_side(full, 1, a))
-            {
+            let way_out = match allowed.and_then(|a| {
+                crate::memory::largest_fitting_side(
+                    full,
+                    1,
+                    crate::memory::DEFAULT_PYRAMID_FACTOR,
+                    a,
+                )
+            }) {
                 Some(side) => format!("set the working size (Camera panel) to {side} px or less"),
                 None => "open a smaller image".into(),
             };

@@ -296,6 +296,12 @@ impl Session {
         };
         let object = doc.masks.object_for_solver();
         if let Some(reason) = crate::fit::too_dark_to_solve(&doc.image, object.as_ref()) {
+            // The running job (of other masks) is stale: no result of it
+            // may appear beside this failure.
+            if let Some(job) = self.solve.job.take() {
+                worker.cancel(job);
+            }
+            self.solve.finished = None;
             self.solve.failure = Some(reason);
             self.solve.running = false;
             self.solve.completed_jobs += 1;

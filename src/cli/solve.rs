@@ -428,7 +428,8 @@ fn check_memory(
     );
     let estimate = memory::solve_estimate(full, working, images, factor);
     let (allowed, _) = memory::allowance();
-    let way_out = match allowed.and_then(|a| memory::largest_fitting_side(full, images, a)) {
+    let way_out = match allowed.and_then(|a| memory::largest_fitting_side(full, images, factor, a))
+    {
         Some(side) => format!("solve at a smaller working size with --max-side {side} or less"),
         None => "use a smaller image".to_string(),
     };
@@ -466,6 +467,20 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     check_memory(full_size, max_side, args.images.len(), &eta_levels)?;
     // The destination is locked and checked writable before any work.
     let mut stage = OutputStage::new(&args.out, SOLVE_OUTPUTS)?;
+    let named: Vec<PathBuf> = [
+        &args.camera,
+        &args.mask,
+        &args.confidence,
+        &args.ambient,
+        &args.albedo,
+    ]
+    .into_iter()
+    .flatten()
+    .cloned()
+    .chain(args.vignetting.iter().map(PathBuf::from))
+    .chain(args.init_depth.iter().map(PathBuf::from))
+    .collect();
+    stage.keep_inputs(args.images.iter().chain(&named).map(PathBuf::as_path));
     let photo = photo::load(&photo_setup, Some(setup.camera))?;
     let size = photo.size();
     let camera = scale_intrinsics(setup.camera, full_size, size);
