@@ -485,6 +485,38 @@ fn help_of_every_subcommand() {
 }
 
 #[test]
+fn bench_speed_reports_every_method_side_by_side() {
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("speed");
+    let run = sfs([
+        "bench",
+        "--part",
+        "speed",
+        "--quick",
+        "--scenes",
+        "sombrero",
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "bench --part speed");
+    let report = read_json(&out.join("speed.json"));
+    let rows = report["rows"].as_array().expect("rows");
+    let methods: BTreeSet<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    assert_eq!(
+        methods,
+        BTreeSet::from(["defaults", "fast marching", "paper schedule"])
+    );
+    for row in rows {
+        assert_eq!(row["size"], "256x256");
+        let rse = row["rse"].as_f64().unwrap();
+        assert!(rse.is_finite() && rse < 0.1, "{row}");
+        assert!(!row["curve"].as_array().unwrap().is_empty(), "{row}");
+    }
+    assert!(out.join("speed.md").exists());
+    assert!(out.join("speed-sombrero-256x256.png").exists());
+}
+
+#[test]
 fn bench_quick_on_a_tiny_configuration_writes_a_report_that_parses() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("bench");

@@ -14,6 +14,7 @@ use super::figures::{self, Canvas, Series, Shade};
 
 mod lights;
 mod robustness;
+mod speed;
 use crate::filters;
 use crate::grid::Grid;
 use crate::metrics;
@@ -45,9 +46,14 @@ pub struct BenchArgs {
     pub explicit_seconds: Option<f64>,
     /// Which part to run: `paper` (the paper's tables and figures in its own
     /// units), `robustness` (the defaults over scenes, sizes, noise and
-    /// exposure) or `all`.
+    /// exposure), `lights`, `all` (these four) or `speed` (time, memory and
+    /// RSE over time at 256x256 and 1920x1080, with fast marching and the
+    /// paper's schedule; writes speed.md and speed.json).
     #[arg(long, value_enum, default_value = "all")]
     pub part: Part,
+    /// With `--part speed`: also an 18-megapixel (5184x3456) scene.
+    #[arg(long)]
+    pub large: bool,
     /// Output folder (created if needed).
     #[arg(long, value_parser = super::parse_path)]
     pub out: PathBuf,
@@ -64,6 +70,8 @@ pub enum Part {
     Robustness,
     /// Lights beside the lens: the light model against ignoring the light.
     Lights,
+    /// Time, memory, RSE over time and responsiveness at several sizes.
+    Speed,
 }
 
 /// Smoothness weight of the variational methods on clean images (pixel units).
@@ -606,6 +614,15 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
+    if args.part == Part::Speed {
+        speed::run(args, args.large)?;
+        eprintln!(
+            "wrote {} ({:.0} s)",
+            args.out.join("speed.md").display(),
+            started.elapsed().as_secs_f64()
+        );
+        return Ok(());
+    }
     let runner = Runner {
         explicit_seconds: args
             .explicit_seconds

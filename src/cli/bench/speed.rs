@@ -1,0 +1,357 @@
+//! `bench --part speed`: time, peak memory, bytes per pixel, RSE and the
+//! RSE-over-time curve of the defaults at the paper's size, at 1920x1080
+//! and (with `--large`) at 18 megapixels, side by side with fast marching
+//! and the paper's fixed schedule (constant start, whole pyramid) in the
+//! same run; and the solver's responsiveness: the time to the first level
+//! and how long a cancellation takes to stop it. Writes `speed.md`,
+//! `speed.json` and one curve figure per size.
+
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use super::super::figures::{self, Series};
+use super::{BenchArgs, CurveRecorder, proc_mib, reset_peak_memory};
+use crate::metrics;
+use crate::params::{InitialDepth, SolverParams};
+use crate::scene::{Scene, mesh, sombrero::sombrero};
+use crate::solver::fast_marching::FastMarchingParams;
+use crate::solver::{LevelResult, Method, Problem, SolveObserver, solve_method};
+
+/// One solve.
+#[derive(Debug, Serialize)]
+pub struct SpeedRow {
+    /// Scene name.
+    pub scene: String,
+    /// `WxH`.
+    pub size: String,
+    /// `defaults`, `paper schedule` or `fast marching`.
+    pub method: String,
+    /// Wall-clock seconds of the solve.
+    pub seconds: f64,
+    /// Growth of the peak resident set during the solve, MiB.
+    pub peak_growth_mib: f64,
+    /// That growth per image pixel, bytes.
+    pub bytes_per_pixel: f64,
+    /// RSE against the ground truth.
+    pub rse: f64,
+    /// Seconds from the start to the first level reported.
+    pub first_level_seconds: Option<f64>,
+    /// `(seconds, RSE)` at every level reported.
+    pub curve: Vec<(f64, f64)>,
+}
+
+/// How long a cancellation took to stop a solve.
+#[derive(Debug, Serialize)]
+pub struct CancelRow {
+    /// `WxH`.
+    pub size: String,
+    /// When the cancellation was requested, seconds after the start.
+    pub requested_at_seconds: f64,
+    /// From the request to the solver's return, milliseconds.
+    pub stop_ms: f64,
+}
+
+/// The whole speed report.
+#[derive(Debug, Serialize)]
+pub struct SpeedReport {
+    /// The command line.
+    pub command: String,
+    /// Every solve.
+    pub rows: Vec<SpeedRow>,
+    /// Cancellation latencies.
+    pub cancels: Vec<CancelRow>,
+    /// Scenes not run (missing meshes).
+    pub skipped: Vec<String>,
+}
+
+/// Records the curve and the first level's time.
+struct Recorder<'a> {
+    curve: CurveRecorder<'a>,
+    started: Instant,
+    first_level: Option<f64>,
+}
+
+impl SolveObserver for Recorder<'_> {
+    fn on_level(&mut self, result: &LevelResult) {
+        self.first_level
+            .get_or_insert_with(|| self.started.elapsed().as_secs_f64());
+        self.curve.on_level(result);
+    }
+}
+
+/// Cancels once `flag` is set.
+struct Cancel(Arc<AtomicBool>);
+
+impl SolveObserver for Cancel {
+    fn is_cancelled(&self) -> bool {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+fn problem(scene: &Scene) -> Problem {
+    Problem {
+        image: scene.image.clone(),
+        camera: scene.camera,
+        intensity_scale: scene.intensity_scale,
+        object_mask: Some(scene.object_mask.clone()),
+        confidence: None,
+        lights: Vec::new(),
+    }
+}
+
+/// The scenes: name, size.
+fn cases(args: &BenchArgs, large: bool) -> Vec<(&'static str, (usize, usize))> {
+    let mut cases = vec![
+        ("sombrero", (256, 256)),
+        ("bunny", (256, 256)),
+        ("dragon", (256, 256)),
+        ("dragon", (1920, 1080)),
+    ];
+    if large {
+        cases.push(("dragon", (5184, 3456)));
+    }
+    if args.quick {
+        cases.retain(|(_, (w, _))| *w <= 256);
+    }
+    cases
+        .into_iter()
+        .filter(|(name, _)| super::wanted(args, name))
+        .collect()
+}
+
+fn render(name: &str, size: (usize, usize), meshes: &Path) -> Result<Scene> {
+    if name == "sombrero" {
+        return Ok(sombrero(size.0, size.1));
+    }
+    let file = match name {
+        "bunny" => "stanford-bunny.obj",
+        _ => "dragon.obj",
+    };
+    let path = meshes.join(file);
+    let loaded =
+        mesh::load_obj(&path).with_context(|| format!("cannot load {}", path.display()))?;
+    Ok(mesh::render(
+        &loaded,
+        size.0,
+        size.1,
+        &mesh::Placement::default(),
+        name,
+    )?)
+}
+
+fn measure(
+    scene: &Scene,
+    name: &str,
+    method_name: &str,
+    method: &Method,
+    params: &SolverParams,
+) -> Result<SpeedRow> {
+    let problem = problem(scene);
+    let (w, h) = scene.image.size();
+    release_freed_memory();
+    reset_peak_memory();
+    let before_mib = proc_mib("/proc/self/status", "VmRSS:");
+    let mut recorder = Recorder {
+        curve: CurveRecorder {
+            truth: &scene.depth_gt,
+            full_domain: scene.object_mask.clone(),
+            points: Vec::new(),
+            overhead: Duration::ZERO,
+        },
+        started: Instant::now(),
+        first_level: None,
+    };
+    let started = Instant::now();
+    let solution = solve_method(&problem, params, method, &mut recorder)
+        .with_context(|| format!("{name} {w}x{h} with {method_name} failed"))?;
+    let seconds = started
+        .elapsed()
+        .saturating_sub(recorder.curve.overhead)
+        .as_secs_f64();
+    let peak_mib = proc_mib("/proc/self/status", "VmHWM:");
+    let growth = (peak_mib - before_mib).max(0.0);
+    let rse = metrics::rse(&solution.depth, &scene.depth_gt)
+        .with_context(|| format!("scoring {name} failed"))?;
+    Ok(SpeedRow {
+        scene: name.into(),
+        size: format!("{w}x{h}"),
+        method: method_name.into(),
+        seconds,
+        peak_growth_mib: growth,
+        bytes_per_pixel: growth * 1024.0 * 1024.0 / (w * h) as f64,
+        rse,
+        first_level_seconds: recorder.first_level,
+        curve: recorder.curve.points,
+    })
+}
+
+/// Hands the heap that earlier solves freed back to the system, so that the
+/// next solve's peak growth is its own (glibc keeps freed memory resident
+/// and reuses it otherwise, and the growth would read near zero).
+fn release_freed_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: `malloc_trim` only returns free heap pages to the kernel; it
+    // takes no pointers and is safe to call at any time from any thread.
+    unsafe {
+        libc::malloc_trim(0);
+    }
+}
+
+/// Starts the default solve of `scene`, cancels it after `after`, returns
+/// how long it took to stop.
+fn cancel_latency(scene: &Scene, after: Duration) -> CancelRow {
+    let flag = Arc::new(AtomicBool::new(false));
+    let problem = problem(scene);
+    let params = SolverParams::default();
+    let observer_flag = Arc::clone(&flag);
+    let (done_tx, done_rx) = crossbeam_channel::bounded::<Instant>(1);
+    let handle = std::thread::spawn(move || {
+        let mut observer = Cancel(observer_flag);
+        let _ = crate::solver::solve(&problem, &params, &mut observer);
+        let _ = done_tx.send(Instant::now());
+    });
+    let started = Instant::now();
+    std::thread::sleep(after);
+    let requested = Instant::now();
+    flag.store(true, Ordering::Relaxed);
+    let stopped = done_rx.recv().unwrap_or(requested);
+    let _ = handle.join();
+    let (w, h) = scene.image.size();
+    CancelRow {
+        size: format!("{w}x{h}"),
+        requested_at_seconds: requested.duration_since(started).as_secs_f64(),
+        stop_ms: stopped.saturating_duration_since(requested).as_secs_f64() * 1e3,
+    }
+}
+
+/// Runs the speed part into `args.out`.
+pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
+    let mut rows = Vec::new();
+    let mut cancels = Vec::new();
+    let mut skipped = Vec::new();
+    let defaults = SolverParams::default();
+    let paper_schedule = SolverParams {
+        initial_depth: InitialDepth::FromImage,
+        ..SolverParams::default()
+    };
+    let fm = Method::FastMarching(FastMarchingParams::default());
+    for (name, size) in cases(args, large) {
+        let scene = match render(name, size, &args.meshes) {
+            Ok(scene) => scene,
+            Err(e) => {
+                skipped.push(format!("{name} {}x{}: {e:#}", size.0, size.1));
+                continue;
+            }
+        };
+        eprintln!("speed: {name} {}x{}", size.0, size.1);
+        let mut group = Vec::new();
+        group.push(measure(
+            &scene,
+            name,
+            "defaults",
+            &Method::Linearised,
+            &defaults,
+        )?);
+        group.push(measure(&scene, name, "fast marching", &fm, &defaults)?);
+        // The paper's schedule at 18 MP takes about an hour: left out there.
+        if size.0 * size.1 <= 4_000_000 {
+            group.push(measure(
+                &scene,
+                name,
+                "paper schedule",
+                &Method::Linearised,
+                &paper_schedule,
+            )?);
+        }
+        if size.0 * size.1 > 1_000_000 {
+            cancels.push(cancel_latency(&scene, Duration::from_millis(500)));
+        }
+        let figure = format!("speed-{name}-{}x{}.png", size.0, size.1);
+        curve_plot(&group)
+            .save(&args.out.join(&figure))
+            .with_context(|| format!("cannot write {figure}"))?;
+        rows.extend(group);
+    }
+    let report = SpeedReport {
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        rows,
+        cancels,
+        skipped,
+    };
+    crate::io::write_json(&args.out.join("speed.json"), &report)?;
+    std::fs::write(args.out.join("speed.md"), markdown(&report))
+        .with_context(|| format!("cannot write {}", args.out.join("speed.md").display()))?;
+    Ok(report)
+}
+
+fn curve_plot(rows: &[SpeedRow]) -> figures::Canvas {
+    const COLOURS: [[u8; 3]; 3] = [[31, 90, 200], [40, 150, 60], [210, 40, 40]];
+    let series: Vec<Series> = rows
+        .iter()
+        .zip(COLOURS)
+        .map(|(row, colour)| Series {
+            colour,
+            label: &row.method,
+            points: &row.curve,
+        })
+        .collect();
+    let all = || rows.iter().flat_map(|r| r.curve.iter());
+    let x = figures::decades(all().map(|p| p.0));
+    let y = figures::decades(all().map(|p| p.1));
+    figures::log_log_plot(&series, x, y, "seconds", "RSE")
+}
+
+fn markdown(report: &SpeedReport) -> String {
+    let mut md = String::from("# Speed\n\n");
+    let _ = writeln!(md, "`{}`\n", report.command);
+    md.push_str(
+        "| scene | size | method | seconds | x fast marching | first level (s) | peak growth (MiB) | bytes/px | RSE |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for row in &report.rows {
+        let fm = report
+            .rows
+            .iter()
+            .find(|r| r.scene == row.scene && r.size == row.size && r.method == "fast marching")
+            .map(|r| r.seconds);
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:.3} | {} | {} | {:.0} | {:.0} | {:.4} |",
+            row.scene,
+            row.size,
+            row.method,
+            row.seconds,
+            fm.map_or("–".into(), |f| format!(
+                "{:.1}",
+                row.seconds / f.max(1e-9)
+            )),
+            row.first_level_seconds
+                .map_or("–".into(), |t| format!("{t:.3}")),
+            row.peak_growth_mib,
+            row.bytes_per_pixel,
+            row.rse
+        );
+    }
+    if !report.cancels.is_empty() {
+        md.push_str(
+            "\n| size | cancel requested at (s) | stopped after (ms) |\n| --- | --- | --- |\n",
+        );
+        for c in &report.cancels {
+            let _ = writeln!(
+                md,
+                "| {} | {:.2} | {:.1} |",
+                c.size, c.requested_at_seconds, c.stop_ms
+            );
+        }
+    }
+    for s in &report.skipped {
+        let _ = writeln!(md, "\nskipped: {s}");
+    }
+    md
+}
