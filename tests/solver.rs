@@ -288,6 +288,31 @@ fn cancel_reaches_the_fast_marching_start_and_its_denoising() {
 }
 
 #[test]
+fn a_large_solve_sends_a_preview_first() {
+    // 640x560: above the preview threshold (512x512 pixels).
+    let scene = sombrero(640, 560);
+    let mut recorder = Recorder::default();
+    let solution = solve(&problem(&scene), &SolverParams::default(), &mut recorder).unwrap();
+    let levels = &recorder.levels;
+    assert_eq!(levels.len(), 3, "{levels:?}");
+    // The preview (longest side 256), then the start and the refined depth.
+    assert_eq!(levels[0], (0, 3, 256, 224));
+    assert_eq!(levels[1], (1, 3, 640, 560));
+    assert_eq!(levels[2], (2, 3, 640, 560));
+    // The preview does not change the result: the solution is the finest level's.
+    assert!(solution.depth.as_slice().iter().all(|z| z.is_finite()));
+    // Below the threshold there is no preview.
+    let mut small = Recorder::default();
+    solve(
+        &problem(&sombrero(256, 256)),
+        &SolverParams::default(),
+        &mut small,
+    )
+    .unwrap();
+    assert_eq!(small.levels.len(), 2);
+}
+
+#[test]
 fn clipped_pixels_are_not_trusted() {
     // A highlight clipped at the top of the range: the solve must be the
     // one with those pixels painted as confidence 0, not one that bends the

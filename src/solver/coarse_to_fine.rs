@@ -67,24 +67,34 @@ pub(crate) struct Walk {
 
 /// Runs `scheme` coarse to fine over `prepared`'s levels from its initial
 /// depth. With `show_start`, the initial depth (a start computed by another
-/// method) is sent to the observer first as a level of its own.
+/// method) is sent to the observer first as a level of its own. `shown`
+/// levels were sent before (a preview): the indices count on from them.
 pub(crate) fn coarse_to_fine<M: Reflectance>(
     model: &M,
     prepared: &Prepared,
     show_start: bool,
+    shown: usize,
     start: Instant,
     observer: &mut dyn SolveObserver,
     scheme: &mut impl LevelScheme,
 ) -> Result<Walk, SolveError> {
     let levels = &prepared.levels;
     let (alpha, lambda) = (prepared.alpha, prepared.lambda);
-    let offset = usize::from(show_start);
+    let offset = usize::from(show_start) + shown;
     let count = levels.len() + offset;
     let mut depth = prepared.depth.clone();
     let initial_energy = level_energy(model, &levels[0], &depth, alpha, lambda);
     if show_start {
-        let shown = level_result(model, &levels[0], &depth, 0, count, initial_energy, start);
-        observer.on_level(&shown);
+        let result = level_result(
+            model,
+            &levels[0],
+            &depth,
+            shown,
+            count,
+            initial_energy,
+            start,
+        );
+        observer.on_level(&result);
     }
     let mut walk = Walk {
         depth: Grid::filled(0, 0, 0.0),

@@ -50,6 +50,16 @@ fn solve_on_worker<M: Reflectance>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
+    // The fast-marching start at full resolution takes seconds on a
+    // photograph: a preview of it goes out first (level 0 of 3: preview,
+    // start, refined).
+    let fast_marching_start =
+        matches!(params.initial_depth, InitialDepth::FastMarching) && problem.light_is_centred();
+    let shown = if fast_marching_start {
+        usize::from(super::preview::send_preview(problem, 3, start, observer)?)
+    } else {
+        0
+    };
     let prepared = prepare(problem, params, observer)?;
     let mut scheme = GaussNewton {
         model,
@@ -62,7 +72,15 @@ fn solve_on_worker<M: Reflectance>(
     // A start computed by another method (fast marching) is shown to the
     // observer as the first level, so a viewer has a surface at once.
     let show_start = matches!(params.initial_depth, InitialDepth::FastMarching);
-    let walk = coarse_to_fine(model, &prepared, show_start, start, observer, &mut scheme)?;
+    let walk = coarse_to_fine(
+        model,
+        &prepared,
+        show_start,
+        shown,
+        start,
+        observer,
+        &mut scheme,
+    )?;
     let phases = scheme.phases;
     let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
     let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();

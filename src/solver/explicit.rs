@@ -390,7 +390,7 @@ fn run<M: Reflectance>(
         z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         total_steps: 0,
     };
-    let walk = coarse_to_fine(model, &prepared, false, start, observer, &mut scheme)?;
+    let walk = coarse_to_fine(model, &prepared, false, 0, start, observer, &mut scheme)?;
     let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
     Solution {
         depth,

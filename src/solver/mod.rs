@@ -13,6 +13,7 @@ pub mod driver;
 pub mod explicit;
 pub mod fast_marching;
 pub mod prepare;
+pub mod preview;
 pub mod problem;
 pub mod pyramid;
 pub mod sor;
