@@ -156,9 +156,9 @@ fn prepare_level(job: MeshJob) -> BuiltMesh {
     let size = level.depth.size();
     let depth = match &inputs.object {
         Some(object) if object.size() == inputs.image.size() => {
-            masked(&level.depth, &object_at_level(object, size))
+            Arc::new(masked(&level.depth, &object_at_level(object, size)))
         }
-        _ => level.depth,
+        _ => Arc::clone(&level.depth),
     };
     // The residual I - R (signed: positive where the image is brighter than
     // the model explains), on a range symmetric about 0.
@@ -354,8 +354,8 @@ mod tests {
         let level = LevelResult {
             level: 0,
             levels: 1,
-            depth: Grid::filled(20, 15, 3.0),
-            reprojection: Grid::filled(20, 15, 0.5),
+            depth: Arc::new(Grid::filled(20, 15, 3.0)),
+            reprojection: Arc::new(Grid::filled(20, 15, 0.5)),
             geometry,
             domain_pixels: 300,
             energy: Energy::default(),

@@ -31,10 +31,10 @@ pub struct LevelView {
     pub level: usize,
     /// Levels in the job.
     pub levels: usize,
-    /// Depth at the level's size.
-    pub depth: Grid<f64>,
-    /// Reprojection at the level's size.
-    pub reprojection: Grid<f64>,
+    /// Depth at the level's size (shared with the level's mesh preparation).
+    pub depth: Arc<Grid<f64>>,
+    /// Reprojection at the level's size (shared likewise).
+    pub reprojection: Arc<Grid<f64>>,
 }
 
 /// Progress of the running job.

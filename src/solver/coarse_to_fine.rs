@@ -121,7 +121,7 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
         walk.final_energy = end.energy;
         let result = level_result(model, level, &depth, step.index, count, end.energy, start);
         observer.on_level(&result);
-        walk.reprojection = result.reprojection;
+        walk.reprojection = std::sync::Arc::unwrap_or_clone(result.reprojection);
         walk.reports.push(LevelReport {
             width: level.geometry.width,
             height: level.geometry.height,

@@ -416,8 +416,8 @@ pub fn solve_fast_marching(
     observer.on_level(&LevelResult {
         level: 0,
         levels: 1,
-        depth: depth.clone(),
-        reprojection: reprojection.clone(),
+        depth: std::sync::Arc::new(depth.clone()),
+        reprojection: std::sync::Arc::new(reprojection.clone()),
         geometry,
         domain_pixels: domain.as_slice().iter().filter(|&&d| d).count(),
         energy,

@@ -403,8 +403,13 @@ pub(crate) fn level_result<M: Reflectance>(
     LevelResult {
         level: index,
         levels,
-        depth: masked(depth, &level.domain),
-        reprojection: model::reproject(model, &level.geometry, &level.domain, depth),
+        depth: std::sync::Arc::new(masked(depth, &level.domain)),
+        reprojection: std::sync::Arc::new(model::reproject(
+            model,
+            &level.geometry,
+            &level.domain,
+            depth,
+        )),
         geometry: level.geometry,
         domain_pixels: level.domain.as_slice().iter().filter(|&&d| d).count(),
         energy,

@@ -95,6 +95,8 @@ pub struct IterationReport {
 }
 
 /// Reported after every level: its depth and reprojection at its own size.
+/// The grids are shared, not copied, by every clone (the worker's event,
+/// the viewer's latest level and its mesh preparation hold one copy).
 #[derive(Clone, Debug)]
 pub struct LevelResult {
     /// Level index, 0 = coarsest.
@@ -102,9 +104,9 @@ pub struct LevelResult {
     /// Number of levels.
     pub levels: usize,
     /// Depth at this level's size; NaN outside the domain.
-    pub depth: Grid<f64>,
+    pub depth: std::sync::Arc<Grid<f64>>,
     /// Reprojected image at this level's size.
-    pub reprojection: Grid<f64>,
+    pub reprojection: std::sync::Arc<Grid<f64>>,
     /// This level's grid and camera: [`LevelGeometry::back_project`] turns
     /// a level pixel and its depth into a camera-space point.
     pub geometry: LevelGeometry,
