@@ -58,6 +58,17 @@ fn median(mut values: Vec<f64>) -> f64 {
     *values.select_nth_unstable_by(middle, f64::total_cmp).1
 }
 
+/// The values of `image` on the object (every pixel without a mask).
+fn object_values(image: &Grid<f64>, object: Option<&Grid<bool>>) -> Vec<f64> {
+    image
+        .as_slice()
+        .iter()
+        .enumerate()
+        .filter(|(q, _)| object.is_none_or(|o| o.as_slice()[*q]))
+        .map(|(_, v)| *v)
+        .collect()
+}
+
 /// Why an image cannot be solved at all because it holds no usable light:
 /// black on every object pixel, or dark (brightest object pixel below 1 %
 /// of full range) with fewer than [`MIN_GREY_LEVELS`] distinct values, i.e.
@@ -66,13 +77,7 @@ fn median(mut values: Vec<f64>) -> f64 {
 /// hundreds of levels and is solved (with the darkness warning). `None`
 /// when there is light to work with.
 pub fn too_dark_to_solve(image: &Grid<f64>, object: Option<&Grid<bool>>) -> Option<String> {
-    let values: Vec<f64> = image
-        .as_slice()
-        .iter()
-        .enumerate()
-        .filter(|(q, _)| object.is_none_or(|o| o.as_slice()[*q]))
-        .map(|(_, v)| *v)
-        .collect();
+    let values = object_values(image, object);
     let brightest = values.iter().copied().fold(0.0, f64::max);
     if brightest <= 0.0 {
         return Some(
@@ -105,13 +110,7 @@ pub const MIN_GREY_LEVELS: usize = 8;
 /// The warning for an image too dark to carry shape (before a solve), from
 /// the object pixels' brightness; `None` when it is bright enough.
 pub fn darkness_warning(image: &Grid<f64>, object: Option<&Grid<bool>>) -> Option<String> {
-    let values: Vec<f64> = image
-        .as_slice()
-        .iter()
-        .enumerate()
-        .filter(|(q, _)| object.is_none_or(|o| o.as_slice()[*q]))
-        .map(|(_, v)| *v)
-        .collect();
+    let values = object_values(image, object);
     let brightest = values.iter().copied().fold(0.0, f64::max);
     let median = median(values);
     (median < TOO_DARK_MEDIAN).then(|| {

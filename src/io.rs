@@ -276,15 +276,6 @@ fn samples_to_grey<T: Copy + Into<f64>>(
     max: f64,
     srgb: bool,
 ) -> Result<Grid<f64>, IoError> {
-    if raw.len() != width * height * channels {
-        return Err(IoError::BadImage {
-            path: path.to_path_buf(),
-            reason: format!(
-                "the decoder gave {} samples for {width}x{height} pixels of {channels} channel(s)",
-                raw.len()
-            ),
-        });
-    }
     let lin = |s: T| {
         let v = (s.into() / max).clamp(0.0, 1.0);
         if srgb { srgb_to_linear(v) } else { v }

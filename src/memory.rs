@@ -98,6 +98,35 @@ pub fn largest_fitting_side(
     })
 }
 
+/// What a solve of a photograph must be told before it starts.
+pub struct SolvePlan<'a> {
+    /// The job as the message names it (file, sizes).
+    pub what: String,
+    /// The photograph's `(width, height)`.
+    pub full: (usize, usize),
+    /// The working size it is solved at.
+    pub working: (usize, usize),
+    /// Photographs summed.
+    pub images: usize,
+    /// The pyramid's total pixels over the working size's.
+    pub pyramid_factor: f64,
+    /// The way out, given a working size (longest side) that would fit.
+    pub smaller: &'a dyn Fn(usize) -> String,
+    /// The way out when no working size fits.
+    pub otherwise: &'a str,
+}
+
+/// Refuses a solve that would not fit the allowance ([`allowance`]), with
+/// the largest working size that would.
+pub fn check_solve(plan: &SolvePlan<'_>) -> Result<(), MemoryError> {
+    let estimate = solve_estimate(plan.full, plan.working, plan.images, plan.pyramid_factor);
+    let (allowed, from_variable) = allowance();
+    let way_out = allowed
+        .and_then(|a| largest_fitting_side(plan.full, plan.images, plan.pyramid_factor, a))
+        .map_or_else(|| plan.otherwise.to_string(), |side| (plan.smaller)(side));
+    check_against(&plan.what, estimate, allowed, from_variable, &way_out)
+}
+
 /// Estimated peak bytes of `synth` at `size`.
 pub fn synth_estimate(size: (usize, usize)) -> u64 {
     let px = (size.0 as u64).saturating_mul(size.1 as u64);

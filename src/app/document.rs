@@ -132,20 +132,8 @@ impl Document {
         // header that cannot be read is reported by the decoder below).
         if let Ok(full) = io::image_size(path) {
             let working = crate::resample::working_size(full.0, full.1, max_side);
-            let (allowed, _) = crate::memory::allowance();
-            let way_out = match allowed.and_then(|a| {
-                crate::memory::largest_fitting_side(
-                    full,
-                    1,
-                    crate::memory::DEFAULT_PYRAMID_FACTOR,
-                    a,
-                )
-            }) {
-                Some(side) => format!("set the working size (Camera panel) to {side} px or less"),
-                None => "open a smaller image".into(),
-            };
-            crate::memory::check(
-                &format!(
+            crate::memory::check_solve(&crate::memory::SolvePlan {
+                what: format!(
                     "opening {} ({}x{}, solved at {}x{})",
                     path.display(),
                     full.0,
@@ -153,14 +141,15 @@ impl Document {
                     working.0,
                     working.1
                 ),
-                crate::memory::solve_estimate(
-                    full,
-                    working,
-                    1,
-                    crate::memory::DEFAULT_PYRAMID_FACTOR,
-                ),
-                &way_out,
-            )?;
+                full,
+                working,
+                images: 1,
+                pyramid_factor: crate::memory::DEFAULT_PYRAMID_FACTOR,
+                smaller: &|side| {
+                    format!("set the working size (Camera panel) to {side} px or less")
+                },
+                otherwise: "open a smaller image",
+            })?;
         }
         let (full, srgb, srgb_reason) = io::read_photo(path, mode)
             .with_context(|| format!("cannot open image {}", path.display()))?;

@@ -311,7 +311,7 @@ impl Session {
             image: doc.image.clone(),
             camera: doc.camera.intrinsics(),
             intensity_scale: doc.camera.intensity_scale,
-            object_mask: doc.masks.object_for_solver(),
+            object_mask: object,
             confidence: doc.masks.confidence_for_solver(),
             lights: doc.camera.solve_lights(),
         };

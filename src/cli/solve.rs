@@ -426,13 +426,6 @@ fn check_memory(
         params.eta,
         params.min_level_side,
     );
-    let estimate = memory::solve_estimate(full, working, images, factor);
-    let (allowed, _) = memory::allowance();
-    let way_out = match allowed.and_then(|a| memory::largest_fitting_side(full, images, factor, a))
-    {
-        Some(side) => format!("solve at a smaller working size with --max-side {side} or less"),
-        None => "use a smaller image".to_string(),
-    };
     let what = if working == full {
         format!("solving {}x{} pixels", full.0, full.1)
     } else {
@@ -441,7 +434,15 @@ fn check_memory(
             working.0, working.1, full.0, full.1
         )
     };
-    memory::check(&what, estimate, &way_out)?;
+    memory::check_solve(&memory::SolvePlan {
+        what,
+        full,
+        working,
+        images,
+        pyramid_factor: factor,
+        smaller: &|side| format!("solve at a smaller working size with --max-side {side} or less"),
+        otherwise: "use a smaller image",
+    })?;
     Ok(())
 }
 
@@ -463,8 +464,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     let full_size = photo::full_size(&photo_setup)?;
     let mut setup = camera_setup(args, full_size)?;
-    let eta_levels = args.params.to_params()?;
-    check_memory(full_size, max_side, args.images.len(), &eta_levels)?;
+    // The table's parameters (eta, min-level-side) size the pyramid.
+    let table_params = args.params.to_params()?;
+    check_memory(full_size, max_side, args.images.len(), &table_params)?;
     // The destination is locked and checked writable before any work.
     let mut stage = OutputStage::new(&args.out, SOLVE_OUTPUTS)?;
     let named: Vec<PathBuf> = [

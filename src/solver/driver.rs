@@ -50,17 +50,7 @@ fn solve_on_worker<M: Reflectance>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
-    // The fast-marching start at full resolution takes seconds on a
-    // photograph: a preview of it goes out first (level 0 of 3: preview,
-    // start, refined).
-    let fast_marching_start =
-        matches!(params.initial_depth, InitialDepth::FastMarching) && problem.light_is_centred();
-    let shown = if fast_marching_start {
-        usize::from(super::preview::send_preview(problem, 3, start, observer)?)
-    } else {
-        0
-    };
-    let prepared = prepare(problem, params, observer)?;
+    let prepared = prepare(problem, params, Some(start), observer)?;
     let mut scheme = GaussNewton {
         model,
         params,
@@ -76,7 +66,7 @@ fn solve_on_worker<M: Reflectance>(
         model,
         &prepared,
         show_start,
-        shown,
+        prepared.shown,
         start,
         observer,
         &mut scheme,

@@ -381,7 +381,7 @@ fn run<M: Reflectance>(
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
     explicit.validate()?;
-    let prepared = prepare(problem, params, observer)?;
+    let prepared = prepare(problem, params, None, observer)?;
     let mut scheme = Descent {
         model,
         explicit,

@@ -24,6 +24,8 @@ use super::pyramid::{self, PyramidLevel};
 pub(crate) struct Prepared {
     /// Levels, coarsest first; the last one is the full image.
     pub levels: Vec<PyramidLevel>,
+    /// Levels already sent to the observer (a preview).
+    pub shown: usize,
     /// Initial depth on the coarsest level.
     pub depth: Grid<f64>,
     /// The constant initial depth (or the warm start's mean).
@@ -62,13 +64,17 @@ impl Crop {
     }
 }
 
-/// Validates `problem` and `params` and builds the pyramid and initial depth.
+/// Validates `problem` and `params` and builds the pyramid and initial depth;
+/// with `preview` (a scheme that shows its start as a level of its own),
+/// before a fast-marching start on a large image, sends the start's preview
+/// to `observer` (level 0 of 3: preview, start, refined; timed from
+/// `start`).
 pub(crate) fn prepare(
     problem: &Problem,
     params: &SolverParams,
-    observer: &dyn SolveObserver,
+    preview: Option<Instant>,
+    observer: &mut dyn SolveObserver,
 ) -> Result<Prepared, SolveError> {
-    let cancelled = || observer.is_cancelled();
     params.validate()?;
     let (domain, confidence) = problem.validate(params)?;
     let (w, h) = problem.image.size();
@@ -85,6 +91,14 @@ pub(crate) fn prepare(
     // through the whole pyramid (the paper's path).
     let fast_marching_start_wanted =
         matches!(params.initial_depth, InitialDepth::FastMarching) && problem.light_is_centred();
+    // That start takes seconds on a photograph: its preview goes out first.
+    let shown = match preview {
+        Some(start) if fast_marching_start_wanted => {
+            usize::from(super::preview::send_preview(problem, 3, start, observer)?)
+        }
+        _ => 0,
+    };
+    let cancelled = || observer.is_cancelled();
     let fast_marching = match fast_marching_start_wanted {
         true => Some(fast_marching_start(
             problem,
@@ -198,6 +212,7 @@ pub(crate) fn prepare(
     };
     Ok(Prepared {
         levels,
+        shown,
         depth,
         initial_depth,
         alpha,

@@ -197,26 +197,18 @@ impl Solution {
     /// [`MAX_SOLVED_DEPTH`], and its reprojection is finite.
     pub(crate) fn checked(self) -> Result<Self, SolveError> {
         let z_max = MAX_SOLVED_DEPTH;
-        let values = self.depth.as_slice().iter().filter(|z| !z.is_nan());
-        let (mut count, mut bad, mut worst) = (0usize, 0usize, 0.0f64);
-        for &z in values {
-            count += 1;
-            if !(z > 0.0 && z <= z_max) {
-                bad += 1;
-                worst = if z.abs() > worst.abs() || worst == 0.0 {
-                    z
-                } else {
-                    worst
-                };
-            }
-        }
-        if count == 0 {
+        // No copy: the depth can be a photograph's size.
+        let values = || self.depth.as_slice().iter().filter(|z| !z.is_nan());
+        let outside = |z: &&f64| !(**z > 0.0 && **z <= z_max);
+        if values().next().is_none() {
             return Err(SolveError::Diverged("no pixel has a depth".into()));
         }
-        if bad > 0 {
+        if let Some(example) = values().find(outside) {
             return Err(SolveError::Diverged(format!(
-                "{bad} of {count} depths are not in (0, {z_max:e}] (e.g. {worst:e}); \
-                 check the intensity scale and the parameters"
+                "{} of {} depths are not in (0, {z_max:e}] (e.g. {example:e}); \
+                 check the intensity scale and the parameters",
+                values().filter(outside).count(),
+                values().count()
             )));
         }
         if self.reprojection.as_slice().iter().any(|v| !v.is_finite()) {

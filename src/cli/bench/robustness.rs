@@ -77,7 +77,7 @@ const SEED: u64 = 1;
 const DIM: f64 = 0.1;
 
 /// The scene `name` rendered at `width` x `height`.
-fn render(name: &str, meshes: &Path, width: usize, height: usize) -> Result<Scene> {
+pub(super) fn render(name: &str, meshes: &Path, width: usize, height: usize) -> Result<Scene> {
     let file = match name {
         "sombrero" => return Ok(sombrero(width, height)),
         "bunny" => "stanford-bunny.obj",
@@ -91,7 +91,7 @@ fn render(name: &str, meshes: &Path, width: usize, height: usize) -> Result<Scen
         .with_context(|| format!("{name}: {}", path.display()))
 }
 
-fn problem(scene: &Scene, image: Grid<f64>) -> Problem {
+pub(super) fn problem(scene: &Scene, image: Grid<f64>) -> Problem {
     Problem {
         image,
         camera: scene.camera,

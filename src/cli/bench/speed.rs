@@ -7,7 +7,6 @@
 //! `speed.json` and one curve figure per size.
 
 use std::fmt::Write as _;
-use std::path::Path;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -19,7 +18,7 @@ use super::super::figures::{self, Series};
 use super::{BenchArgs, CurveRecorder, proc_mib, reset_peak_memory};
 use crate::metrics;
 use crate::params::{InitialDepth, SolverParams};
-use crate::scene::{Scene, mesh, sombrero::sombrero};
+use crate::scene::Scene;
 use crate::solver::fast_marching::FastMarchingParams;
 use crate::solver::{LevelResult, Method, Problem, SolveObserver, solve_method};
 
@@ -95,14 +94,7 @@ impl SolveObserver for Cancel {
 }
 
 fn problem(scene: &Scene) -> Problem {
-    Problem {
-        image: scene.image.clone(),
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
-        lights: Vec::new(),
-    }
+    super::robustness::problem(scene, scene.image.clone())
 }
 
 /// The scenes: name, size.
@@ -123,26 +115,6 @@ fn cases(args: &BenchArgs, large: bool) -> Vec<(&'static str, (usize, usize))> {
         .into_iter()
         .filter(|(name, _)| super::wanted(args, name))
         .collect()
-}
-
-fn render(name: &str, size: (usize, usize), meshes: &Path) -> Result<Scene> {
-    if name == "sombrero" {
-        return Ok(sombrero(size.0, size.1));
-    }
-    let file = match name {
-        "bunny" => "stanford-bunny.obj",
-        _ => "dragon.obj",
-    };
-    let path = meshes.join(file);
-    let loaded =
-        mesh::load_obj(&path).with_context(|| format!("cannot load {}", path.display()))?;
-    Ok(mesh::render(
-        &loaded,
-        size.0,
-        size.1,
-        &mesh::Placement::default(),
-        name,
-    )?)
 }
 
 fn measure(
@@ -242,7 +214,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
     };
     let fm = Method::FastMarching(FastMarchingParams::default());
     for (name, size) in cases(args, large) {
-        let scene = match render(name, size, &args.meshes) {
+        let scene = match super::robustness::render(name, &args.meshes, size.0, size.1) {
             Ok(scene) => scene,
             Err(e) => {
                 skipped.push(format!("{name} {}x{}: {e:#}", size.0, size.1));
