@@ -504,7 +504,13 @@ fn bench_speed_reports_every_method_side_by_side() {
     let methods: BTreeSet<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
     assert_eq!(
         methods,
-        BTreeSet::from(["defaults", "fast marching", "paper schedule"])
+        BTreeSet::from([
+            "defaults",
+            "fast marching",
+            "fixed counts",
+            "multigrid",
+            "paper schedule"
+        ])
     );
     for row in rows {
         assert_eq!(row["size"], "256x256");
@@ -512,6 +518,22 @@ fn bench_speed_reports_every_method_side_by_side() {
         assert!(rse.is_finite() && rse < 0.1, "{row}");
         assert!(!row["curve"].as_array().unwrap().is_empty(), "{row}");
     }
+    // The adaptive stops run fewer inner iterations than the fixed counts.
+    let inner = |method: &str| {
+        rows.iter()
+            .find(|r| r["method"] == method)
+            .and_then(|r| r["inner_iterations"].as_u64())
+            .expect("inner iterations")
+    };
+    assert!(inner("defaults") < inner("fixed counts"));
+    // SOR against V-cycles on the same system: both reduce the residual,
+    // 4 cycles further than 40 sweeps.
+    let convergence = report["convergence"].as_array().expect("convergence");
+    assert_eq!(convergence.len(), 1);
+    let c = &convergence[0];
+    let value = |key: &str| c[key].as_f64().expect(key);
+    assert!(value("sor_after_40") < value("sor_after_10") && value("sor_after_10") < 1.0);
+    assert!(value("cycle_after_4") < value("sor_after_40"), "{c}");
     assert!(out.join("speed.md").exists());
     assert!(out.join("speed-sombrero-256x256.png").exists());
 }

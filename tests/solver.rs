@@ -478,3 +478,101 @@ fn led_beside_the_lens() -> sfs_studio::light::PointLight {
     .validated(1)
     .unwrap()
 }
+
+/// The adaptive stops keep the fixed schedule's answer: on a large image
+/// (512 px, where one solve's sweeps reach only locally) with a ninth of its
+/// inner iterations; on small ones (64 px, where the sweeps converge the
+/// system and the later inner iterations change the answer) with all of
+/// them, clean and noisy.
+#[test]
+fn adaptive_stops_keep_the_fixed_schedules_answer() {
+    for (size, noise) in [(512, 0.0), (64, 0.0), (64, 20.0)] {
+        let scene = sombrero(size, size);
+        let mut problem = problem(&scene);
+        if noise > 0.0 {
+            problem.image = sfs_studio::scene::add_noise(&scene.image, noise, 7);
+        }
+        let adaptive = solve(&problem, &SolverParams::default(), &mut ()).expect("solves");
+        let fixed = SolverParams::default().with_fixed_schedule();
+        let fixed = solve(&problem, &fixed, &mut ()).expect("solves");
+        let rse = |s: &sfs_studio::solver::Solution| {
+            metrics::rse(&s.depth, &scene.depth_gt).expect("measurable")
+        };
+        let (rse_adaptive, rse_fixed) = (rse(&adaptive), rse(&fixed));
+        assert!(
+            rse_adaptive <= 1.05 * rse_fixed,
+            "{size} px, noise {noise}: adaptive {rse_adaptive} vs fixed {rse_fixed}"
+        );
+        let (inner_adaptive, inner_fixed) = (
+            adaptive.phases.inner_iterations,
+            fixed.phases.inner_iterations,
+        );
+        // 5 outer iterations x 9 inner ones in the fixed schedule.
+        assert_eq!(inner_fixed, 45);
+        if size >= 512 {
+            // Measured 5 (one per outer iteration).
+            assert!(
+                inner_adaptive * 3 <= inner_fixed,
+                "{size} px: {inner_adaptive} inner iterations vs {inner_fixed}"
+            );
+        } else {
+            assert_eq!(inner_adaptive, inner_fixed, "{size} px, noise {noise}");
+            assert_eq!(adaptive.depth.as_slice(), fixed.depth.as_slice());
+        }
+    }
+}
+
+/// Up the pyramid from a constant, every inner iteration runs: there the
+/// later sweeps keep removing smooth error (README, "Speed").
+#[test]
+fn the_whole_pyramid_runs_every_inner_iteration() {
+    let scene = sombrero(48, 48);
+    let params = pyramid_params();
+    let solution = solve(&problem(&scene), &params, &mut ()).expect("solves");
+    let outer: usize = solution.levels.iter().map(|l| l.energies.len()).sum();
+    assert_eq!(
+        solution.phases.inner_iterations,
+        outer * params.inner_iterations
+    );
+    assert_eq!(
+        solution.phases.linear_iterations,
+        outer * params.inner_iterations * params.sor_iterations
+    );
+}
+
+/// The multigrid linear solver (V-cycles to a tenth of the residual)
+/// refines the fast-marching start as well as SOR, with far fewer smoothing
+/// passes.
+#[test]
+fn multigrid_linear_solver_solves_as_well_as_sor() {
+    for noise in [0.0, 20.0] {
+        let scene = sombrero(64, 64);
+        let mut problem = problem(&scene);
+        if noise > 0.0 {
+            problem.image = sfs_studio::scene::add_noise(&scene.image, noise, 7);
+        }
+        let sor = solve(&problem, &SolverParams::default(), &mut ()).expect("solves");
+        let params = SolverParams {
+            linear_solver: sfs_studio::params::LinearSolver::Multigrid,
+            linear_tolerance: 0.1,
+            ..SolverParams::default()
+        };
+        let multigrid = solve(&problem, &params, &mut ()).expect("solves");
+        let rse = |s: &sfs_studio::solver::Solution| {
+            metrics::rse(&s.depth, &scene.depth_gt).expect("measurable")
+        };
+        let (rse_sor, rse_multigrid) = (rse(&sor), rse(&multigrid));
+        assert!(
+            rse_multigrid <= 1.05 * rse_sor,
+            "noise {noise}: multigrid {rse_multigrid} vs SOR {rse_sor}"
+        );
+        // A cycle smooths 4 times (and works on the coarser grids): fewer
+        // than half of SOR's sweeps (measured 45 cycles against 450).
+        assert!(
+            4 * multigrid.phases.linear_iterations * 2 < sor.phases.linear_iterations,
+            "{} cycles vs {} sweeps",
+            multigrid.phases.linear_iterations,
+            sor.phases.linear_iterations
+        );
+    }
+}

@@ -138,6 +138,19 @@ impl ProblemScales {
     }
 }
 
+/// How each inner iteration's linear system is solved.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LinearSolver {
+    /// The paper's: SOR sweeps (`sor_iterations` at most).
+    Sor,
+    /// Geometric multigrid V-cycles (Galerkin coarse levels, SOR smoothing;
+    /// `cycles` at most): moves smooth error that SOR needs hundreds of
+    /// sweeps for.
+    #[default]
+    Multigrid,
+}
+
 /// How each Gauss-Newton update is controlled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -199,8 +212,24 @@ pub struct SolverParams {
     pub level_tolerance: f64,
     /// Inner fixed-point iterations `l_max` on Psi'; paper 9.
     pub inner_iterations: usize,
-    /// SOR sweeps per inner iteration; paper 10.
+    /// SOR sweeps per inner iteration (at most, with `linear_tolerance`);
+    /// paper 10. With multigrid, the smoothing sweeps are `smoothing_sweeps`.
     pub sor_iterations: usize,
+    /// The linear solver of each inner iteration; default multigrid.
+    pub linear_solver: LinearSolver,
+    /// V-cycles per inner iteration at most (multigrid); default 4.
+    pub cycles: usize,
+    /// SOR sweeps before and after each coarse correction of a V-cycle;
+    /// default 2.
+    pub smoothing_sweeps: usize,
+    /// Inexact Newton: a linear solve stops once its residual has fallen by
+    /// this factor (relative to its start); 0 runs the fixed count (the
+    /// paper's). Default 0.1.
+    pub linear_tolerance: f64,
+    /// The inner iterations stop when the Charbonnier weights Psi' moved by
+    /// less than this (relative, weighted) since the last linear solve; 0
+    /// runs all `inner_iterations` (the paper's). Default 0.05.
+    pub inner_tolerance: f64,
     /// SOR relaxation `omega` in (0, 2); the paper does not state it; default 1.5.
     pub omega: f64,
     /// Per-pixel crop of each update: `|dz| <= dz_limit` in depth units (paper
@@ -241,6 +270,11 @@ impl Default for SolverParams {
             level_tolerance: 1e-3,
             inner_iterations: 9,
             sor_iterations: 10,
+            linear_solver: LinearSolver::Sor,
+            cycles: 4,
+            smoothing_sweeps: 2,
+            linear_tolerance: 0.0,
+            inner_tolerance: 0.05,
             omega: 1.5,
             dz_limit: 0.005,
             derivatives: Derivatives::Exact,
@@ -262,7 +296,19 @@ impl SolverParams {
         Self {
             alpha: Alpha::Value(alpha_px),
             initial_depth: InitialDepth::FromImage,
-            ..Self::for_units(Units::Paper)
+            ..Self::for_units(Units::Paper).with_fixed_schedule()
+        }
+    }
+
+    /// These parameters with the paper's fixed counts: every one of the
+    /// `inner_iterations` runs `sor_iterations` SOR sweeps (no adaptive
+    /// stopping, SOR as the linear solver).
+    pub fn with_fixed_schedule(self) -> Self {
+        Self {
+            linear_solver: LinearSolver::Sor,
+            linear_tolerance: 0.0,
+            inner_tolerance: 0.0,
+            ..self
         }
     }
 

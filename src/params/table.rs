@@ -4,7 +4,7 @@
 //! settings, the solve report and [`SolverParams::validate`] all read it, so
 //! a parameter is added in one place.
 
-use super::{Alpha, DomainMode, SolverParams, StepControl, Units};
+use super::{Alpha, DomainMode, LinearSolver, SolverParams, StepControl, Units};
 use crate::model::Derivatives;
 
 /// What values a parameter takes.
@@ -323,11 +323,82 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "sor-iters",
         label: "SOR sweeps",
-        help: "SOR sweeps per inner iteration (paper 10).",
+        help: "SOR sweeps per inner iteration, at most with a linear tolerance (paper 10; \
+               linear solver 'sor').",
         kind: ParamKind::Count { min: 1, max: 1000 },
         slider: Some((1.0, 50.0)),
         get: |p| ParamValue::Count(p.sor_iterations),
         set: |p, v| p.sor_iterations = count(v),
+    },
+    ParamSpec {
+        name: "linear-solver",
+        label: "linear solver",
+        help: "'multigrid' (default): V-cycles with Galerkin coarse levels and SOR smoothing; \
+               'sor': the paper's SOR sweeps.",
+        kind: ParamKind::Choice(&["multigrid", "sor"]),
+        slider: None,
+        get: |p| {
+            ParamValue::Choice(match p.linear_solver {
+                LinearSolver::Multigrid => "multigrid",
+                LinearSolver::Sor => "sor",
+            })
+        },
+        set: |p, v| {
+            p.linear_solver = if word(v) == "sor" {
+                LinearSolver::Sor
+            } else {
+                LinearSolver::Multigrid
+            }
+        },
+    },
+    ParamSpec {
+        name: "cycles",
+        label: "V-cycles",
+        help: "Multigrid V-cycles per inner iteration, at most (default 4).",
+        kind: ParamKind::Count { min: 1, max: 1000 },
+        slider: None,
+        get: |p| ParamValue::Count(p.cycles),
+        set: |p, v| p.cycles = count(v),
+    },
+    ParamSpec {
+        name: "smoothing-sweeps",
+        label: "smoothing sweeps",
+        help: "SOR sweeps before and after each coarse correction of a V-cycle (default 2).",
+        kind: ParamKind::Count { min: 1, max: 100 },
+        slider: None,
+        get: |p| ParamValue::Count(p.smoothing_sweeps),
+        set: |p, v| p.smoothing_sweeps = count(v),
+    },
+    ParamSpec {
+        name: "linear-tolerance",
+        label: "linear tolerance",
+        help: "Inexact Newton: each linear solve stops once its residual fell by this factor \
+               (default 0.1); 0 runs the fixed sweep or cycle count (the paper's).",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: 1.0,
+            log: false,
+            auto: false,
+        },
+        slider: None,
+        get: |p| ParamValue::Real(p.linear_tolerance),
+        set: |p, v| p.linear_tolerance = real(v),
+    },
+    ParamSpec {
+        name: "inner-tolerance",
+        label: "inner tolerance",
+        help: "The inner iterations stop when the Charbonnier weights Psi' moved by less than \
+               this (relative) since the last linear solve (default 0.05); 0 runs all of \
+               them (the paper's).",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: 1.0,
+            log: false,
+            auto: false,
+        },
+        slider: None,
+        get: |p| ParamValue::Real(p.inner_tolerance),
+        set: |p, v| p.inner_tolerance = real(v),
     },
     ParamSpec {
         name: "omega",

@@ -8,9 +8,10 @@ use std::time::Instant;
 
 use crate::grid::Grid;
 use crate::model::{Energy, Reflectance};
-use crate::params::{InitialDepth, SolverParams, StepControl};
+use crate::params::{InitialDepth, LinearSolver, SolverParams, StepControl};
 
 use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
+use super::multigrid::Multigrid;
 use super::prepare::{Crop, Prepared, level_energy, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, on_object,
@@ -118,6 +119,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             lambda,
             crop,
             derivatives,
+            refines_warm_start,
             ..
         } = *self.prepared;
         let energy_of = |depth: &Grid<f64>| level_energy(model, level, depth, alpha, lambda);
@@ -127,6 +129,8 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         let mut current: Option<Energy> = None;
         // The depth before a trial step (backtracking), reused across iterations.
         let mut previous = depth.clone();
+        // The work vector of the inexact Newton test.
+        let mut residual = Vec::new();
         for iteration in 0..params.kappa_max {
             if iteration >= params.kappa
                 && let [.., before, after] = energies[..]
@@ -143,18 +147,45 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             }
             system.clear_dz();
             self.phases.linearise_seconds += t0.elapsed().as_secs_f64();
-            for _ in 0..params.inner_iterations {
+            // The multigrid hierarchy of this outer iteration's first
+            // system serves its later inner iterations too: only Psi' moves.
+            let mut hierarchy: Option<Multigrid> = None;
+            // The residual at dz = 0: the V-cycles reduce it by
+            // `linear_tolerance` (inexact Newton), the stopping test below
+            // compares the first solve's residual with it.
+            let mut start_residual = 0.0;
+            let mut first_solve_converged = true;
+            for inner in 0..params.inner_iterations {
                 let t1 = Instant::now();
-                system.add_smoothness(level, alpha, lambda);
+                let change = system.add_smoothness(level, alpha, lambda);
                 self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
-                let t2 = Instant::now();
-                for _ in 0..params.sor_iterations {
-                    if observer.is_cancelled() {
-                        return Err(SolveError::Cancelled);
-                    }
-                    sor::sweep(&mut system, params.omega);
+                let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
+                if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
+                    start_residual = residual_norm(&system, &mut residual);
                 }
-                self.phases.sor_seconds += t2.elapsed().as_secs_f64();
+                // Refining a full-resolution start, the weights have settled
+                // and the sweeps reach only locally: the later inner
+                // iterations would polish the step where the crop cuts it
+                // anyway. Where one solve's sweeps converge the system (small
+                // images), they go on: there they change the answer.
+                if inner > 0
+                    && adaptive
+                    && change < params.inner_tolerance
+                    && !first_solve_converged
+                {
+                    break;
+                }
+                self.phases.inner_iterations += 1;
+                self.linear_solve(
+                    &mut system,
+                    &mut hierarchy,
+                    params.linear_tolerance * start_residual,
+                    observer,
+                )?;
+                if inner == 0 && adaptive {
+                    first_solve_converged =
+                        residual_norm(&system, &mut residual) <= LOCAL_REACH * start_residual;
+                }
             }
             let t3 = Instant::now();
             let z_floor = self.z_floor;
@@ -199,6 +230,70 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             out_of_budget: false,
         })
     }
+}
+
+impl<M> GaussNewton<'_, M> {
+    /// One inner iteration's linear solve from the current unknowns:
+    /// `sor_iterations` SOR sweeps, or V-cycles (`cycles` at most) until the
+    /// residual is at most `target` (0: all of them).
+    fn linear_solve(
+        &mut self,
+        system: &mut LinearSystem,
+        hierarchy: &mut Option<Multigrid>,
+        target: f64,
+        observer: &dyn SolveObserver,
+    ) -> Result<(), SolveError> {
+        let params = self.params;
+        let t0 = Instant::now();
+        match params.linear_solver {
+            LinearSolver::Sor => {
+                for _ in 0..params.sor_iterations {
+                    if observer.is_cancelled() {
+                        return Err(SolveError::Cancelled);
+                    }
+                    sor::sweep(system, params.omega);
+                    self.phases.linear_iterations += 1;
+                }
+            }
+            LinearSolver::Multigrid => {
+                if observer.is_cancelled() {
+                    return Err(SolveError::Cancelled);
+                }
+                let multigrid = match hierarchy {
+                    Some(multigrid) => multigrid,
+                    None => {
+                        let t1 = Instant::now();
+                        let built = Multigrid::build(system, params.smoothing_sweeps);
+                        self.phases.hierarchy_seconds += t1.elapsed().as_secs_f64();
+                        hierarchy.insert(built)
+                    }
+                };
+                for _ in 0..params.cycles {
+                    if observer.is_cancelled() {
+                        return Err(SolveError::Cancelled);
+                    }
+                    multigrid.cycle(system, &Multigrid::SMOOTHER);
+                    self.phases.linear_iterations += 1;
+                    if target > 0.0 && multigrid.residual_norm(system) <= target {
+                        break;
+                    }
+                }
+            }
+        }
+        self.phases.linear_seconds += t0.elapsed().as_secs_f64();
+        Ok(())
+    }
+}
+
+/// The first solve of an outer iteration that leaves more than this share
+/// of the residual has sweeps that reach only locally (see `solve_level`).
+const LOCAL_REACH: f64 = 0.1;
+
+/// The norm of the system's residual at its current unknowns (`buffer` is
+/// the work vector).
+fn residual_norm(system: &LinearSystem, buffer: &mut Vec<f32>) -> f64 {
+    buffer.resize(system.dz_padded.len(), 0.0);
+    system.residual_into(buffer).sqrt()
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the

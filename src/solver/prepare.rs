@@ -42,6 +42,10 @@ pub(crate) struct Prepared {
     pub crop: Crop,
     /// Derivatives with `h_z` in depth units.
     pub derivatives: Derivatives,
+    /// The solve refines a full-resolution start (fast marching or a map)
+    /// on the full image alone, instead of walking the pyramid up from a
+    /// constant.
+    pub refines_warm_start: bool,
 }
 
 /// The per-pixel limit on one update `|dz|`.
@@ -221,6 +225,7 @@ pub(crate) fn prepare(
         alpha_used,
         crop,
         derivatives,
+        refines_warm_start: warm.is_some(),
     })
 }
 
@@ -235,8 +240,17 @@ fn fast_marching_start(
     denoise: bool,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Result<Grid<f64>, SolveError> {
-    let trusted = finest.confidence.map(|&c| c >= 0.5);
-    let mut image = crate::denoise::fill_unknown_cancellable(&problem.image, &trusted, cancelled)
+    // Fast marching reads only the object, so only untrusted object pixels
+    // need filling; with denoising the background is filled too, so that
+    // TV does not pull the silhouette towards the (black) background. At
+    // 1920x1080 the background's diffusion cost a quarter of a second.
+    let object = problem.object_mask.as_ref();
+    let on_object = |c: usize, r: usize| object.is_none_or(|m| *m.at(c, r));
+    let (w, h) = problem.image.size();
+    let known = Grid::from_fn(w, h, |c, r| {
+        *finest.confidence.at(c, r) >= 0.5 || (!denoise && !on_object(c, r))
+    });
+    let mut image = crate::denoise::fill_unknown_cancellable(&problem.image, &known, cancelled)
         .ok_or(SolveError::Cancelled)?;
     if denoise {
         image =

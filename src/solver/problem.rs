@@ -139,17 +139,24 @@ pub struct LevelReport {
     pub seconds: f64,
 }
 
-/// Seconds spent in each phase of a solve.
+/// Seconds spent in each phase of a solve, and the work counted.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct PhaseTimes {
     /// Linearising the data term and building its part of the system.
     pub linearise_seconds: f64,
     /// Evaluating Psi' and assembling the full system (every inner iteration).
     pub assemble_seconds: f64,
-    /// SOR sweeps.
-    pub sor_seconds: f64,
+    /// The linear solves: SOR sweeps or V-cycles, with their residual
+    /// checks (the multigrid hierarchy's construction excluded).
+    pub linear_seconds: f64,
+    /// Building the multigrid hierarchies (Galerkin coarse operators).
+    pub hierarchy_seconds: f64,
     /// Cropping, applying and (with backtracking) re-evaluating the update.
     pub update_seconds: f64,
+    /// Inner iterations (linear solves) run, over all levels.
+    pub inner_iterations: usize,
+    /// SOR sweeps (linear solver `sor`) or V-cycles (`multigrid`) run.
+    pub linear_iterations: usize,
 }
 
 /// The result of a solve.

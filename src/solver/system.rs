@@ -436,7 +436,12 @@ impl LinearSystem {
     /// Two passes over rows, each written as straight loops over slices so
     /// that they vectorise (compiled for AVX2 where the CPU has it): the
     /// weights `W = Psi' k^2` with `W * (K z^k)`, then the rows.
-    pub fn add_smoothness(&mut self, level: &PyramidLevel, alpha: f64, lambda: f64) {
+    ///
+    /// Returns the relative change of the weights since the previous call,
+    /// `sum |W_new - W_old| / sum W_new` (the Charbonnier `Psi'` moved by
+    /// this much, weighted): the inner fixed point has converged when it is
+    /// small. The first call on a system compares with zero weights (1).
+    pub fn add_smoothness(&mut self, level: &PyramidLevel, alpha: f64, lambda: f64) -> f64 {
         let w = self.width;
         let pw = self.padded_width();
         let h = level.geometry.spacing;
@@ -460,11 +465,10 @@ impl LinearSystem {
             dz: &self.dz_padded,
         };
         let simd = Simd::detect();
-        image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows).for_each(
-            |(r, block)| {
-                simd.run(|| weight_row(&inputs, r, block));
-            },
-        );
+        let (changed, total) =
+            image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows)
+                .map(|(r, block)| simd.run(|| weight_row(&inputs, r, block)))
+                .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         let smooth = &self.smooth;
         let data_forward = &self.data_forward;
         let data_diagonal = &self.data_diagonal;
@@ -485,6 +489,109 @@ impl LinearSystem {
                 simd.run(|| assemble_row(&inputs, block));
             },
         );
+        if total > 0.0 {
+            changed / total
+        } else if changed > 0.0 {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether pixel `(column, row)` is solved for (a positive diagonal).
+    #[inline]
+    pub fn is_solved(&self, column: usize, row: usize) -> bool {
+        let pw = self.padded_width();
+        self.coefficients[(row + HALO) * PLANES * pw + PLANE_INVERSE_DIAGONAL * pw + column + HALO]
+            != 0.0
+    }
+
+    /// The full 5x5 row of `(column, row)` (index `(dy + 2) * 5 + dx + 2`,
+    /// centre 12), couplings to pixels that are not solved for left out; None
+    /// for a pixel that is not solved for.
+    pub fn stencil(&self, column: usize, row: usize) -> Option<[f32; 25]> {
+        if !self.is_solved(column, row) {
+            return None;
+        }
+        let pw = self.padded_width();
+        let here = self.row(column, row);
+        let mut out = [0.0f32; 25];
+        out[12] = 1.0 / here.inverse_diagonal;
+        for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
+            // The forward coupling is stored here, the backward one at -o;
+            // the halo keeps both reads inside the planes (zero there).
+            let (fc, fr) = (column as isize + dx, row as isize + dy);
+            let (bc, br) = (column as isize - dx, row as isize - dy);
+            let inside = |c: isize, r: isize| {
+                c >= 0 && r >= 0 && (c as usize) < self.width && (r as usize) < self.height
+            };
+            if inside(fc, fr) && self.is_solved(fc as usize, fr as usize) {
+                out[((dy + 2) * 5 + dx + 2) as usize] = here.forward[k];
+            }
+            if inside(bc, br) && self.is_solved(bc as usize, br as usize) {
+                let block = (br as usize + HALO) * PLANES * pw;
+                out[((2 - dy) * 5 + 2 - dx) as usize] =
+                    self.coefficients[block + k * pw + bc as usize + HALO];
+            }
+        }
+        Some(out)
+    }
+
+    /// The residual `b - A dz` of the current unknowns into `out` (laid out
+    /// like [`Self::dz_padded`], 0 outside the solved pixels); returns its
+    /// squared Euclidean norm. About the cost of one sweep.
+    pub fn residual_into(&self, out: &mut [f32]) -> f64 {
+        let (w, h) = (self.width, self.height);
+        let pw = self.padded_width();
+        assert_eq!(out.len(), self.dz_padded.len());
+        let x = &self.dz_padded[..];
+        let coefficients = &self.coefficients[..];
+        let min_rows = rows_per_task(w);
+        out.par_chunks_mut(pw)
+            .enumerate()
+            .with_min_len(min_rows)
+            .map(|(pr, out_row)| {
+                out_row.iter_mut().for_each(|v| *v = 0.0);
+                if pr < HALO || pr >= h + HALO {
+                    return 0.0;
+                }
+                let block = |k: usize| &coefficients[k * PLANES * pw..(k + 1) * PLANES * pw];
+                let (here, above1, above2) = (block(pr), block(pr - 1), block(pr - 2));
+                let line = |k: usize| &x[k * pw..(k + 1) * pw];
+                let rows = [
+                    line(pr - 2),
+                    line(pr - 1),
+                    line(pr),
+                    line(pr + 1),
+                    line(pr + 2),
+                ];
+                let mut norm = 0.0f64;
+                for c in HALO..HALO + w {
+                    let inverse = here[PLANE_INVERSE_DIAGONAL * pw + c];
+                    if inverse == 0.0 {
+                        continue;
+                    }
+                    let mut sum = rows[2][c] / inverse;
+                    for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
+                        let (dx, dy) = (dx, dy as usize);
+                        // Forward: stored here, unknown at +o.
+                        sum += here[k * pw + c] * rows[2 + dy][c.wrapping_add_signed(dx)];
+                        // Backward: stored at -o, unknown at -o.
+                        let back = c.wrapping_add_signed(-dx);
+                        let stored = match dy {
+                            0 => here[k * pw + back],
+                            1 => above1[k * pw + back],
+                            _ => above2[k * pw + back],
+                        };
+                        sum += stored * rows[2 - dy][back];
+                    }
+                    let value = here[PLANE_RHS * pw + c] - sum;
+                    out_row[c] = value;
+                    norm += f64::from(value) * f64::from(value);
+                }
+                norm
+            })
+            .sum()
     }
 }
 
@@ -542,7 +649,7 @@ struct WeightInputs<'a> {
 /// `W = Psi'(S^2(z^k + dz)) k^2` per stencil (0 where the stencil leaves the
 /// domain) and `W * (K z^k)` for image row `row`.
 #[inline(always)]
-fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) {
+fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) -> (f64, f64) {
     let pw = inputs.padded_width;
     let n = inputs.width;
     let i0 = (row + HALO) * pw + HALO;
@@ -566,6 +673,7 @@ fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) {
     let [sxx, syy, sxy] = inputs.scale;
     let [gxx, gyy, gxy] = inputs.weight_scale;
     let il2 = inputs.inverse_lambda_squared;
+    let (mut changed, mut total) = (0.0f32, 0.0f32);
     for c in 0..n {
         let f = |v: f32| v;
         let txx = kzxx[c] + (f(left[c]) - 2.0 * f(centre[c]) + f(right[c]));
@@ -575,6 +683,8 @@ fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) {
         let s2 = mxx[c] * zxx * zxx + myy[c] * zyy * zyy + 2.0 * mxy[c] * zxy * zxy;
         let psi = 1.0 / (1.0 + s2 * il2).sqrt();
         let (axx, ayy, axy) = (mxx[c] * psi * gxx, myy[c] * psi * gyy, mxy[c] * psi * gxy);
+        changed += ((axx - wxx[c]).abs() + (ayy - wyy[c]).abs()) + (axy - wxy[c]).abs();
+        total += (axx + ayy) + axy;
         wxx[c] = axx;
         wyy[c] = ayy;
         wxy[c] = axy;
@@ -583,6 +693,7 @@ fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) {
         vyy[c] = if myy[c] != 0.0 { ayy * kzyy[c] } else { 0.0 };
         vxy[c] = if mxy[c] != 0.0 { axy * kzxy[c] } else { 0.0 };
     }
+    (f64::from(changed), f64::from(total))
 }
 
 /// `n` values of `v` from `start + offset`.

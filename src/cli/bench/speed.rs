@@ -17,7 +17,7 @@ use serde::Serialize;
 use super::super::figures::{self, Series};
 use super::{BenchArgs, CurveRecorder, proc_mib, reset_peak_memory};
 use crate::metrics;
-use crate::params::{InitialDepth, SolverParams};
+use crate::params::{InitialDepth, LinearSolver, SolverParams};
 use crate::scene::Scene;
 use crate::solver::fast_marching::FastMarchingParams;
 use crate::solver::{LevelResult, Method, Problem, SolveObserver, solve_method};
@@ -29,7 +29,8 @@ pub struct SpeedRow {
     pub scene: String,
     /// `WxH`.
     pub size: String,
-    /// `defaults`, `paper schedule` or `fast marching`.
+    /// `defaults`, `fixed counts`, `multigrid`, `paper schedule` or `fast
+    /// marching`.
     pub method: String,
     /// Wall-clock seconds of the solve.
     pub seconds: f64,
@@ -43,6 +44,38 @@ pub struct SpeedRow {
     pub first_level_seconds: Option<f64>,
     /// `(seconds, RSE)` at every level reported.
     pub curve: Vec<(f64, f64)>,
+    /// Inner iterations (linear solves) run.
+    pub inner_iterations: usize,
+    /// SOR sweeps or V-cycles run.
+    pub linear_iterations: usize,
+}
+
+/// The linear solvers on one system: the first Gauss-Newton system at the
+/// fast-marching start of a scene, solved from zero by SOR and by V-cycles.
+#[derive(Debug, Serialize)]
+pub struct ConvergenceRow {
+    /// Scene name.
+    pub scene: String,
+    /// `WxH`.
+    pub size: String,
+    /// Residual after 10 SOR sweeps (the paper's count) over the initial one.
+    pub sor_after_10: f64,
+    /// Residual after 40 SOR sweeps over the initial one.
+    pub sor_after_40: f64,
+    /// Residual reduction per sweep over sweeps 30 to 40.
+    pub sor_factor_late: f64,
+    /// Residual after 1 V-cycle over the initial one.
+    pub cycle_after_1: f64,
+    /// Residual after 4 V-cycles over the initial one.
+    pub cycle_after_4: f64,
+    /// Residual reduction per cycle over cycles 2 to 4.
+    pub cycle_factor_late: f64,
+    /// Seconds per SOR sweep.
+    pub seconds_per_sweep: f64,
+    /// Seconds per V-cycle (its residual check excluded).
+    pub seconds_per_cycle: f64,
+    /// Seconds to build the Galerkin hierarchy.
+    pub hierarchy_seconds: f64,
 }
 
 /// How long a cancellation took to stop a solve.
@@ -65,6 +98,8 @@ pub struct SpeedReport {
     pub rows: Vec<SpeedRow>,
     /// Cancellation latencies.
     pub cancels: Vec<CancelRow>,
+    /// SOR against V-cycles on the same systems.
+    pub convergence: Vec<ConvergenceRow>,
     /// Scenes not run (missing meshes).
     pub skipped: Vec<String>,
 }
@@ -160,6 +195,95 @@ fn measure(
         rse,
         first_level_seconds: recorder.first_level,
         curve: recorder.curve.points,
+        inner_iterations: solution.phases.inner_iterations,
+        linear_iterations: solution.phases.linear_iterations,
+    })
+}
+
+/// SOR sweeps against V-cycles on the first Gauss-Newton system at the
+/// fast-marching start of `scene` (object domain, the defaults' alpha and
+/// lambda in pixel units).
+fn convergence(scene: &Scene, name: &str) -> Result<ConvergenceRow> {
+    use crate::model::{Derivatives, LevelGeometry};
+    use crate::solver::multigrid::{Multigrid, Smoother, Sor};
+    use crate::solver::pyramid::PyramidLevel;
+    use crate::solver::system::LinearSystem;
+    let problem = problem(scene);
+    let (w, h) = scene.image.size();
+    let defaults = SolverParams::default();
+    let start = solve_method(
+        &problem,
+        &defaults,
+        &Method::FastMarching(FastMarchingParams::default()),
+        &mut (),
+    )
+    .with_context(|| format!("fast marching on {name} failed"))?;
+    let reference = crate::solver::solve(&problem, &defaults, &mut ())
+        .with_context(|| format!("default solve of {name} failed"))?;
+    let level = PyramidLevel {
+        geometry: LevelGeometry::new(w, h, w, h, scene.camera),
+        image: scene.image.clone(),
+        confidence: scene.object_mask.map(|&o| if o { 1.0 } else { 0.0 }),
+        domain: scene.object_mask.clone(),
+    };
+    let depth = start.depth.map(|&z| if z.is_finite() { z } else { 1.0 });
+    let model = problem.model();
+    let fresh = || -> Result<LinearSystem> {
+        let mut system = LinearSystem::new(&level);
+        anyhow::ensure!(
+            system.linearise_data(&model, &level, &depth, Derivatives::Exact),
+            "no exact derivatives"
+        );
+        system.add_smoothness(&level, reference.alpha_px, reference.lambda_px);
+        Ok(system)
+    };
+    let mut residual_buffer = Vec::new();
+    let mut residual = |system: &LinearSystem| {
+        residual_buffer.resize(system.dz_padded.len(), 0.0);
+        system.residual_into(&mut residual_buffer).sqrt()
+    };
+    let mut sor = fresh()?;
+    let initial = residual(&sor);
+    let smoother = Sor {
+        omega: defaults.omega,
+    };
+    let timer = Instant::now();
+    smoother.smooth(&mut sor, 10);
+    let mut seconds = timer.elapsed().as_secs_f64();
+    let after_10 = residual(&sor);
+    let timer = Instant::now();
+    smoother.smooth(&mut sor, 20);
+    seconds += timer.elapsed().as_secs_f64();
+    let after_30 = residual(&sor);
+    let timer = Instant::now();
+    smoother.smooth(&mut sor, 10);
+    seconds += timer.elapsed().as_secs_f64();
+    let after_40 = residual(&sor);
+    let mut mg_system = fresh()?;
+    let timer = Instant::now();
+    let mut multigrid = Multigrid::build(&mg_system, defaults.smoothing_sweeps);
+    let hierarchy_seconds = timer.elapsed().as_secs_f64();
+    let mut cycle_seconds = 0.0;
+    let mut after = Vec::new();
+    for _ in 0..4 {
+        let timer = Instant::now();
+        multigrid.cycle(&mut mg_system, &Multigrid::SMOOTHER);
+        cycle_seconds += timer.elapsed().as_secs_f64();
+        after.push(residual(&mg_system));
+    }
+    let ratio = |r: f64| r / initial.max(f64::MIN_POSITIVE);
+    Ok(ConvergenceRow {
+        scene: name.into(),
+        size: format!("{w}x{h}"),
+        sor_after_10: ratio(after_10),
+        sor_after_40: ratio(after_40),
+        sor_factor_late: (after_40 / after_30.max(f64::MIN_POSITIVE)).powf(0.1),
+        cycle_after_1: ratio(after[0]),
+        cycle_after_4: ratio(after[3]),
+        cycle_factor_late: (after[3] / after[0].max(f64::MIN_POSITIVE)).powf(1.0 / 3.0),
+        seconds_per_sweep: seconds / 40.0,
+        seconds_per_cycle: cycle_seconds / 4.0,
+        hierarchy_seconds,
     })
 }
 
@@ -206,12 +330,21 @@ fn cancel_latency(scene: &Scene, after: Duration) -> CancelRow {
 pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
     let mut rows = Vec::new();
     let mut cancels = Vec::new();
+    let mut convergence_rows = Vec::new();
     let mut skipped = Vec::new();
     let defaults = SolverParams::default();
+    // The defaults before adaptive stopping (every count run).
+    let fixed_counts = SolverParams::default().with_fixed_schedule();
+    let multigrid = SolverParams {
+        linear_solver: LinearSolver::Multigrid,
+        linear_tolerance: 0.1,
+        ..SolverParams::default()
+    };
     let paper_schedule = SolverParams {
         initial_depth: InitialDepth::FromImage,
         ..SolverParams::default()
-    };
+    }
+    .with_fixed_schedule();
     let fm = Method::FastMarching(FastMarchingParams::default());
     for (name, size) in cases(args, large) {
         let scene = match super::robustness::render(name, &args.meshes, size.0, size.1) {
@@ -222,15 +355,18 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
             }
         };
         eprintln!("speed: {name} {}x{}", size.0, size.1);
-        let mut group = Vec::new();
-        group.push(measure(
-            &scene,
-            name,
-            "defaults",
-            &Method::Linearised,
-            &defaults,
-        )?);
-        group.push(measure(&scene, name, "fast marching", &fm, &defaults)?);
+        let mut group = vec![
+            measure(&scene, name, "defaults", &Method::Linearised, &defaults)?,
+            measure(&scene, name, "fast marching", &fm, &defaults)?,
+            measure(
+                &scene,
+                name,
+                "fixed counts",
+                &Method::Linearised,
+                &fixed_counts,
+            )?,
+            measure(&scene, name, "multigrid", &Method::Linearised, &multigrid)?,
+        ];
         // The paper's schedule at 18 MP takes about an hour: left out there.
         if size.0 * size.1 <= 4_000_000 {
             group.push(measure(
@@ -244,6 +380,9 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         if size.0 * size.1 > 1_000_000 {
             cancels.push(cancel_latency(&scene, Duration::from_millis(500)));
         }
+        if size.0 * size.1 <= 4_000_000 {
+            convergence_rows.push(convergence(&scene, name)?);
+        }
         let figure = format!("speed-{name}-{}x{}.png", size.0, size.1);
         curve_plot(&group)
             .save(&args.out.join(&figure))
@@ -254,6 +393,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         command: std::env::args().collect::<Vec<_>>().join(" "),
         rows,
         cancels,
+        convergence: convergence_rows,
         skipped,
     };
     crate::io::write_json(&args.out.join("speed.json"), &report)?;
@@ -263,7 +403,13 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
 }
 
 fn curve_plot(rows: &[SpeedRow]) -> figures::Canvas {
-    const COLOURS: [[u8; 3]; 3] = [[31, 90, 200], [40, 150, 60], [210, 40, 40]];
+    const COLOURS: [[u8; 3]; 5] = [
+        [31, 90, 200],
+        [40, 150, 60],
+        [150, 150, 150],
+        [230, 150, 30],
+        [210, 40, 40],
+    ];
     let series: Vec<Series> = rows
         .iter()
         .zip(COLOURS)
@@ -283,8 +429,8 @@ fn markdown(report: &SpeedReport) -> String {
     let mut md = String::from("# Speed\n\n");
     let _ = writeln!(md, "`{}`\n", report.command);
     md.push_str(
-        "| scene | size | method | seconds | x fast marching | first level (s) | peak growth (MiB) | bytes/px | RSE |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        "| scene | size | method | seconds | x fast marching | first level (s) | peak growth (MiB) | bytes/px | RSE | inner its | sweeps / cycles |\n\
+         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
     );
     for row in &report.rows {
         let fm = report
@@ -294,7 +440,7 @@ fn markdown(report: &SpeedReport) -> String {
             .map(|r| r.seconds);
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {:.3} | {} | {} | {:.0} | {:.0} | {:.4} |",
+            "| {} | {} | {} | {:.3} | {} | {} | {:.0} | {:.0} | {:.4} | {} | {} |",
             row.scene,
             row.size,
             row.method,
@@ -307,8 +453,35 @@ fn markdown(report: &SpeedReport) -> String {
                 .map_or("–".into(), |t| format!("{t:.3}")),
             row.peak_growth_mib,
             row.bytes_per_pixel,
-            row.rse
+            row.rse,
+            row.inner_iterations,
+            row.linear_iterations
         );
+    }
+    if !report.convergence.is_empty() {
+        md.push_str(
+            "\nThe linear solvers on one system (the first Gauss-Newton system at the \
+             fast-marching start), from zero: residual over the initial one.\n\n\
+             | scene | size | 10 SOR sweeps | 40 sweeps | per sweep (30-40) | s/sweep | 1 V-cycle | 4 V-cycles | per cycle (2-4) | s/cycle | hierarchy (s) |\n\
+             | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+        );
+        for c in &report.convergence {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} |",
+                c.scene,
+                c.size,
+                c.sor_after_10,
+                c.sor_after_40,
+                c.sor_factor_late,
+                c.seconds_per_sweep,
+                c.cycle_after_1,
+                c.cycle_after_4,
+                c.cycle_factor_late,
+                c.seconds_per_cycle,
+                c.hierarchy_seconds
+            );
+        }
     }
     if !report.cancels.is_empty() {
         md.push_str(
