@@ -138,12 +138,12 @@ pub struct LinearSystem {
     /// per image row (row `r` owns `[8 r w, 8 (r + 1) w)`), the diagonal and
     /// the right-hand side.
     data_forward: Vec<f32>,
-    data_diagonal: Vec<f64>,
-    data_rhs: Vec<f64>,
+    data_diagonal: Vec<f32>,
+    data_rhs: Vec<f32>,
     /// Residual `D` per pixel at the linearisation point.
-    residual: Vec<f64>,
+    residual: Vec<f32>,
     /// `dD_p/dz_q` for the 5 slots of each pixel.
-    jacobian: Vec<[f64; 5]>,
+    jacobian: Vec<[f32; 5]>,
     /// Smoothness planes, padded like `dz_padded` (0 in the halo), each
     /// kind as `[xx, yy, xy]`: masks (1 where that stencil centred at the
     /// pixel lies in the domain, else 0); `K z^k`, the unscaled stencils
@@ -155,8 +155,6 @@ pub struct LinearSystem {
     /// row are neighbours in memory rather than separate page-aligned
     /// buffers whose equal offsets collide in the L1 cache.
     smooth: Vec<f32>,
-    /// The linearisation point `z^k`, padded like `dz_padded`.
-    z_padded: Vec<f64>,
 }
 
 impl LinearSystem {
@@ -206,7 +204,6 @@ impl LinearSystem {
             residual: vec![0.0; n],
             jacobian: vec![[0.0; 5]; n],
             smooth,
-            z_padded: vec![0.0; padded],
         }
     }
 
@@ -217,11 +214,10 @@ impl LinearSystem {
             + self.dz_padded.capacity() * size_of::<f32>()
             + self.sweep_scratch.capacity() * size_of::<f32>()
             + self.data_forward.capacity() * size_of::<f32>()
-            + (self.data_diagonal.capacity() + self.data_rhs.capacity()) * size_of::<f64>()
-            + self.residual.capacity() * size_of::<f64>()
-            + self.jacobian.capacity() * size_of::<[f64; 5]>()
+            + (self.data_diagonal.capacity() + self.data_rhs.capacity()) * size_of::<f32>()
+            + self.residual.capacity() * size_of::<f32>()
+            + self.jacobian.capacity() * size_of::<[f32; 5]>()
             + self.smooth.capacity() * size_of::<f32>()
-            + self.z_padded.capacity() * size_of::<f64>()
     }
 
     /// Padded row width.
@@ -317,23 +313,27 @@ impl LinearSystem {
         let w = self.width;
         let pw = self.padded_width();
         let min_rows = rows_per_task(w);
-        for r in 0..self.height {
-            let start = (r + HALO) * pw + HALO;
-            self.z_padded[start..start + w].copy_from_slice(&depth.as_slice()[r * w..(r + 1) * w]);
-        }
-        let z = &self.z_padded;
-        image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows).for_each(
+        let height = self.height;
+        let z = depth.as_slice();
+        image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, height, min_rows).for_each(
             |(r, block)| {
                 let kz = &mut block[SMOOTH_KZ * pw..(SMOOTH_KZ + 3) * pw];
                 let (xx, rest) = kz.split_at_mut(pw);
                 let (yy, xy) = rest.split_at_mut(pw);
-                let i0 = (r + HALO) * pw;
-                for c in HALO..HALO + w {
-                    let i = i0 + c;
+                // Neighbours past the grid's edge read the edge pixel: the
+                // masks are 0 for every stencil that leaves the grid.
+                let at = |c: usize, dc: isize, dr: isize| {
+                    let cc = c.saturating_add_signed(dc).min(w - 1);
+                    let rr = r.saturating_add_signed(dr).min(height - 1);
+                    z[rr * w + cc]
+                };
+                for c in 0..w {
                     // Differences in f64 (z is large, they are small), stored in f32.
-                    xx[c] = (z[i - 1] - 2.0 * z[i] + z[i + 1]) as f32;
-                    yy[c] = (z[i - pw] - 2.0 * z[i] + z[i + pw]) as f32;
-                    xy[c] = (z[i + pw + 1] - z[i - pw + 1] - z[i + pw - 1] + z[i - pw - 1]) as f32;
+                    let centre = 2.0 * z[r * w + c];
+                    xx[c + HALO] = (at(c, -1, 0) - centre + at(c, 1, 0)) as f32;
+                    yy[c + HALO] = (at(c, 0, -1) - centre + at(c, 0, 1)) as f32;
+                    xy[c + HALO] =
+                        (at(c, 1, 1) - at(c, 1, -1) - at(c, -1, 1) + at(c, -1, -1)) as f32;
                 }
             },
         );
@@ -366,11 +366,16 @@ impl LinearSystem {
                         h,
                         derivatives,
                     ) {
-                        Some((d, jac)) if d.is_finite() && jac.iter().all(|v| v.is_finite()) => {
-                            res_row[c] = d;
-                            jac_row[c] = jac;
+                        Some((d, jac)) => {
+                            // Stored in f32 (half the memory); a value that
+                            // f32 cannot hold leaves the pixel out of the
+                            // data term, like a non-finite one.
+                            let (d32, jac32) = (d as f32, jac.map(|v| v as f32));
+                            if d32.is_finite() && jac32.iter().all(|v| v.is_finite()) {
+                                res_row[c] = d32;
+                                jac_row[c] = jac32;
+                            }
                         }
-                        Some(_) => {}
                         None => ok = false,
                     }
                 }
@@ -403,14 +408,14 @@ impl LinearSystem {
                                 continue;
                             }
                             let p = pr as usize * w + pc as usize;
-                            let j_pq = jacobian[p][s];
+                            let j_pq = f64::from(jacobian[p][s]);
                             if j_pq == 0.0 {
                                 continue;
                             }
                             let weight = confidence[p] * j_pq;
-                            rhs -= weight * residual[p];
+                            rhs -= weight * f64::from(residual[p]);
                             for (t, &(tx, ty)) in SLOT_OFFSET.iter().enumerate() {
-                                let j_pt = jacobian[p][t];
+                                let j_pt = f64::from(jacobian[p][t]);
                                 if j_pt != 0.0 {
                                     stencil[stencil_index(tx - sx, ty - sy)] += weight * j_pt;
                                 }
@@ -420,8 +425,8 @@ impl LinearSystem {
                     for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
                         forward_row[k * w + c] = stencil[stencil_index(dx, dy)] as f32;
                     }
-                    diagonal_row[c] = stencil[0];
-                    rhs_row[c] = rhs;
+                    diagonal_row[c] = stencil[0] as f32;
+                    rhs_row[c] = rhs as f32;
                 }
             });
         true
@@ -709,8 +714,8 @@ struct RowInputs<'a> {
     padded_width: usize,
     alpha: f64,
     data_forward: &'a [f32],
-    data_diagonal: &'a [f64],
-    data_rhs: &'a [f64],
+    data_diagonal: &'a [f32],
+    data_rhs: &'a [f32],
     domain: &'a [bool],
     smooth: &'a [f32],
 }
@@ -775,8 +780,8 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
         let az = (v(vx_l) - 2.0 * v(vx_c) + v(vx_r))
             + (v(vy_u) - 2.0 * v(vy_c) + v(vy_d))
             + (v(v_pp) - v(v_pm) - v(v_mp) + v(v_mm));
-        let diagonal = data_diagonal[c] + alpha * f64::from(diagonal_s);
-        let rhs = data_rhs[c] - alpha * az;
+        let diagonal = f64::from(data_diagonal[c]) + alpha * f64::from(diagonal_s);
+        let rhs = f64::from(data_rhs[c]) - alpha * az;
         let inverse32 = (1.0 / diagonal) as f32;
         let rhs32 = rhs as f32;
         // Also rejects values that overflow f32.
