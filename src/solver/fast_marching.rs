@@ -218,39 +218,20 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
     b
 }
 
-/// Solves `problem` by fast marching on its object pixels. The confidence is
-/// ignored (the method has no use for it); `params` is used only to validate
-/// the problem.
-pub fn solve_fast_marching(
+/// The fast-marching depth of `problem` on `domain` (validated by the
+/// caller, intensity scale `s`): a value at every pixel, the mean reached
+/// depth off the domain and where the front did not arrive; and that mean.
+/// Polls `observer`'s cancellation every [`CANCEL_POLL`] heap operations.
+pub(crate) fn march(
     problem: &Problem,
+    domain: &Grid<bool>,
+    s: f64,
     settings: &FastMarchingParams,
-    observer: &mut dyn SolveObserver,
-) -> Result<Solution, SolveError> {
-    let start = Instant::now();
-    if !(settings.min_relative_intensity > 0.0 && settings.min_relative_intensity < 1.0) {
-        return Err(SolveError::Input(
-            "fast marching: min_relative_intensity must lie in (0, 1)".into(),
-        ));
-    }
-    let validation = SolverParams {
-        domain: DomainMode::Object,
-        ..SolverParams::default()
-    };
-    let (domain, confidence) = problem.validate(&validation)?;
-    let scales = super::prepare::problem_scales(problem, &confidence);
+    observer: &dyn SolveObserver,
+) -> Result<(Grid<f64>, f64), SolveError> {
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let f2 = problem.camera.focal_px * problem.camera.focal_px;
-    let s = match problem.model() {
-        LightModel::Centred(model) => model.intensity_scale,
-        LightModel::Near(_) => {
-            return Err(SolveError::Input(
-                "fast marching models lights at the optical centre only (the paper's set-up); \
-                 these lights are off the centre: use the linearised or the explicit method"
-                    .into(),
-            ));
-        }
-    };
     let brightest = (0..w * h)
         .filter(|&q| domain.as_slice()[q])
         .map(|q| problem.image.as_slice()[q])
@@ -274,6 +255,9 @@ pub fn solve_fast_marching(
     let mut accepted = vec![false; w * h];
     let mut heap = BinaryHeap::with_capacity(w * h);
     for q in 0..w * h {
+        if q.is_multiple_of(CANCEL_POLL) && observer.is_cancelled() {
+            return Err(SolveError::Cancelled);
+        }
         if domain.as_slice()[q] {
             let p = &pixels[q];
             // Frontal value: a light-facing patch at distance e^v has I = s e^{-2v}.
@@ -304,16 +288,18 @@ pub fn solve_fast_marching(
             (None, None) => None,
         }
     };
-    let mut done = 0usize;
+    let mut popped = 0usize;
     while let Some(Trial { value: v, index }) = heap.pop() {
+        // Polled per pop, not per accepted pixel: near the end the heap
+        // holds millions of stale entries (seconds at 18 megapixels).
+        popped += 1;
+        if popped.is_multiple_of(CANCEL_POLL) && observer.is_cancelled() {
+            return Err(SolveError::Cancelled);
+        }
         if accepted[index] || v > value[index] {
             continue;
         }
         accepted[index] = true;
-        done += 1;
-        if done.is_multiple_of(4096) && observer.is_cancelled() {
-            return Err(SolveError::Cancelled);
-        }
         let (c, r) = (index % w, index / w);
         let mut neighbours = [None; 4];
         if c > 0 {
@@ -388,6 +374,46 @@ pub fn solve_fast_marching(
             mean
         }
     });
+    Ok((solved, mean))
+}
+
+/// Heap operations between two polls of the observer's cancellation (a few
+/// milliseconds).
+const CANCEL_POLL: usize = 4096;
+
+/// Solves `problem` by fast marching on its object pixels. The confidence is
+/// ignored (the method has no use for it); `params` is used only to validate
+/// the problem.
+pub fn solve_fast_marching(
+    problem: &Problem,
+    settings: &FastMarchingParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<Solution, SolveError> {
+    let start = Instant::now();
+    if !(settings.min_relative_intensity > 0.0 && settings.min_relative_intensity < 1.0) {
+        return Err(SolveError::Input(
+            "fast marching: min_relative_intensity must lie in (0, 1)".into(),
+        ));
+    }
+    let validation = SolverParams {
+        domain: DomainMode::Object,
+        ..SolverParams::default()
+    };
+    let (domain, confidence) = problem.validate(&validation)?;
+    let scales = super::prepare::problem_scales(problem, &confidence);
+    let (w, h) = problem.image.size();
+    let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
+    let s = match problem.model() {
+        LightModel::Centred(model) => model.intensity_scale,
+        LightModel::Near(_) => {
+            return Err(SolveError::Input(
+                "fast marching models lights at the optical centre only (the paper's set-up); \
+                 these lights are off the centre: use the linearised or the explicit method"
+                    .into(),
+            ));
+        }
+    };
+    let (solved, mean) = march(problem, &domain, s, settings, observer)?;
     let model = Lambertian { intensity_scale: s };
     let reprojection = model::reproject(&model, &geometry, &domain, &solved);
     let ones = Grid::filled(w, h, 1.0);

@@ -265,9 +265,18 @@ fn fast_marching_start(
         confidence: None,
         lights: Vec::new(),
     };
+    // The problem is validated already; the start needs only the depth (no
+    // reprojection, energy or second validation: seconds at 18 megapixels).
+    let object = Grid::from_fn(w, h, on_object);
     let settings = super::fast_marching::FastMarchingParams::default();
-    let mut forward = ForwardCancel(cancelled);
-    Ok(super::fast_marching::solve_fast_marching(&start, &settings, &mut forward)?.depth)
+    let (solved, _) = super::fast_marching::march(
+        &start,
+        &object,
+        problem.intensity_scale,
+        &settings,
+        &ForwardCancel(cancelled),
+    )?;
+    Ok(masked(&solved, &object))
 }
 
 /// An observer that only forwards cancellation.
