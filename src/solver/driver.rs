@@ -1,8 +1,11 @@
 //! The linearised coarse-to-fine Gauss-Newton scheme (paper Section 3):
 //! from the shared preparation, `kappa` (up to `kappa_max`) outer
-//! Gauss-Newton iterations per level, each with `l_max` inner fixed-point
-//! iterations on Psi' and SOR sweeps, the update cropped (and backtracked),
-//! the depth resampled to the next level; reports to a [`SolveObserver`].
+//! Gauss-Newton iterations per level, each with up to `l_max` inner
+//! fixed-point iterations on Psi' and a linear solve each (SOR sweeps, or
+//! multigrid V-cycles), the update cropped (and backtracked), the depth
+//! resampled to the next level; reports to a [`SolveObserver`]. Refining a
+//! full-resolution start, the inner iterations stop early where they would
+//! only polish the step (see `solve_level`).
 
 use std::time::Instant;
 
