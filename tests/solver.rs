@@ -234,11 +234,16 @@ fn levels_arrive_coarse_to_fine_with_growing_sizes() {
     }
     assert_eq!(levels.last().map(|l| (l.2, l.3)), Some((64, 48)));
     assert_eq!(recorder.iterations, levels.len() * params.kappa);
-    // One poll per coarser level built, then one per SOR sweep.
-    let sweeps = levels.len() * params.kappa * params.inner_iterations * params.sor_iterations;
+    // One poll per coarser level built, then one per SOR sweep; and between
+    // the long passes: 3 in the preparation (after validation, the scales
+    // and the noise estimate), 2 before the first level (after copying the
+    // start and its energy), one per level (its system allocated) and one
+    // per outer iteration (linearised).
+    let outer = levels.len() * params.kappa;
+    let sweeps = outer * params.inner_iterations * params.sor_iterations;
     assert_eq!(
         recorder.polls.load(std::sync::atomic::Ordering::Relaxed),
-        levels.len() - 1 + sweeps
+        levels.len() - 1 + sweeps + 3 + 2 + levels.len() + outer
     );
 }
 

@@ -10,7 +10,7 @@ use crate::grid::Grid;
 use crate::model::{self, Energy, Reflectance};
 
 use super::prepare::{Prepared, level_energy, level_result};
-use super::problem::{LevelReport, SolveError, SolveObserver};
+use super::problem::{LevelReport, SolveError, SolveObserver, check_cancelled};
 use super::pyramid::{self, PyramidLevel};
 
 /// One level as the loop hands it to a scheme.
@@ -83,7 +83,9 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
     let offset = usize::from(show_start) + shown;
     let count = levels.len() + offset;
     let mut depth = prepared.depth.clone();
+    check_cancelled(observer)?;
     let initial_energy = level_energy(model, &levels[0], &depth, alpha, lambda);
+    check_cancelled(observer)?;
     if show_start {
         let result = level_result(
             model,
@@ -95,6 +97,7 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             start,
         );
         observer.on_level(&result);
+        check_cancelled(observer)?;
     }
     let mut walk = Walk {
         depth: Grid::filled(0, 0, 0.0),

@@ -17,7 +17,8 @@ use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::multigrid::Multigrid;
 use super::prepare::{Crop, Prepared, level_energy, prepare};
 use super::problem::{
-    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, on_object,
+    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
+    on_object,
 };
 use super::sor;
 use super::system::LinearSystem;
@@ -127,6 +128,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         } = *self.prepared;
         let energy_of = |depth: &Grid<f64>| level_energy(model, level, depth, alpha, lambda);
         let mut system = LinearSystem::new(level);
+        check_cancelled(observer)?;
         let mut energies = Vec::with_capacity(params.kappa_max);
         // Energy of the current depth on this level, once known.
         let mut current: Option<Energy> = None;
@@ -150,6 +152,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             }
             system.clear_dz();
             self.phases.linearise_seconds += t0.elapsed().as_secs_f64();
+            check_cancelled(observer)?;
             // The multigrid hierarchy of this outer iteration's first
             // system serves its later inner iterations too: only Psi' moves.
             let mut hierarchy: Option<Multigrid> = None;

@@ -14,7 +14,7 @@ use crate::params::{
     Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
 };
 
-use super::problem::{LevelResult, Problem, SolveError, SolveObserver, masked};
+use super::problem::{LevelResult, Problem, SolveError, SolveObserver, check_cancelled, masked};
 use super::pyramid::{self, PyramidLevel};
 
 /// A validated problem ready for a coarse-to-fine scheme: its pyramid
@@ -81,8 +81,10 @@ pub(crate) fn prepare(
 ) -> Result<Prepared, SolveError> {
     params.validate()?;
     let (domain, confidence) = problem.validate(params)?;
+    check_cancelled(observer)?;
     let (w, h) = problem.image.size();
     let scales = problem_scales(problem, &confidence);
+    check_cancelled(observer)?;
     let finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
         image: problem.image.clone(),
@@ -90,6 +92,7 @@ pub(crate) fn prepare(
         domain,
     };
     let relative_noise = super::auto_alpha::relative_noise(&finest, &scales);
+    check_cancelled(observer)?;
     // Fast marching knows only the centred light; with lights elsewhere the
     // default start is the plane that best explains the image, refined
     // through the whole pyramid (the paper's path).

@@ -385,6 +385,17 @@ impl Problem {
     }
 }
 
+/// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
+/// the long single passes over an image (each about a second at 18
+/// megapixels).
+pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveError> {
+    if observer.is_cancelled() {
+        Err(SolveError::Cancelled)
+    } else {
+        Ok(())
+    }
+}
+
 /// The full-resolution depth (NaN) and reprojection (0) outside the
 /// problem's object mask, as a [`Solution`] holds them.
 pub(crate) fn on_object(
