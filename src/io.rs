@@ -448,7 +448,9 @@ fn png_marked_linear(path: &Path) -> bool {
     if info.srgb.is_some() {
         return false;
     }
-    match info.source_gamma {
+    // The gAMA chunk itself: png 0.18 leaves `source_gamma` unset when it
+    // reads one (8-bit PNGs this tool wrote were sRGB-decoded).
+    match info.gama_chunk.or(info.source_gamma) {
         // gAMA stores 1/gamma; 1.0 means linear.
         Some(g) => (g.into_value() - 1.0).abs() < 0.01,
         None => false,
@@ -876,6 +878,21 @@ pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), IoError> {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn an_8_bit_png_this_tool_wrote_is_read_as_linear() {
+        // synth's noisy8.png: gAMA 1.0 says linear; sRGB-decoding it
+        // darkened the mid-tones and the noisy Sombrero came back with RSE
+        // 0.42 instead of 0.015.
+        let dir = tempdir().unwrap();
+        let path = dir.path().join("noisy8.png");
+        let image = Grid::from_fn(8, 6, |c, r| (c + r) as f64 / 20.0);
+        write_png8(&path, &image).unwrap();
+        let (read, srgb, why) = read_photo(&path, SrgbMode::Auto).unwrap();
+        assert!(!srgb, "{why}");
+        for (a, b) in read.as_slice().iter().zip(image.as_slice()) {
+            assert!((a - b).abs() <= 0.5 / 255.0 + 1e-12, "{a} vs {b}");
+        }
+    }
     use super::*;
     use tempfile::tempdir;
 
