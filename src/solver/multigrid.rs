@@ -1,6 +1,6 @@
 //! A geometric multigrid V-cycle for the 17-point Gauss-Newton system of
-//! [`super::system::LinearSystem`], with the present SOR as the smoother on
-//! the finest level.
+//! [`super::system::LinearSystem`], with the present band SOR (at omega 1:
+//! Gauss-Seidel) as the smoother on the finest level.
 //!
 //! Coarse levels halve each side (vertex-centred: coarse pixel `I` sits on
 //! fine pixel `2 I`); the interpolation `P` is bilinear (constant past the
@@ -25,7 +25,8 @@ use super::system::{HALO, LinearSystem};
 
 /// Coarsening stops when a side would fall below this many pixels.
 const COARSEST_SIDE: usize = 4;
-/// Gauss-Seidel sweeps on the coarsest level (a few hundred unknowns at most).
+/// Gauss-Seidel sweeps on the coarsest level (a few dozen unknowns at
+/// ordinary aspect ratios; not an exact solve for very elongated images).
 const COARSEST_SWEEPS: usize = 40;
 /// Levels with fewer pixels are swept on one thread.
 const PARALLEL_MIN_PIXELS: usize = 16 * 1024;
