@@ -254,17 +254,13 @@ impl<M> GaussNewton<'_, M> {
         match params.linear_solver {
             LinearSolver::Sor => {
                 for _ in 0..params.sor_iterations {
-                    if observer.is_cancelled() {
-                        return Err(SolveError::Cancelled);
-                    }
+                    check_cancelled(observer)?;
                     sor::sweep(system, params.omega);
                     self.phases.linear_iterations += 1;
                 }
             }
             LinearSolver::Multigrid => {
-                if observer.is_cancelled() {
-                    return Err(SolveError::Cancelled);
-                }
+                check_cancelled(observer)?;
                 let multigrid = match hierarchy {
                     Some(multigrid) => multigrid,
                     None => {
@@ -275,9 +271,7 @@ impl<M> GaussNewton<'_, M> {
                     }
                 };
                 for _ in 0..params.cycles {
-                    if observer.is_cancelled() {
-                        return Err(SolveError::Cancelled);
-                    }
+                    check_cancelled(observer)?;
                     multigrid.cycle(system, &Multigrid::SMOOTHER);
                     self.phases.linear_iterations += 1;
                     if target > 0.0 && multigrid.residual_norm(system) <= target {

@@ -21,7 +21,7 @@
 use rayon::prelude::*;
 
 use super::sor;
-use super::system::{HALO, LinearSystem};
+use super::system::{HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANES};
 
 /// Coarsening stops when a side would fall below this many pixels.
 const COARSEST_SIDE: usize = 4;
@@ -168,53 +168,42 @@ impl Multigrid {
         self.levels.len()
     }
 
-    /// Bytes held by the hierarchy.
-    pub fn memory_bytes(&self) -> usize {
-        let floats: usize = self
-            .levels
-            .iter()
-            .map(|l| l.stencil.len() + l.inverse_diagonal.len() + l.x.len() + l.b.len() + l.r.len())
-            .sum::<usize>()
-            + self.fine_residual.len();
-        floats * std::mem::size_of::<f32>()
-    }
-
     /// One V-cycle on `system` (its current unknowns as the start): smooth,
     /// correct from the coarse levels, smooth ([`Self::residual_norm`] then
     /// says how far it got).
     pub fn cycle(&mut self, system: &mut LinearSystem, smoother: &dyn Smoother) {
-        v_cycle(
-            &mut self.levels,
-            &mut self.fine_residual,
-            self.sweeps,
-            system,
-            smoother,
+        smoother.smooth(system, self.sweeps);
+        if self.levels.is_empty() {
+            return;
+        }
+        system.residual_into(&mut self.fine_residual);
+        let pw = system.padded_width();
+        // The residual is padded: image pixel (c, r) at (r + HALO) pw + c + HALO.
+        restrict(
+            &self.fine_residual,
+            pw,
+            HALO * pw + HALO,
+            &mut self.levels[0],
         );
+        coarse_cycle(&mut self.levels, self.sweeps);
+        let LinearSystem {
+            coefficients,
+            dz_padded,
+            width,
+            height,
+            ..
+        } = system;
+        let inverse_plane = PLANE_INVERSE_DIAGONAL * pw + HALO;
+        prolong_add(&self.levels[0], dz_padded, (*width, *height), |c, r| {
+            coefficients[(r + HALO) * PLANES * pw + inverse_plane + c] != 0.0
+        });
+        smoother.smooth(system, self.sweeps);
     }
 
     /// The Euclidean norm of `b - A dz` of the current unknowns.
     pub fn residual_norm(&mut self, system: &LinearSystem) -> f64 {
         system.residual_into(&mut self.fine_residual).sqrt()
     }
-}
-
-/// One V-cycle on the fine system (see [`Multigrid::cycle`]).
-fn v_cycle(
-    levels: &mut [Level],
-    fine_residual: &mut [f32],
-    sweeps: usize,
-    system: &mut LinearSystem,
-    smoother: &dyn Smoother,
-) {
-    smoother.smooth(system, sweeps);
-    let Some(first) = levels.first_mut() else {
-        return;
-    };
-    system.residual_into(fine_residual);
-    restrict(fine_residual, system.padded_width(), first);
-    coarse_cycle(levels, sweeps);
-    prolong_add(&levels[0], system);
-    smoother.smooth(system, sweeps);
 }
 
 /// The Galerkin operator `P^T A P` of a `w x h` level whose rows `stencil`
@@ -314,8 +303,9 @@ where
     }
 }
 
-/// `coarse.b = P^T r` from a residual laid out with padded width `pw`.
-fn restrict(residual: &[f32], pw: usize, coarse: &mut Level) {
+/// `coarse.b = P^T r` from the finer level's residual, whose pixel `(c, r)`
+/// is `residual[r * stride + c + offset]`.
+fn restrict(residual: &[f32], stride: usize, offset: usize, coarse: &mut Level) {
     let (x_axis, y_axis) = (&coarse.x_axis, &coarse.y_axis);
     let wc = coarse.width;
     coarse
@@ -327,7 +317,7 @@ fn restrict(residual: &[f32], pw: usize, coarse: &mut Level) {
                 let mut sum = 0.0f32;
                 for &(fr, wy) in &y_axis.children[row] {
                     for &(fc, wx) in &x_axis.children[column] {
-                        sum += wx * wy * residual[(fr + HALO) * pw + fc + HALO];
+                        sum += wx * wy * residual[fr * stride + fc + offset];
                     }
                 }
                 *value = sum;
@@ -335,26 +325,26 @@ fn restrict(residual: &[f32], pw: usize, coarse: &mut Level) {
         });
 }
 
-/// `fine += P x_coarse` at the fine system's solved pixels.
-fn prolong_add(coarse: &Level, system: &mut LinearSystem) {
-    let (w, h) = (system.width, system.height);
-    let pw = system.padded_width();
+/// `fine += P coarse.x` at the finer level's pixels that `solved` accepts;
+/// `fine` holds a `size` level padded by [`HALO`].
+fn prolong_add(
+    coarse: &Level,
+    fine: &mut [f32],
+    size: (usize, usize),
+    solved: impl Fn(usize, usize) -> bool + Sync,
+) {
+    let (w, h) = size;
+    let pw = w + 2 * HALO;
     let pwc = coarse.padded_width();
     let x = &coarse.x;
     let (x_axis, y_axis) = (&coarse.x_axis, &coarse.y_axis);
-    let solved: Vec<bool> = (0..w * h)
-        .into_par_iter()
-        .map(|q| system.is_solved(q % w, q / w))
-        .collect();
-    system
-        .dz_padded
-        .par_chunks_mut(pw)
+    fine.par_chunks_mut(pw)
         .enumerate()
         .filter(|(pr, _)| *pr >= HALO && *pr < h + HALO)
         .for_each(|(pr, line)| {
             let row = pr - HALO;
             for column in 0..w {
-                if !solved[row * w + column] {
+                if !solved(column, row) {
                     continue;
                 }
                 let mut sum = 0.0f32;
@@ -385,11 +375,13 @@ fn coarse_cycle(levels: &mut [Level], sweeps: usize) {
         gauss_seidel(level);
     }
     coarse_residual(level);
-    let next = &mut coarser[0];
-    restrict_coarse(level, next);
+    restrict(&level.r, level.width, 0, &mut coarser[0]);
     coarse_cycle(coarser, sweeps);
-    let next = &coarser[0];
-    prolong_add_coarse(next, level);
+    let inverse = &level.inverse_diagonal;
+    let w = level.width;
+    prolong_add(&coarser[0], &mut level.x, (w, level.height), |c, r| {
+        inverse[r * w + c] != 0.0
+    });
     for _ in 0..sweeps {
         gauss_seidel(level);
     }
@@ -426,56 +418,6 @@ fn apply(stencil: &[f32], x: &[f32], pw: usize, column: usize, row: usize) -> f3
         sum += a[0] * line[0] + a[1] * line[1] + a[2] * line[2] + a[3] * line[3] + a[4] * line[4];
     }
     sum
-}
-
-/// `next.b = P^T level.r`.
-fn restrict_coarse(level: &Level, next: &mut Level) {
-    let (x_axis, y_axis) = (&next.x_axis, &next.y_axis);
-    let (w, wc) = (level.width, next.width);
-    let r = &level.r;
-    next.b
-        .par_chunks_mut(wc)
-        .enumerate()
-        .for_each(|(row, out)| {
-            for (column, value) in out.iter_mut().enumerate() {
-                let mut sum = 0.0f32;
-                for &(fr, wy) in &y_axis.children[row] {
-                    for &(fc, wx) in &x_axis.children[column] {
-                        sum += wx * wy * r[fr * w + fc];
-                    }
-                }
-                *value = sum;
-            }
-        });
-}
-
-/// `level.x += P next.x` at the level's solved pixels.
-fn prolong_add_coarse(next: &Level, level: &mut Level) {
-    let (w, h, pw) = (level.width, level.height, level.padded_width());
-    let pwc = next.padded_width();
-    let (x_axis, y_axis) = (&next.x_axis, &next.y_axis);
-    let inverse = &level.inverse_diagonal;
-    let xc = &next.x;
-    level
-        .x
-        .par_chunks_mut(pw)
-        .enumerate()
-        .filter(|(pr, _)| *pr >= HALO && *pr < h + HALO)
-        .for_each(|(pr, line)| {
-            let row = pr - HALO;
-            for column in 0..w {
-                if inverse[row * w + column] == 0.0 {
-                    continue;
-                }
-                let mut sum = 0.0f32;
-                for &(cr, wy) in &y_axis.parents[row] {
-                    for &(cc, wx) in &x_axis.parents[column] {
-                        sum += wx * wy * xc[(cr + HALO) * pwc + cc + HALO];
-                    }
-                }
-                line[column + HALO] += sum;
-            }
-        });
 }
 
 /// Raw pointer to a level's unknowns, shared by the band tasks of one colour.
@@ -553,37 +495,15 @@ fn gauss_seidel(level: &mut Level) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Intrinsics;
-    use crate::grid::Grid;
-    use crate::model::{Derivatives, Lambertian, LevelGeometry};
-    use crate::solver::pyramid::PyramidLevel;
+    use crate::solver::system::test_system;
 
-    /// A level with a smooth depth and an object mask with holes.
+    /// A disc-shaped object with scattered holes and a smooth depth.
     fn system(w: usize, h: usize, alpha: f64) -> LinearSystem {
-        let camera = Intrinsics::centred(w as f64, w, h);
-        let level = PyramidLevel {
-            geometry: LevelGeometry::new(w, h, w, h, camera),
-            image: Grid::from_fn(w, h, |c, r| {
-                0.3 + 0.05 * ((c * 3 + r * 7) as f64 * 0.1).sin()
-            }),
-            confidence: Grid::filled(w, h, 1.0),
-            domain: Grid::from_fn(w, h, |c, r| {
-                let (x, y) = (c as f64 / w as f64 - 0.5, r as f64 / h as f64 - 0.5);
-                x * x + y * y < 0.2 && (c * 13 + r * 7) % 53 != 0
-            }),
+        let disc = |c: usize, r: usize| {
+            let (x, y) = (c as f64 / w as f64 - 0.5, r as f64 / h as f64 - 0.5);
+            x * x + y * y < 0.2 && !(c * 13 + r * 7).is_multiple_of(53)
         };
-        let depth = Grid::from_fn(w, h, |c, r| 2.0 + 0.02 * ((c + 2 * r) as f64 * 0.05).sin());
-        let mut system = LinearSystem::new(&level);
-        assert!(system.linearise_data(
-            &Lambertian {
-                intensity_scale: 1.0
-            },
-            &level,
-            &depth,
-            Derivatives::Exact
-        ));
-        system.add_smoothness(&level, alpha, 1e-3);
-        system
+        test_system(w, h, disc, 0.05, alpha)
     }
 
     fn residual(system: &LinearSystem) -> f64 {

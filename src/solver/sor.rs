@@ -378,34 +378,11 @@ pub fn reference_sweep(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Intrinsics;
-    use crate::grid::Grid;
-    use crate::model::{Derivatives, Lambertian, LevelGeometry};
-    use crate::solver::pyramid::PyramidLevel;
+    use crate::solver::system::test_system;
 
     /// A level of `w x h` with a smooth depth and an object mask with holes.
     fn system(w: usize, h: usize) -> LinearSystem {
-        let camera = Intrinsics::centred(w as f64, w, h);
-        let level = PyramidLevel {
-            geometry: LevelGeometry::new(w, h, w, h, camera),
-            image: Grid::from_fn(w, h, |c, r| {
-                0.3 + 0.05 * ((c * 3 + r * 7) as f64 * 0.1).sin()
-            }),
-            confidence: Grid::filled(w, h, 1.0),
-            domain: Grid::from_fn(w, h, |c, r| (c * 13 + r * 7) % 29 != 0),
-        };
-        let depth = Grid::from_fn(w, h, |c, r| 2.0 + 0.02 * ((c + 2 * r) as f64 * 0.3).sin());
-        let mut system = LinearSystem::new(&level);
-        assert!(system.linearise_data(
-            &Lambertian {
-                intensity_scale: 1.0
-            },
-            &level,
-            &depth,
-            Derivatives::Exact
-        ));
-        system.add_smoothness(&level, 0.05, 1e-3);
-        system
+        test_system(w, h, |c, r| !(c * 13 + r * 7).is_multiple_of(29), 0.3, 0.05)
     }
 
     #[test]

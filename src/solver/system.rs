@@ -836,6 +836,38 @@ fn rows_per_task(width: usize) -> usize {
     (8192 / width.max(1)).max(1)
 }
 
+/// A test system on a `w x h` level: a gently varying image, the depth
+/// `2 + 0.02 sin(wave (c + 2 r))`, the Lambertian model with `s = 1`,
+/// smoothness `alpha` with `lambda = 1e-3`, and the given domain.
+#[cfg(test)]
+pub(crate) fn test_system(
+    w: usize,
+    h: usize,
+    domain: impl Fn(usize, usize) -> bool,
+    wave: f64,
+    alpha: f64,
+) -> LinearSystem {
+    use crate::camera::Intrinsics;
+    use crate::model::{Lambertian, LevelGeometry};
+    let camera = Intrinsics::centred(w as f64, w, h);
+    let level = PyramidLevel {
+        geometry: LevelGeometry::new(w, h, w, h, camera),
+        image: Grid::from_fn(w, h, |c, r| {
+            0.3 + 0.05 * ((c * 3 + r * 7) as f64 * 0.1).sin()
+        }),
+        confidence: Grid::filled(w, h, 1.0),
+        domain: Grid::from_fn(w, h, domain),
+    };
+    let depth = Grid::from_fn(w, h, |c, r| 2.0 + 0.02 * ((c + 2 * r) as f64 * wave).sin());
+    let mut system = LinearSystem::new(&level);
+    let model = Lambertian {
+        intensity_scale: 1.0,
+    };
+    assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
+    system.add_smoothness(&level, alpha, 1e-3);
+    system
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

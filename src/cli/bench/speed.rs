@@ -20,7 +20,7 @@ use crate::metrics;
 use crate::params::{InitialDepth, LinearSolver, SolverParams};
 use crate::scene::Scene;
 use crate::solver::fast_marching::FastMarchingParams;
-use crate::solver::{LevelResult, Method, Problem, SolveObserver, solve_method};
+use crate::solver::{LevelResult, Method, Problem, Solution, SolveObserver, solve_method};
 
 /// One solve.
 #[derive(Debug, Serialize)]
@@ -158,7 +158,7 @@ fn measure(
     method_name: &str,
     method: &Method,
     params: &SolverParams,
-) -> Result<SpeedRow> {
+) -> Result<(SpeedRow, Solution)> {
     let problem = problem(scene);
     let (w, h) = scene.image.size();
     release_freed_memory();
@@ -185,7 +185,7 @@ fn measure(
     let growth = (peak_mib - before_mib).max(0.0);
     let rse = metrics::rse(&solution.depth, &scene.depth_gt)
         .with_context(|| format!("scoring {name} failed"))?;
-    Ok(SpeedRow {
+    let row = SpeedRow {
         scene: name.into(),
         size: format!("{w}x{h}"),
         method: method_name.into(),
@@ -197,36 +197,36 @@ fn measure(
         curve: recorder.curve.points,
         inner_iterations: solution.phases.inner_iterations,
         linear_iterations: solution.phases.linear_iterations,
-    })
+    };
+    Ok((row, solution))
 }
 
 /// SOR sweeps against V-cycles on the first Gauss-Newton system at the
-/// fast-marching start of `scene` (object domain, the defaults' alpha and
-/// lambda in pixel units).
-fn convergence(scene: &Scene, name: &str) -> Result<ConvergenceRow> {
+/// fast-marching start of `scene` (`fast_marching`, that method's solution;
+/// object domain, the alpha and lambda in pixel units of `defaults`, the
+/// default solve's).
+fn convergence(
+    scene: &Scene,
+    name: &str,
+    fast_marching: &Solution,
+    defaults: &Solution,
+) -> Result<ConvergenceRow> {
     use crate::model::{Derivatives, LevelGeometry};
     use crate::solver::multigrid::{Multigrid, Smoother, Sor};
     use crate::solver::pyramid::PyramidLevel;
     use crate::solver::system::LinearSystem;
     let problem = problem(scene);
     let (w, h) = scene.image.size();
-    let defaults = SolverParams::default();
-    let start = solve_method(
-        &problem,
-        &defaults,
-        &Method::FastMarching(FastMarchingParams::default()),
-        &mut (),
-    )
-    .with_context(|| format!("fast marching on {name} failed"))?;
-    let reference = crate::solver::solve(&problem, &defaults, &mut ())
-        .with_context(|| format!("default solve of {name} failed"))?;
+    let omega = SolverParams::default().omega;
     let level = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, scene.camera),
         image: scene.image.clone(),
         confidence: scene.object_mask.map(|&o| if o { 1.0 } else { 0.0 }),
         domain: scene.object_mask.clone(),
     };
-    let depth = start.depth.map(|&z| if z.is_finite() { z } else { 1.0 });
+    let depth = fast_marching
+        .depth
+        .map(|&z| if z.is_finite() { z } else { 1.0 });
     let model = problem.model();
     let fresh = || -> Result<LinearSystem> {
         let mut system = LinearSystem::new(&level);
@@ -234,7 +234,7 @@ fn convergence(scene: &Scene, name: &str) -> Result<ConvergenceRow> {
             system.linearise_data(&model, &level, &depth, Derivatives::Exact),
             "no exact derivatives"
         );
-        system.add_smoothness(&level, reference.alpha_px, reference.lambda_px);
+        system.add_smoothness(&level, defaults.alpha_px, defaults.lambda_px);
         Ok(system)
     };
     let mut residual_buffer = Vec::new();
@@ -244,9 +244,7 @@ fn convergence(scene: &Scene, name: &str) -> Result<ConvergenceRow> {
     };
     let mut sor = fresh()?;
     let initial = residual(&sor);
-    let smoother = Sor {
-        omega: defaults.omega,
-    };
+    let smoother = Sor { omega };
     let timer = Instant::now();
     smoother.smooth(&mut sor, 10);
     let mut seconds = timer.elapsed().as_secs_f64();
@@ -261,7 +259,7 @@ fn convergence(scene: &Scene, name: &str) -> Result<ConvergenceRow> {
     let after_40 = residual(&sor);
     let mut mg_system = fresh()?;
     let timer = Instant::now();
-    let mut multigrid = Multigrid::build(&mg_system, defaults.smoothing_sweeps);
+    let mut multigrid = Multigrid::build(&mg_system, SolverParams::default().smoothing_sweeps);
     let hierarchy_seconds = timer.elapsed().as_secs_f64();
     let mut cycle_seconds = 0.0;
     let mut after = Vec::new();
@@ -355,33 +353,32 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
             }
         };
         eprintln!("speed: {name} {}x{}", size.0, size.1);
-        let mut group = vec![
-            measure(&scene, name, "defaults", &Method::Linearised, &defaults)?,
-            measure(&scene, name, "fast marching", &fm, &defaults)?,
-            measure(
-                &scene,
-                name,
-                "fixed counts",
-                &Method::Linearised,
-                &fixed_counts,
-            )?,
-            measure(&scene, name, "multigrid", &Method::Linearised, &multigrid)?,
-        ];
+        let (default_row, default_solution) =
+            measure(&scene, name, "defaults", &Method::Linearised, &defaults)?;
+        let (fm_row, fm_solution) = measure(&scene, name, "fast marching", &fm, &defaults)?;
+        if size.0 * size.1 <= 4_000_000 {
+            convergence_rows.push(convergence(&scene, name, &fm_solution, &default_solution)?);
+        }
+        drop((default_solution, fm_solution));
+        let mut group = vec![default_row, fm_row];
+        for (label, params) in [("fixed counts", &fixed_counts), ("multigrid", &multigrid)] {
+            group.push(measure(&scene, name, label, &Method::Linearised, params)?.0);
+        }
         // The paper's schedule at 18 MP takes about an hour: left out there.
         if size.0 * size.1 <= 4_000_000 {
-            group.push(measure(
-                &scene,
-                name,
-                "paper schedule",
-                &Method::Linearised,
-                &paper_schedule,
-            )?);
+            group.push(
+                measure(
+                    &scene,
+                    name,
+                    "paper schedule",
+                    &Method::Linearised,
+                    &paper_schedule,
+                )?
+                .0,
+            );
         }
         if size.0 * size.1 > 1_000_000 {
             cancels.push(cancel_latency(&scene, Duration::from_millis(500)));
-        }
-        if size.0 * size.1 <= 4_000_000 {
-            convergence_rows.push(convergence(&scene, name)?);
         }
         let figure = format!("speed-{name}-{}x{}.png", size.0, size.1);
         curve_plot(&group)
