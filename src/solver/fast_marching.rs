@@ -65,7 +65,7 @@ use crate::params::{DomainMode, SolverParams};
 
 use super::problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver, masked,
+    SolveObserver, check_cancelled, masked,
 };
 
 /// Settings of the fast marching baseline.
@@ -114,12 +114,10 @@ struct Pixel {
     /// Image-plane coordinates, pixels.
     x: f64,
     y: f64,
-    /// `I` (clamped from below).
-    intensity: f64,
     /// `Q^2`.
     q2: f64,
-    /// `s Q`.
-    target: f64,
+    /// `ln(s Q / I)` (with `I` clamped from below).
+    log_target: f64,
 }
 
 /// One upwind axis of a local update: the smaller accepted neighbour's value
@@ -130,33 +128,66 @@ struct Axis {
     sign: f64,
 }
 
-/// `F(v) = I e^{2v} sqrt(f^2 (a^2 + b^2) + (a x + b y)^2 + Q^2) - s Q`.
-fn residual(p: &Pixel, f2: f64, v: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
-    let a = ax.map_or(0.0, |n| n.sign * (v - n.value));
-    let b = ay.map_or(0.0, |n| n.sign * (v - n.value));
-    let t = a * p.x + b * p.y;
-    p.intensity * (2.0 * v).exp() * (f2 * (a * a + b * b) + t * t + p.q2).sqrt() - p.target
+/// The local equation in logarithms, `H(v) = 2 v + ln sqrt(g(v)) - ln(s Q / I)`
+/// with `g(v) = f^2 (a^2 + b^2) + (a x + b y)^2 + Q^2`: zero exactly where
+/// `F(v) = I e^{2v} sqrt(g) - s Q` is, with the same sign elsewhere, and no
+/// exponential.
+struct LocalEquation<'a> {
+    pixel: &'a Pixel,
+    f2: f64,
+    ax: Option<Axis>,
+    ay: Option<Axis>,
 }
 
-/// The value `v >= lower` where the square root of `F` is smallest (the
-/// slope that faces the light most), from the quadratic `g(v)` under it.
-fn facing_value(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
-    // a = sa v + ba, b = sb v + bb.
-    let (sa, ba) = ax.map_or((0.0, 0.0), |n| (n.sign, -n.sign * n.value));
-    let (sb, bb) = ay.map_or((0.0, 0.0), |n| (n.sign, -n.sign * n.value));
-    let lin = sa * p.x + sb * p.y;
-    let off = ba * p.x + bb * p.y;
-    let quad = f2 * (sa * sa + sb * sb) + lin * lin;
-    let slope = 2.0 * f2 * (sa * ba + sb * bb) + 2.0 * lin * off;
-    if quad > 0.0 {
-        (-slope / (2.0 * quad)).max(lower)
-    } else {
-        lower
+impl LocalEquation<'_> {
+    /// `g(v)` and `dg/dv`.
+    fn root_term(&self, v: f64) -> (f64, f64) {
+        let p = self.pixel;
+        let (a, sa) = self
+            .ax
+            .map_or((0.0, 0.0), |n| (n.sign * (v - n.value), n.sign));
+        let (b, sb) = self
+            .ay
+            .map_or((0.0, 0.0), |n| (n.sign * (v - n.value), n.sign));
+        let t = a * p.x + b * p.y;
+        let g = self.f2 * (a * a + b * b) + t * t + p.q2;
+        let dg = 2.0 * self.f2 * (a * sa + b * sb) + 2.0 * t * (sa * p.x + sb * p.y);
+        (g, dg)
+    }
+
+    /// `H(v)` and `dH/dv`.
+    fn eval(&self, v: f64) -> (f64, f64) {
+        let (g, dg) = self.root_term(v);
+        (
+            2.0 * v + 0.5 * g.ln() - self.pixel.log_target,
+            2.0 + 0.5 * dg / g,
+        )
+    }
+
+    /// `d^2 g / dv^2` (constant: `g` is quadratic in `v`).
+    fn curvature(&self) -> f64 {
+        let p = self.pixel;
+        let sa = self.ax.map_or(0.0, |n| n.sign);
+        let sb = self.ay.map_or(0.0, |n| n.sign);
+        let lin = sa * p.x + sb * p.y;
+        2.0 * (self.f2 * (sa * sa + sb * sb) + lin * lin)
+    }
+
+    /// The value `v >= lower` where `g` is smallest (the slope that faces
+    /// the light most).
+    fn facing_value(&self, lower: f64) -> f64 {
+        let (_, dg) = self.root_term(lower);
+        let curvature = self.curvature();
+        if curvature > 0.0 && dg < 0.0 {
+            lower - dg / curvature
+        } else {
+            lower
+        }
     }
 }
 
-/// The root of the local equation `F(v) = 0` above the neighbours (`v >=
-/// lower`) where `F` crosses zero upwards.
+/// The root of the local equation `F(v) = I e^{2v} sqrt(g(v)) - s Q = 0`
+/// above the neighbours (`v >= lower`) where `F` crosses zero upwards.
 ///
 /// The perspective term makes `F` dip below its value at `lower` before it
 /// grows (the slope first turns the surface towards the light), so there can
@@ -164,64 +195,75 @@ fn facing_value(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axi
 /// with `v` as a monotone scheme needs; it is the one that reproduces the
 /// surface near the singular points. Without any root (the pixel is brighter
 /// than any slope explains) the most light-facing value is returned.
+///
+/// The root is found on [`LocalEquation`]'s `H` by Newton's method,
+/// safeguarded by bisection, from an upper bound in closed form: past the
+/// facing value both `2 v` and `g` grow, so the root lies below where either
+/// alone would close the gap `-H(facing)`; below about 45 degrees of slope
+/// `H` is convex there and the iterates fall monotonically onto the root.
 fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
-    let f = |v: f64| residual(p, f2, v, ax, ay);
-    let facing = facing_value(p, f2, lower, ax, ay);
-    let f_facing = f(facing);
-    let (mut a, mut fa) = if f_facing < 0.0 {
-        (facing, f_facing)
-    } else {
-        let f_lower = f(lower);
-        if f_lower < 0.0 {
-            (lower, f_lower)
-        } else {
-            return facing;
-        }
+    let equation = LocalEquation {
+        pixel: p,
+        f2,
+        ax,
+        ay,
     };
-    let lower = a;
-    // Bracket: F grows without bound as v grows.
-    let mut step = 1e-3;
-    let (mut b, mut fb) = (lower + step, f(lower + step));
-    let mut doublings = 0;
-    while fb < 0.0 && doublings < 80 {
-        a = b;
-        fa = fb;
-        step *= 2.0;
-        b = lower + step;
-        fb = f(b);
-        doublings += 1;
+    let facing = equation.facing_value(lower);
+    let (h_facing, _) = equation.eval(facing);
+    if !h_facing.is_finite() {
+        return facing;
     }
-    if fb < 0.0 || !fb.is_finite() {
-        return b;
-    }
-    // Illinois regula falsi on [a, b] with F(a) < 0 < F(b).
+    let (mut lo, mut hi) = if h_facing < 0.0 {
+        // 2 v alone closes the gap at `facing - H / 2`; g alone where it
+        // reaches g(facing) e^{-2 H} (the larger root of a quadratic, in a
+        // form without cancellation).
+        let (g, dg) = equation.root_term(facing);
+        let gap = g * (-2.0 * h_facing).exp_m1();
+        let half_curvature = 0.5 * equation.curvature();
+        let by_g = 2.0 * gap / (dg + (dg * dg + 4.0 * half_curvature * gap).sqrt());
+        let by_v = -0.5 * h_facing;
+        let bound = if by_g.is_finite() { by_g.min(by_v) } else { by_v };
+        (facing, facing + bound)
+    } else if equation.eval(lower).0 < 0.0 {
+        (lower, facing)
+    } else {
+        return facing;
+    };
+    let mut v = hi;
     for _ in 0..100 {
-        let c = b - fb * (b - a) / (fb - fa);
-        let c = if c.is_finite() && c > a.min(b) && c < a.max(b) {
-            c
+        let (hv, dv) = equation.eval(v);
+        if hv == 0.0 {
+            return v;
+        }
+        if hv < 0.0 {
+            lo = v;
         } else {
-            0.5 * (a + b)
+            hi = v;
+        }
+        let step = hv / dv;
+        let tolerance = 1e-13 * (1.0 + v.abs());
+        if step.abs() <= tolerance || hi - lo <= tolerance {
+            return (v - step).clamp(lo, hi);
+        }
+        let newton = v - step;
+        v = if newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
         };
-        let fc = f(c);
-        if fc == 0.0 || (b - a).abs() <= 1e-13 * (1.0 + c.abs()) {
-            return c;
-        }
-        if (fc > 0.0) == (fb > 0.0) {
-            fa *= 0.5;
-        } else {
-            a = b;
-            fa = fb;
-        }
-        b = c;
-        fb = fc;
     }
-    b
+    v
 }
 
 /// The fast-marching depth of `problem` on `domain` (validated by the
 /// caller, intensity scale `s`): a value at every pixel, the mean reached
 /// depth off the domain and where the front did not arrive; and that mean.
 /// Polls `observer`'s cancellation every [`CANCEL_POLL`] heap operations.
+///
+/// Every domain pixel starts with its frontal value; those are sorted once
+/// (in parallel) and read in order beside a binary heap that holds only the
+/// propagated values (the front, not the whole image), so a pop costs a
+/// comparison of the two heads and a heap operation on the front's size.
 pub(crate) fn march(
     problem: &Problem,
     domain: &Grid<bool>,
@@ -229,46 +271,52 @@ pub(crate) fn march(
     settings: &FastMarchingParams,
     observer: &dyn SolveObserver,
 ) -> Result<(Grid<f64>, f64), SolveError> {
+    use rayon::prelude::*;
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let f2 = problem.camera.focal_px * problem.camera.focal_px;
+    let inside = domain.as_slice();
+    let image = problem.image.as_slice();
     let brightest = (0..w * h)
-        .filter(|&q| domain.as_slice()[q])
-        .map(|q| problem.image.as_slice()[q])
+        .filter(|&q| inside[q])
+        .map(|q| image[q])
         .fold(0.0, f64::max);
     let floor = settings.min_relative_intensity * brightest;
-    let pixels: Vec<Pixel> = (0..w * h)
-        .map(|q| {
-            let ray = geometry.ray(q % w, q / w);
-            let qv = ray.q();
-            Pixel {
-                x: ray.x_px,
-                y: ray.y_px,
-                intensity: problem.image.as_slice()[q].max(floor),
-                q2: qv * qv,
-                target: s * qv,
-            }
-        })
+    let pixel = |q: usize, log_target: f64| {
+        let ray = geometry.ray(q % w, q / w);
+        let qv = ray.q();
+        Pixel {
+            x: ray.x_px,
+            y: ray.y_px,
+            q2: qv * qv,
+            log_target,
+        }
+    };
+    let log_target: Vec<f64> = (0..w * h)
+        .into_par_iter()
+        .map(|q| (s * geometry.ray(q % w, q / w).q() / image[q].max(floor)).ln())
         .collect();
+    check_cancelled(observer)?;
 
     let mut value = vec![f64::INFINITY; w * h];
     let mut accepted = vec![false; w * h];
-    let mut heap = BinaryHeap::with_capacity(w * h);
-    for q in 0..w * h {
-        if q.is_multiple_of(CANCEL_POLL) && observer.is_cancelled() {
-            return Err(SolveError::Cancelled);
-        }
-        if domain.as_slice()[q] {
-            let p = &pixels[q];
-            // Frontal value: a light-facing patch at distance e^v has I = s e^{-2v}.
-            let frontal = 0.5 * (s / p.intensity).ln();
-            value[q] = frontal;
-            heap.push(Trial {
-                value: frontal,
-                index: q,
-            });
-        }
+    // Frontal values: a light-facing patch at distance e^v has I = s e^{-2v}.
+    // Sorted so that `pop` gives the smallest first (the heap's order).
+    let mut frontal: Vec<Trial> = (0..w * h)
+        .into_par_iter()
+        .filter(|&q| inside[q])
+        .map(|q| Trial {
+            value: 0.5 * (s / image[q].max(floor)).ln(),
+            index: q,
+        })
+        .collect();
+    for trial in &frontal {
+        value[trial.index] = trial.value;
     }
+    check_cancelled(observer)?;
+    frontal.par_sort_unstable();
+    check_cancelled(observer)?;
+    let mut heap: BinaryHeap<Trial> = BinaryHeap::new();
     let axis = |value: &[f64], accepted: &[bool], minus: Option<usize>, plus: Option<usize>| {
         let m = minus.filter(|&n| accepted[n]).map(|n| value[n]);
         let p = plus.filter(|&n| accepted[n]).map(|n| value[n]);
@@ -289,9 +337,23 @@ pub(crate) fn march(
         }
     };
     let mut popped = 0usize;
-    while let Some(Trial { value: v, index }) = heap.pop() {
-        // Polled per pop, not per accepted pixel: near the end the heap
-        // holds millions of stale entries (seconds at 18 megapixels).
+    loop {
+        // The smaller head of the two queues (the greater in `Trial`'s order).
+        let from_heap = match (heap.peek(), frontal.last()) {
+            (Some(a), Some(b)) => a > b,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => break,
+        };
+        let Some(Trial { value: v, index }) = (if from_heap {
+            heap.pop()
+        } else {
+            frontal.pop()
+        }) else {
+            break;
+        };
+        // Polled per pop, not per accepted pixel: stale entries can run for
+        // a long time at 18 megapixels.
         popped += 1;
         if popped.is_multiple_of(CANCEL_POLL) && observer.is_cancelled() {
             return Err(SolveError::Cancelled);
@@ -315,18 +377,18 @@ pub(crate) fn march(
             neighbours[3] = Some(index + w);
         }
         for q in neighbours.into_iter().flatten() {
-            if accepted[q] || !domain.as_slice()[q] {
+            if accepted[q] || !inside[q] {
                 continue;
             }
             let (qc, qr) = (q % w, q / w);
-            let inside = |n: usize| domain.as_slice()[n];
-            let left = (qc > 0).then(|| q - 1).filter(|&n| inside(n));
-            let right = (qc + 1 < w).then(|| q + 1).filter(|&n| inside(n));
-            let up = (qr > 0).then(|| q - w).filter(|&n| inside(n));
-            let down = (qr + 1 < h).then(|| q + w).filter(|&n| inside(n));
+            let within = |n: usize| inside[n];
+            let left = (qc > 0).then(|| q - 1).filter(|&n| within(n));
+            let right = (qc + 1 < w).then(|| q + 1).filter(|&n| within(n));
+            let up = (qr > 0).then(|| q - w).filter(|&n| within(n));
+            let down = (qr + 1 < h).then(|| q + w).filter(|&n| within(n));
             let ax = axis(&value, &accepted, left, right);
             let ay = axis(&value, &accepted, up, down);
-            let p = &pixels[q];
+            let p = pixel(q, log_target[q]);
             let candidate = match (ax, ay) {
                 (Some(x), Some(y)) => {
                     let (first, second, first_is_x) = if x.value <= y.value {
@@ -335,18 +397,18 @@ pub(crate) fn march(
                         (y, x, false)
                     };
                     let one = if first_is_x {
-                        local_root(p, f2, first.value, Some(first), None)
+                        local_root(&p, f2, first.value, Some(first), None)
                     } else {
-                        local_root(p, f2, first.value, None, Some(first))
+                        local_root(&p, f2, first.value, None, Some(first))
                     };
                     if one <= second.value {
                         one
                     } else {
-                        local_root(p, f2, second.value, Some(x), Some(y))
+                        local_root(&p, f2, second.value, Some(x), Some(y))
                     }
                 }
-                (Some(x), None) => local_root(p, f2, x.value, Some(x), None),
-                (None, Some(y)) => local_root(p, f2, y.value, None, Some(y)),
+                (Some(x), None) => local_root(&p, f2, x.value, Some(x), None),
+                (None, Some(y)) => local_root(&p, f2, y.value, None, Some(y)),
                 (None, None) => continue,
             };
             if candidate.is_finite() && candidate < value[q] {
@@ -358,18 +420,17 @@ pub(crate) fn march(
             }
         }
     }
+    drop((heap, frontal, accepted, log_target));
 
-    let reached: Vec<f64> = (0..w * h)
-        .filter(|&q| domain.as_slice()[q] && value[q].is_finite())
-        .map(|q| pixels[q].q2.sqrt() * value[q].exp())
-        .collect();
-    let mean = reached.iter().sum::<f64>() / reached.len().max(1) as f64;
+    let depth_at = |q: usize| geometry.ray(q % w, q / w).q() * value[q].exp();
+    let (sum, count) = (0..w * h)
+        .filter(|&q| inside[q] && value[q].is_finite())
+        .fold((0.0, 0usize), |(sum, count), q| (sum + depth_at(q), count + 1));
+    let mean = sum / count.max(1) as f64;
     let solved = Grid::from_fn(w, h, |c, r| {
         let q = r * w + c;
-        if !domain.as_slice()[q] {
-            mean
-        } else if value[q].is_finite() {
-            pixels[q].q2.sqrt() * value[q].exp()
+        if inside[q] && value[q].is_finite() {
+            depth_at(q)
         } else {
             mean
         }
