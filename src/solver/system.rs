@@ -140,10 +140,6 @@ pub struct LinearSystem {
     data_forward: Vec<f32>,
     data_diagonal: Vec<f32>,
     data_rhs: Vec<f32>,
-    /// Residual `D` per pixel at the linearisation point.
-    residual: Vec<f32>,
-    /// `dD_p/dz_q` for the 5 slots of each pixel.
-    jacobian: Vec<[f32; 5]>,
     /// Smoothness planes, padded like `dz_padded` (0 in the halo), each
     /// kind as `[xx, yy, xy]`: masks (1 where that stencil centred at the
     /// pixel lies in the domain, else 0); `K z^k`, the unscaled stencils
@@ -201,8 +197,6 @@ impl LinearSystem {
             data_forward: vec![0.0; 8 * n],
             data_diagonal: vec![0.0; n],
             data_rhs: vec![0.0; n],
-            residual: vec![0.0; n],
-            jacobian: vec![[0.0; 5]; n],
             smooth,
         }
     }
@@ -215,8 +209,6 @@ impl LinearSystem {
             + self.sweep_scratch.capacity() * size_of::<f32>()
             + self.data_forward.capacity() * size_of::<f32>()
             + (self.data_diagonal.capacity() + self.data_rhs.capacity()) * size_of::<f32>()
-            + self.residual.capacity() * size_of::<f32>()
-            + self.jacobian.capacity() * size_of::<[f32; 5]>()
             + self.smooth.capacity() * size_of::<f32>()
     }
 
@@ -337,99 +329,63 @@ impl LinearSystem {
                 }
             },
         );
-        let geometry = level.geometry;
-        let h = geometry.spacing;
-        let ok = self
-            .residual
-            .par_chunks_mut(w)
-            .zip(self.jacobian.par_chunks_mut(w))
-            .with_min_len(min_rows)
-            .enumerate()
-            .map(|(r, (res_row, jac_row))| {
-                let mut ok = true;
-                for c in 0..w {
-                    res_row[c] = 0.0;
-                    jac_row[c] = [0.0; 5];
-                    if !level.domain.at(c, r) {
-                        continue;
-                    }
-                    let nb = model::neighbourhood(depth, &level.domain, c, r);
-                    let (branches, _, _) = nb.upwind(h);
-                    let values = nb.values();
-                    let ray = geometry.ray(c, r);
-                    match model::residual_and_jacobian(
-                        model,
-                        &ray,
-                        *level.image.at(c, r),
-                        &values,
-                        branches,
-                        h,
-                        derivatives,
-                    ) {
-                        Some((d, jac)) => {
-                            // Stored in f32 (half the memory); a value that
-                            // f32 cannot hold leaves the pixel out of the
-                            // data term, like a non-finite one.
-                            let (d32, jac32) = (d as f32, jac.map(|v| v as f32));
-                            if d32.is_finite() && jac32.iter().all(|v| v.is_finite()) {
-                                res_row[c] = d32;
-                                jac_row[c] = jac32;
-                            }
-                        }
-                        None => ok = false,
-                    }
-                }
-                ok
-            })
-            .reduce(|| true, |a, b| a && b);
-        if !ok {
-            return false;
-        }
-        let height = self.height;
-        let residual = &self.residual;
-        let jacobian = &self.jacobian;
+        // The residual and its Jacobian are streamed: each task linearises
+        // the pixel rows its block of rows reads (its own and one more on
+        // each side) into a buffer of its own, so the whole-level Jacobian
+        // is never held (24 bytes per pixel; a few per cent more model
+        // evaluations on the shared rows).
+        let block_rows = min_rows.max(MIN_DATA_BLOCK_ROWS);
         let confidence = level.confidence.as_slice();
         let domain = &level.domain;
         self.data_forward
-            .par_chunks_mut(8 * w)
-            .zip(self.data_diagonal.par_chunks_mut(w))
-            .zip(self.data_rhs.par_chunks_mut(w))
-            .with_min_len(min_rows)
+            .par_chunks_mut(8 * w * block_rows)
+            .zip(self.data_diagonal.par_chunks_mut(w * block_rows))
+            .zip(self.data_rhs.par_chunks_mut(w * block_rows))
             .enumerate()
-            .for_each(|(r, ((forward_row, diagonal_row), rhs_row))| {
-                for c in 0..w {
-                    let mut stencil = [0.0f64; 17];
-                    let mut rhs = 0.0;
-                    if *domain.at(c, r) {
-                        for (s, &(sx, sy)) in SLOT_OFFSET.iter().enumerate() {
-                            // p is the pixel whose slot s is q = (c, r).
-                            let (pc, pr) = (c as isize - sx, r as isize - sy);
-                            if pc < 0 || pr < 0 || pc as usize >= w || pr as usize >= height {
-                                continue;
-                            }
-                            let p = pr as usize * w + pc as usize;
-                            let j_pq = f64::from(jacobian[p][s]);
-                            if j_pq == 0.0 {
-                                continue;
-                            }
-                            let weight = confidence[p] * j_pq;
-                            rhs -= weight * f64::from(residual[p]);
-                            for (t, &(tx, ty)) in SLOT_OFFSET.iter().enumerate() {
-                                let j_pt = f64::from(jacobian[p][t]);
-                                if j_pt != 0.0 {
-                                    stencil[stencil_index(tx - sx, ty - sy)] += weight * j_pt;
-                                }
-                            }
-                        }
-                    }
-                    for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
-                        forward_row[k * w + c] = stencil[stencil_index(dx, dy)] as f32;
-                    }
-                    diagonal_row[c] = stencil[0] as f32;
-                    rhs_row[c] = rhs as f32;
+            .map(|(block, ((forward_rows, diagonal_rows), rhs_rows))| {
+                let r0 = block * block_rows;
+                let rows = diagonal_rows.len() / w;
+                // Pixel rows p0..p1 reach rows r0..r0 + rows through the slots.
+                let p0 = r0.saturating_sub(1);
+                let p1 = (r0 + rows + 1).min(height);
+                let mut residual = vec![0.0f32; (p1 - p0) * w];
+                let mut jacobian = vec![[0.0f32; 5]; (p1 - p0) * w];
+                let mut ok = true;
+                for (k, (res_row, jac_row)) in residual
+                    .chunks_mut(w)
+                    .zip(jacobian.chunks_mut(w))
+                    .enumerate()
+                {
+                    ok &= linearise_row(
+                        model,
+                        level,
+                        depth,
+                        derivatives,
+                        p0 + k,
+                        res_row,
+                        jac_row,
+                    );
                 }
-            });
-        true
+                for k in 0..rows {
+                    data_row(
+                        &DataRowInputs {
+                            row: r0 + k,
+                            first_pixel_row: p0,
+                            width: w,
+                            height,
+                            residual: &residual,
+                            jacobian: &jacobian,
+                            confidence,
+                            domain,
+                        },
+                        &mut forward_rows[8 * k * w..8 * (k + 1) * w],
+                        &mut diagonal_rows[k * w..(k + 1) * w],
+                        &mut rhs_rows[k * w..(k + 1) * w],
+                    );
+                }
+                ok
+            })
+            .reduce(|| true, |a, b| a && b)
     }
 
     /// Adds the smoothness part with `Psi'` evaluated at `z^k + dz` (the
@@ -637,6 +593,115 @@ impl Simd {
 #[target_feature(enable = "avx2,fma")]
 fn run_avx2_fma<R>(f: impl FnOnce() -> R) -> R {
     f()
+}
+
+/// Image rows per task of the data part at least: the two extra Jacobian
+/// rows each task computes are then a few per cent of its work.
+const MIN_DATA_BLOCK_ROWS: usize = 32;
+
+/// The residual `D` and its Jacobian (5 slots) of image row `row` at
+/// `depth`, stored in f32 (0 off the domain; a value that f32 cannot hold
+/// leaves the pixel out of the data term, like a non-finite one). False when
+/// the model cannot give the requested derivatives.
+fn linearise_row<M: Reflectance + ?Sized>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    derivatives: Derivatives,
+    row: usize,
+    residual: &mut [f32],
+    jacobian: &mut [[f32; 5]],
+) -> bool {
+    let geometry = level.geometry;
+    let h = geometry.spacing;
+    let mut ok = true;
+    for c in 0..residual.len() {
+        residual[c] = 0.0;
+        jacobian[c] = [0.0; 5];
+        if !level.domain.at(c, row) {
+            continue;
+        }
+        let nb = model::neighbourhood(depth, &level.domain, c, row);
+        let (branches, _, _) = nb.upwind(h);
+        let values = nb.values();
+        let ray = geometry.ray(c, row);
+        match model::residual_and_jacobian(
+            model,
+            &ray,
+            *level.image.at(c, row),
+            &values,
+            branches,
+            h,
+            derivatives,
+        ) {
+            Some((d, jac)) => {
+                let (d32, jac32) = (d as f32, jac.map(|v| v as f32));
+                if d32.is_finite() && jac32.iter().all(|v| v.is_finite()) {
+                    residual[c] = d32;
+                    jacobian[c] = jac32;
+                }
+            }
+            None => ok = false,
+        }
+    }
+    ok
+}
+
+/// What [`data_row`] reads: the residual and Jacobian of pixel rows
+/// `first_pixel_row..`, as many as the buffers hold.
+struct DataRowInputs<'a> {
+    row: usize,
+    first_pixel_row: usize,
+    width: usize,
+    height: usize,
+    residual: &'a [f32],
+    jacobian: &'a [[f32; 5]],
+    confidence: &'a [f64],
+    domain: &'a Grid<bool>,
+}
+
+/// The data part of image row `row`: `J^T C J` (forward entries as 8 planes,
+/// the diagonal) and `-J^T C D`.
+fn data_row(
+    inputs: &DataRowInputs<'_>,
+    forward_row: &mut [f32],
+    diagonal_row: &mut [f32],
+    rhs_row: &mut [f32],
+) {
+    let (w, r) = (inputs.width, inputs.row);
+    for c in 0..w {
+        let mut stencil = [0.0f64; 17];
+        let mut rhs = 0.0;
+        if *inputs.domain.at(c, r) {
+            for (s, &(sx, sy)) in SLOT_OFFSET.iter().enumerate() {
+                // p is the pixel whose slot s is q = (c, r).
+                let (pc, pr) = (c as isize - sx, r as isize - sy);
+                if pc < 0 || pr < 0 || pc as usize >= w || pr as usize >= inputs.height {
+                    continue;
+                }
+                let p = pr as usize * w + pc as usize;
+                let local = (pr as usize - inputs.first_pixel_row) * w + pc as usize;
+                let j_p = inputs.jacobian[local];
+                let j_pq = f64::from(j_p[s]);
+                if j_pq == 0.0 {
+                    continue;
+                }
+                let weight = inputs.confidence[p] * j_pq;
+                rhs -= weight * f64::from(inputs.residual[local]);
+                for (t, &(tx, ty)) in SLOT_OFFSET.iter().enumerate() {
+                    let j_pt = f64::from(j_p[t]);
+                    if j_pt != 0.0 {
+                        stencil[stencil_index(tx - sx, ty - sy)] += weight * j_pt;
+                    }
+                }
+            }
+        }
+        for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
+            forward_row[k * w + c] = stencil[stencil_index(dx, dy)] as f32;
+        }
+        diagonal_row[c] = stencil[0] as f32;
+        rhs_row[c] = rhs as f32;
+    }
 }
 
 /// What [`weight_row`] reads.
