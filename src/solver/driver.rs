@@ -134,8 +134,6 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         let mut current: Option<Energy> = None;
         // The depth before a trial step (backtracking), reused across iterations.
         let mut previous = depth.clone();
-        // The work vector of the inexact Newton test.
-        let mut residual = Vec::new();
         for iteration in 0..params.kappa_max {
             if iteration >= params.kappa
                 && let [.., before, after] = energies[..]
@@ -167,7 +165,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
                 let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
                 if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
-                    start_residual = residual_norm(&system, &mut residual);
+                    start_residual = residual_norm(&system);
                 }
                 // Refining a full-resolution start, the weights have settled
                 // and the sweeps reach only locally: the later inner
@@ -190,7 +188,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 )?;
                 if inner == 0 && adaptive {
                     first_solve_converged =
-                        residual_norm(&system, &mut residual) <= LOCAL_REACH * start_residual;
+                        residual_norm(&system) <= LOCAL_REACH * start_residual;
                 }
             }
             let t3 = Instant::now();
@@ -289,11 +287,9 @@ impl<M> GaussNewton<'_, M> {
 /// of the residual has sweeps that reach only locally (see `solve_level`).
 const LOCAL_REACH: f64 = 0.1;
 
-/// The norm of the system's residual at its current unknowns (`buffer` is
-/// the work vector).
-fn residual_norm(system: &LinearSystem, buffer: &mut Vec<f32>) -> f64 {
-    buffer.resize(system.dz_padded.len(), 0.0);
-    system.residual_into(buffer).sqrt()
+/// The norm of the system's residual at its current unknowns.
+fn residual_norm(system: &LinearSystem) -> f64 {
+    system.residual_norm_squared().sqrt()
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the

@@ -106,13 +106,13 @@ pub const PLANE_INVERSE_DIAGONAL: usize = 8;
 pub const PLANE_RHS: usize = 9;
 
 /// Planes per padded row of [`LinearSystem::smooth`].
-const SMOOTH_PLANES: usize = 12;
+const SMOOTH_PLANES: usize = 6;
 /// First of the three `[xx, yy, xy]` planes of each kind in a smoothness row
 /// block.
-const SMOOTH_MASK: usize = 0;
-const SMOOTH_KZ: usize = 3;
-const SMOOTH_WEIGHT: usize = 6;
-const SMOOTH_WEIGHTED: usize = 9;
+const SMOOTH_KZ: usize = 0;
+const SMOOTH_WEIGHT: usize = 3;
+/// Planes per padded row of [`LinearSystem::masks`]: `[xx, yy, xy]`.
+const MASK_PLANES: usize = 3;
 
 /// The linear system of one level with its work buffers.
 pub struct LinearSystem {
@@ -134,23 +134,29 @@ pub struct LinearSystem {
     /// Work rows of the fast sweep, sized by `sor::sweep` on its first use
     /// (the system does not know the sweep's band layout).
     pub(crate) sweep_scratch: Vec<f32>,
-    /// Data part (per outer iteration): the forward coefficients as 8 planes
-    /// per image row (row `r` owns `[8 r w, 8 (r + 1) w)`), the diagonal and
-    /// the right-hand side.
+    /// Data part (per outer iteration): the forward coefficients that the
+    /// smoothness part adds to, as [`SHARED_FORWARD`]`.len()` planes per image
+    /// row (row `r` owns `[6 r w, 6 (r + 1) w)`), the diagonal and the
+    /// right-hand side. The data-only couplings ([`DATA_ONLY_FORWARD`]) go
+    /// straight into [`Self::coefficients`].
     data_forward: Vec<f32>,
     data_diagonal: Vec<f32>,
     data_rhs: Vec<f32>,
     /// Smoothness planes, padded like `dz_padded` (0 in the halo), each
-    /// kind as `[xx, yy, xy]`: masks (1 where that stencil centred at the
-    /// pixel lies in the domain, else 0); `K z^k`, the unscaled stencils
-    /// applied to the linearisation point (`z[-1] - 2 z + z[+1]` and the
-    /// four-point mixed difference), per outer iteration; weights
-    /// `W = Psi' k^2` (mixed doubled: it enters `S^2` twice) and `W K z^k`, per
-    /// inner iteration. Stored as row blocks like [`Self::coefficients`]
-    /// ([`SMOOTH_PLANES`] planes of padded rows), so that the planes of one
-    /// row are neighbours in memory rather than separate page-aligned
-    /// buffers whose equal offsets collide in the L1 cache.
+    /// kind as `[xx, yy, xy]`: `K z^k`, the unscaled stencils applied to the
+    /// linearisation point (`z[-1] - 2 z + z[+1]` and the four-point mixed
+    /// difference; 0 where the stencil leaves the domain), per outer
+    /// iteration; weights `W = Psi' k^2` (mixed doubled: it enters `S^2`
+    /// twice), per inner iteration (`W K z^k` is formed where it is used).
+    /// Stored as row blocks like [`Self::coefficients`] ([`SMOOTH_PLANES`]
+    /// planes of padded rows), so that the planes of one row are neighbours
+    /// in memory rather than separate page-aligned buffers whose equal
+    /// offsets collide in the L1 cache.
     smooth: Vec<f32>,
+    /// The stencils' masks in the same row-block layout ([`MASK_PLANES`]
+    /// planes of bytes): 1 where that stencil centred at the pixel lies in the
+    /// domain, else 0.
+    masks: Vec<u8>,
 }
 
 impl LinearSystem {
@@ -169,21 +175,21 @@ impl LinearSystem {
         };
         let pw = w + 2 * HALO;
         let padded = pw * (h + 2 * HALO);
-        let mut smooth = vec![0.0f32; padded * SMOOTH_PLANES];
+        let mut masks = vec![0u8; padded * MASK_PLANES];
         for r in 0..h {
             for c in 0..w {
                 let at = |dc, dr| inside(c, r, dc, dr);
                 if !at(0, 0) {
                     continue;
                 }
-                let block = (r + HALO) * SMOOTH_PLANES * pw;
+                let block = (r + HALO) * MASK_PLANES * pw;
                 let flags = [
                     at(-1, 0) && at(1, 0),
                     at(0, -1) && at(0, 1),
                     at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1),
                 ];
                 for (k, on) in flags.into_iter().enumerate() {
-                    smooth[block + (SMOOTH_MASK + k) * pw + c + HALO] = if on { 1.0 } else { 0.0 };
+                    masks[block + k * pw + c + HALO] = u8::from(on);
                 }
             }
         }
@@ -194,10 +200,11 @@ impl LinearSystem {
             coefficients: vec![0.0; padded * PLANES],
             dz_padded: vec![0.0; padded],
             sweep_scratch: Vec::new(),
-            data_forward: vec![0.0; 8 * n],
+            data_forward: vec![0.0; SHARED_FORWARD.len() * n],
             data_diagonal: vec![0.0; n],
             data_rhs: vec![0.0; n],
-            smooth,
+            smooth: vec![0.0; padded * SMOOTH_PLANES],
+            masks,
         }
     }
 
@@ -210,6 +217,7 @@ impl LinearSystem {
             + self.data_forward.capacity() * size_of::<f32>()
             + (self.data_diagonal.capacity() + self.data_rhs.capacity()) * size_of::<f32>()
             + self.smooth.capacity() * size_of::<f32>()
+            + self.masks.capacity()
     }
 
     /// Padded row width.
@@ -307,8 +315,11 @@ impl LinearSystem {
         let min_rows = rows_per_task(w);
         let height = self.height;
         let z = depth.as_slice();
+        let masks = &self.masks;
         image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, height, min_rows).for_each(
             |(r, block)| {
+                let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..];
+                let mask = |k: usize, c: usize| mask_block[k * pw + c + HALO] != 0;
                 let kz = &mut block[SMOOTH_KZ * pw..(SMOOTH_KZ + 3) * pw];
                 let (xx, rest) = kz.split_at_mut(pw);
                 let (yy, xy) = rest.split_at_mut(pw);
@@ -321,11 +332,16 @@ impl LinearSystem {
                 };
                 for c in 0..w {
                     // Differences in f64 (z is large, they are small), stored in f32.
+                    // 0 where the stencil leaves the domain, so that
+                    // `W K z^k` is 0 there whatever the depth off the domain.
                     let centre = 2.0 * z[r * w + c];
-                    xx[c + HALO] = (at(c, -1, 0) - centre + at(c, 1, 0)) as f32;
-                    yy[c + HALO] = (at(c, 0, -1) - centre + at(c, 0, 1)) as f32;
-                    xy[c + HALO] =
-                        (at(c, 1, 1) - at(c, 1, -1) - at(c, -1, 1) + at(c, -1, -1)) as f32;
+                    let kept = |k: usize, v: f64| if mask(k, c) { v as f32 } else { 0.0 };
+                    xx[c + HALO] = kept(0, at(c, -1, 0) - centre + at(c, 1, 0));
+                    yy[c + HALO] = kept(1, at(c, 0, -1) - centre + at(c, 0, 1));
+                    xy[c + HALO] = kept(
+                        2,
+                        at(c, 1, 1) - at(c, 1, -1) - at(c, -1, 1) + at(c, -1, -1),
+                    );
                 }
             },
         );
@@ -337,12 +353,14 @@ impl LinearSystem {
         let block_rows = min_rows.max(MIN_DATA_BLOCK_ROWS);
         let confidence = level.confidence.as_slice();
         let domain = &level.domain;
+        let shared = SHARED_FORWARD.len();
         self.data_forward
-            .par_chunks_mut(8 * w * block_rows)
+            .par_chunks_mut(shared * w * block_rows)
             .zip(self.data_diagonal.par_chunks_mut(w * block_rows))
             .zip(self.data_rhs.par_chunks_mut(w * block_rows))
+            .zip(self.coefficients[HALO * PLANES * pw..].par_chunks_mut(PLANES * pw * block_rows))
             .enumerate()
-            .map(|(block, ((forward_rows, diagonal_rows), rhs_rows))| {
+            .map(|(block, (((forward_rows, diagonal_rows), rhs_rows), coefficient_rows))| {
                 let r0 = block * block_rows;
                 let rows = diagonal_rows.len() / w;
                 // Pixel rows p0..p1 reach rows r0..r0 + rows through the slots.
@@ -378,9 +396,12 @@ impl LinearSystem {
                             confidence,
                             domain,
                         },
-                        &mut forward_rows[8 * k * w..8 * (k + 1) * w],
-                        &mut diagonal_rows[k * w..(k + 1) * w],
-                        &mut rhs_rows[k * w..(k + 1) * w],
+                        DataRowOutputs {
+                            forward: &mut forward_rows[shared * k * w..shared * (k + 1) * w],
+                            diagonal: &mut diagonal_rows[k * w..(k + 1) * w],
+                            rhs: &mut rhs_rows[k * w..(k + 1) * w],
+                            coefficients: &mut coefficient_rows[PLANES * pw * k..][..PLANES * pw],
+                        },
                     );
                 }
                 ok
@@ -426,9 +447,13 @@ impl LinearSystem {
             dz: &self.dz_padded,
         };
         let simd = Simd::detect();
+        let masks = &self.masks;
         let (changed, total) =
             image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows)
-                .map(|(r, block)| simd.run(|| weight_row(&inputs, r, block)))
+                .map(|(r, block)| {
+                    let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
+                    simd.run(|| weight_row(&inputs, r, mask_block, block))
+                })
                 .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         let smooth = &self.smooth;
         let data_forward = &self.data_forward;
@@ -441,7 +466,7 @@ impl LinearSystem {
                     row: r,
                     padded_width: pw,
                     alpha,
-                    data_forward: &data_forward[8 * r * w..8 * (r + 1) * w],
+                    data_forward: &data_forward[6 * r * w..6 * (r + 1) * w],
                     data_diagonal: &data_diagonal[r * w..(r + 1) * w],
                     data_rhs: &data_rhs[r * w..(r + 1) * w],
                     domain: &domain[r * w..(r + 1) * w],
@@ -502,57 +527,82 @@ impl LinearSystem {
     /// like [`Self::dz_padded`], 0 outside the solved pixels); returns its
     /// squared Euclidean norm. About the cost of one sweep.
     pub fn residual_into(&self, out: &mut [f32]) -> f64 {
-        let (w, h) = (self.width, self.height);
-        let pw = self.padded_width();
         assert_eq!(out.len(), self.dz_padded.len());
-        let x = &self.dz_padded[..];
-        let coefficients = &self.coefficients[..];
-        let min_rows = rows_per_task(w);
-        out.par_chunks_mut(pw)
+        let min_rows = rows_per_task(self.width);
+        out.par_chunks_mut(self.padded_width())
             .enumerate()
             .with_min_len(min_rows)
             .map(|(pr, out_row)| {
                 out_row.iter_mut().for_each(|v| *v = 0.0);
-                if pr < HALO || pr >= h + HALO {
-                    return 0.0;
-                }
-                let block = |k: usize| &coefficients[k * PLANES * pw..(k + 1) * PLANES * pw];
-                let (here, above1, above2) = (block(pr), block(pr - 1), block(pr - 2));
-                let line = |k: usize| &x[k * pw..(k + 1) * pw];
-                let rows = [
-                    line(pr - 2),
-                    line(pr - 1),
-                    line(pr),
-                    line(pr + 1),
-                    line(pr + 2),
-                ];
                 let mut norm = 0.0f64;
-                for c in HALO..HALO + w {
-                    let inverse = here[PLANE_INVERSE_DIAGONAL * pw + c];
-                    if inverse == 0.0 {
-                        continue;
-                    }
-                    let mut sum = rows[2][c] / inverse;
-                    for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
-                        let (dx, dy) = (dx, dy as usize);
-                        // Forward: stored here, unknown at +o.
-                        sum += here[k * pw + c] * rows[2 + dy][c.wrapping_add_signed(dx)];
-                        // Backward: stored at -o, unknown at -o.
-                        let back = c.wrapping_add_signed(-dx);
-                        let stored = match dy {
-                            0 => here[k * pw + back],
-                            1 => above1[k * pw + back],
-                            _ => above2[k * pw + back],
-                        };
-                        sum += stored * rows[2 - dy][back];
-                    }
-                    let value = here[PLANE_RHS * pw + c] - sum;
+                self.row_residuals(pr, |c, value| {
                     out_row[c] = value;
                     norm += f64::from(value) * f64::from(value);
-                }
+                });
                 norm
             })
             .sum()
+    }
+
+    /// The squared Euclidean norm of the residual `b - A dz`, without
+    /// storing it (the same sum as [`Self::residual_into`] returns).
+    pub fn residual_norm_squared(&self) -> f64 {
+        let min_rows = rows_per_task(self.width);
+        (0..self.height + 2 * HALO)
+            .into_par_iter()
+            .with_min_len(min_rows)
+            .map(|pr| {
+                let mut norm = 0.0f64;
+                self.row_residuals(pr, |_, value| {
+                    norm += f64::from(value) * f64::from(value);
+                });
+                norm
+            })
+            .sum()
+    }
+
+    /// The residual of every solved pixel of padded row `pr`, as `(padded
+    /// column, value)`.
+    #[inline]
+    fn row_residuals(&self, pr: usize, mut each: impl FnMut(usize, f32)) {
+        let (w, h) = (self.width, self.height);
+        let pw = self.padded_width();
+        if pr < HALO || pr >= h + HALO {
+            return;
+        }
+        let x = &self.dz_padded[..];
+        let coefficients = &self.coefficients[..];
+        let block = |k: usize| &coefficients[k * PLANES * pw..(k + 1) * PLANES * pw];
+        let (here, above1, above2) = (block(pr), block(pr - 1), block(pr - 2));
+        let line = |k: usize| &x[k * pw..(k + 1) * pw];
+        let rows = [
+            line(pr - 2),
+            line(pr - 1),
+            line(pr),
+            line(pr + 1),
+            line(pr + 2),
+        ];
+        for c in HALO..HALO + w {
+            let inverse = here[PLANE_INVERSE_DIAGONAL * pw + c];
+            if inverse == 0.0 {
+                continue;
+            }
+            let mut sum = rows[2][c] / inverse;
+            for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
+                let (dx, dy) = (dx, dy as usize);
+                // Forward: stored here, unknown at +o.
+                sum += here[k * pw + c] * rows[2 + dy][c.wrapping_add_signed(dx)];
+                // Backward: stored at -o, unknown at -o.
+                let back = c.wrapping_add_signed(-dx);
+                let stored = match dy {
+                    0 => here[k * pw + back],
+                    1 => above1[k * pw + back],
+                    _ => above2[k * pw + back],
+                };
+                sum += stored * rows[2 - dy][back];
+            }
+            each(c, here[PLANE_RHS * pw + c] - sum);
+        }
     }
 }
 
@@ -594,6 +644,13 @@ impl Simd {
 fn run_avx2_fma<R>(f: impl FnOnce() -> R) -> R {
     f()
 }
+
+/// The [`FORWARD`] entries with a smoothness part (the data part keeps a
+/// copy of them to add each inner iteration's smoothness part to).
+const SHARED_FORWARD: [usize; 6] = [0, 1, 3, 5, 6, 7];
+/// The [`FORWARD`] entries with a data part only, `(-1, 1)` and `(1, 1)`:
+/// written into the coefficients once per outer iteration.
+const DATA_ONLY_FORWARD: [usize; 2] = [2, 4];
 
 /// Image rows per task of the data part at least: the two extra Jacobian
 /// rows each task computes are then a few per cent of its work.
@@ -660,15 +717,22 @@ struct DataRowInputs<'a> {
     domain: &'a Grid<bool>,
 }
 
-/// The data part of image row `row`: `J^T C J` (forward entries as 8 planes,
-/// the diagonal) and `-J^T C D`.
-fn data_row(
-    inputs: &DataRowInputs<'_>,
-    forward_row: &mut [f32],
-    diagonal_row: &mut [f32],
-    rhs_row: &mut [f32],
-) {
+/// Where [`data_row`] writes one image row.
+struct DataRowOutputs<'a> {
+    /// The [`SHARED_FORWARD`] entries, a plane each.
+    forward: &'a mut [f32],
+    diagonal: &'a mut [f32],
+    rhs: &'a mut [f32],
+    /// The row's block of [`LinearSystem::coefficients`], which gets the
+    /// [`DATA_ONLY_FORWARD`] entries (0 off the domain).
+    coefficients: &'a mut [f32],
+}
+
+/// The data part of image row `row`: `J^T C J` (forward entries, the
+/// diagonal) and `-J^T C D`.
+fn data_row(inputs: &DataRowInputs<'_>, out: DataRowOutputs<'_>) {
     let (w, r) = (inputs.width, inputs.row);
+    let pw = w + 2 * HALO;
     for c in 0..w {
         let mut stencil = [0.0f64; 17];
         let mut rhs = 0.0;
@@ -696,11 +760,22 @@ fn data_row(
                 }
             }
         }
-        for (k, &(dx, dy)) in FORWARD.iter().enumerate() {
-            forward_row[k * w + c] = stencil[stencil_index(dx, dy)] as f32;
+        let entry = |k: usize| {
+            let (dx, dy) = FORWARD[k];
+            stencil[stencil_index(dx, dy)] as f32
+        };
+        for (plane, &k) in SHARED_FORWARD.iter().enumerate() {
+            out.forward[plane * w + c] = entry(k);
         }
-        diagonal_row[c] = stencil[0] as f32;
-        rhs_row[c] = rhs as f32;
+        for &k in &DATA_ONLY_FORWARD {
+            out.coefficients[k * pw + HALO + c] = if *inputs.domain.at(c, r) {
+                entry(k)
+            } else {
+                0.0
+            };
+        }
+        out.diagonal[c] = stencil[0] as f32;
+        out.rhs[c] = rhs as f32;
     }
 }
 
@@ -717,9 +792,14 @@ struct WeightInputs<'a> {
 }
 
 /// `W = Psi'(S^2(z^k + dz)) k^2` per stencil (0 where the stencil leaves the
-/// domain) and `W * (K z^k)` for image row `row`.
+/// domain, as `mask_block` says) for image row `row`.
 #[inline(always)]
-fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) -> (f64, f64) {
+fn weight_row(
+    inputs: &WeightInputs<'_>,
+    row: usize,
+    mask_block: &[u8],
+    block: &mut [f32],
+) -> (f64, f64) {
     let pw = inputs.padded_width;
     let n = inputs.width;
     let i0 = (row + HALO) * pw + HALO;
@@ -735,11 +815,11 @@ fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) -> (f64,
     let (down_left, down_right) = (span(pwi - 1), span(pwi + 1));
     let (inputs_part, outputs) = block.split_at_mut(SMOOTH_WEIGHT * pw);
     let plane = |k: usize| window(inputs_part, k * pw + HALO, 0, n);
-    let [mxx, myy, mxy] = [SMOOTH_MASK, SMOOTH_MASK + 1, SMOOTH_MASK + 2].map(plane);
+    let [mxx, myy, mxy] = [0, 1, 2].map(|k| window(mask_block, k * pw + HALO, 0, n));
     let [kzxx, kzyy, kzxy] = [SMOOTH_KZ, SMOOTH_KZ + 1, SMOOTH_KZ + 2].map(plane);
     let mut planes = outputs.chunks_exact_mut(pw).map(|p| &mut p[HALO..HALO + n]);
     let mut next = || planes.next().unwrap_or_default();
-    let [wxx, wyy, wxy, vxx, vyy, vxy] = [next(), next(), next(), next(), next(), next()];
+    let [wxx, wyy, wxy] = [next(), next(), next()];
     let [sxx, syy, sxy] = inputs.scale;
     let [gxx, gyy, gxy] = inputs.weight_scale;
     let il2 = inputs.inverse_lambda_squared;
@@ -750,18 +830,15 @@ fn weight_row(inputs: &WeightInputs<'_>, row: usize, block: &mut [f32]) -> (f64,
         let tyy = kzyy[c] + (f(up[c]) - 2.0 * f(centre[c]) + f(down[c]));
         let txy = kzxy[c] + (f(down_right[c]) - f(up_right[c]) - f(down_left[c]) + f(up_left[c]));
         let (zxx, zyy, zxy) = (txx * sxx, tyy * syy, txy * sxy);
-        let s2 = mxx[c] * zxx * zxx + myy[c] * zyy * zyy + 2.0 * mxy[c] * zxy * zxy;
+        let (mx, my, mxy) = (f32::from(mxx[c]), f32::from(myy[c]), f32::from(mxy[c]));
+        let s2 = mx * zxx * zxx + my * zyy * zyy + 2.0 * mxy * zxy * zxy;
         let psi = 1.0 / (1.0 + s2 * il2).sqrt();
-        let (axx, ayy, axy) = (mxx[c] * psi * gxx, myy[c] * psi * gyy, mxy[c] * psi * gxy);
+        let (axx, ayy, axy) = (mx * psi * gxx, my * psi * gyy, mxy * psi * gxy);
         changed += ((axx - wxx[c]).abs() + (ayy - wyy[c]).abs()) + (axy - wxy[c]).abs();
         total += (axx + ayy) + axy;
         wxx[c] = axx;
         wyy[c] = ayy;
         wxy[c] = axy;
-        // The mask, not the product, decides: 0 * (a non-finite kz) stays 0.
-        vxx[c] = if mxx[c] != 0.0 { axx * kzxx[c] } else { 0.0 };
-        vyy[c] = if myy[c] != 0.0 { ayy * kzyy[c] } else { 0.0 };
-        vxy[c] = if mxy[c] != 0.0 { axy * kzxy[c] } else { 0.0 };
     }
     (f64::from(changed), f64::from(total))
 }
@@ -809,7 +886,7 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
         window(smooth, start, dx, n)
     };
     let (wxx, wyy, wxy) = (SMOOTH_WEIGHT, SMOOTH_WEIGHT + 1, SMOOTH_WEIGHT + 2);
-    let (vxx, vyy, vxy) = (SMOOTH_WEIGHTED, SMOOTH_WEIGHTED + 1, SMOOTH_WEIGHTED + 2);
+    let (kxx, kyy, kxy) = (SMOOTH_KZ, SMOOTH_KZ + 1, SMOOTH_KZ + 2);
     let (left, here, right) = (span(wxx, -1, 0), span(wxx, 0, 0), span(wxx, 1, 0));
     let (up, here_y, down) = (span(wyy, 0, -1), span(wyy, 0, 0), span(wyy, 0, 1));
     // Mixed stencils at p = q - (a, b): names give (a, b) as m/p signs.
@@ -817,11 +894,11 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
     let pm = span(wxy, -1, 1);
     let mp = span(wxy, 1, -1);
     let pp = span(wxy, -1, -1);
-    let (vx_l, vx_c, vx_r) = (span(vxx, -1, 0), span(vxx, 0, 0), span(vxx, 1, 0));
-    let (vy_u, vy_c, vy_d) = (span(vyy, 0, -1), span(vyy, 0, 0), span(vyy, 0, 1));
-    let (v_pp, v_pm) = (span(vxy, -1, -1), span(vxy, -1, 1));
-    let (v_mp, v_mm) = (span(vxy, 1, -1), span(vxy, 1, 1));
-    let data_forward: [&[f32]; 8] =
+    let (kx_l, kx_c, kx_r) = (span(kxx, -1, 0), span(kxx, 0, 0), span(kxx, 1, 0));
+    let (ky_u, ky_c, ky_d) = (span(kyy, 0, -1), span(kyy, 0, 0), span(kyy, 0, 1));
+    let (k_pp, k_pm) = (span(kxy, -1, -1), span(kxy, -1, 1));
+    let (k_mp, k_mm) = (span(kxy, 1, -1), span(kxy, 1, 1));
+    let data_forward: [&[f32]; 6] =
         std::array::from_fn(|k| &inputs.data_forward[k * n..(k + 1) * n]);
     let (data_diagonal, data_rhs) = (&inputs.data_diagonal[..n], &inputs.data_rhs[..n]);
     let domain = &inputs.domain[..n];
@@ -840,11 +917,11 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
         let diagonal_s = (left[c] + right[c] + 4.0 * here[c])
             + (up[c] + down[c] + 4.0 * here_y[c])
             + ((mm[c] + pm[c]) + (mp[c] + pp[c]));
-        // The adjoint sums cancel: f64.
-        let v = |plane: &[f32]| f64::from(plane[c]);
-        let az = (v(vx_l) - 2.0 * v(vx_c) + v(vx_r))
-            + (v(vy_u) - 2.0 * v(vy_c) + v(vy_d))
-            + (v(v_pp) - v(v_pm) - v(v_mp) + v(v_mm));
+        // v = W K z^k (f32, as stored before); the adjoint sums cancel: f64.
+        let v = |w: &[f32], kz: &[f32]| f64::from(w[c] * kz[c]);
+        let az = (v(left, kx_l) - 2.0 * v(here, kx_c) + v(right, kx_r))
+            + (v(up, ky_u) - 2.0 * v(here_y, ky_c) + v(down, ky_d))
+            + (v(pp, k_pp) - v(pm, k_pm) - v(mp, k_mp) + v(mm, k_mm));
         let diagonal = f64::from(data_diagonal[c]) + alpha * f64::from(diagonal_s);
         let rhs = f64::from(data_rhs[c]) - alpha * az;
         let inverse32 = (1.0 / diagonal) as f32;
@@ -855,11 +932,12 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
         rhs_out[c] = if solvable { rhs32 } else { 0.0 };
     }
     // Forward entries in FORWARD order: (1,0), (2,0), (-1,1), (0,1), (1,1),
-    // (-2,2), (0,2), (2,2); those at (-1,1) and (1,1) have no smoothness part.
+    // (-2,2), (0,2), (2,2); those at (-1,1) and (1,1) have no smoothness part
+    // and are in place since the data part (`DATA_ONLY_FORWARD`).
     // One plain loop per entry (a macro, not a closure, so that every slice
     // is indexed directly and the loops vectorise).
     let alpha32 = alpha as f32;
-    let [f0, f1, f2, f3, f4, f5, f6, f7] = forward_out;
+    let [f0, f1, _, f3, _, f5, f6, f7] = forward_out;
     macro_rules! fill {
         ($out:expr, $k:expr, |$c:ident| $smooth:expr) => {{
             let (out, data) = (&mut $out[..n], &data_forward[$k][..n]);
@@ -869,14 +947,13 @@ fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
             }
         }};
     }
+    // The data planes are in SHARED_FORWARD order.
     fill!(f0, 0, |c| -2.0 * (here[c] + right[c]));
     fill!(f1, 1, |c| right[c] - mm[c] - mp[c]);
-    fill!(f2, 2, |c| 0.0);
-    fill!(f3, 3, |c| -2.0 * (here_y[c] + down[c]));
-    fill!(f4, 4, |c| 0.0);
-    fill!(f5, 5, |c| pm[c]);
-    fill!(f6, 6, |c| down[c] - mm[c] - pm[c]);
-    fill!(f7, 7, |c| mm[c]);
+    fill!(f3, 2, |c| -2.0 * (here_y[c] + down[c]));
+    fill!(f5, 3, |c| pm[c]);
+    fill!(f6, 4, |c| down[c] - mm[c] - pm[c]);
+    fill!(f7, 5, |c| mm[c]);
 }
 
 /// The blocks of image rows `0..height` of a buffer laid out as padded row
