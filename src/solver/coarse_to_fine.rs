@@ -69,9 +69,13 @@ pub(crate) struct Walk {
 /// depth. With `show_start`, the initial depth (a start computed by another
 /// method) is sent to the observer first as a level of its own. `shown`
 /// levels were sent before (a preview): the indices count on from them.
+/// `depth` is the initial depth on the coarsest level (taken out of
+/// `prepared` by [`Prepared::take_depth`]: one copy at full resolution, not
+/// two).
 pub(crate) fn coarse_to_fine<M: Reflectance>(
     model: &M,
     prepared: &Prepared,
+    mut depth: Grid<f64>,
     show_start: bool,
     shown: usize,
     start: Instant,
@@ -82,7 +86,6 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
     let (alpha, lambda) = (prepared.alpha, prepared.lambda);
     let offset = usize::from(show_start) + shown;
     let count = levels.len() + offset;
-    let mut depth = prepared.depth.clone();
     check_cancelled(observer)?;
     let initial_energy = level_energy(model, &levels[0], &depth, alpha, lambda);
     check_cancelled(observer)?;

@@ -55,7 +55,8 @@ fn solve_on_worker<M: Reflectance>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
-    let prepared = prepare(problem, params, Some(start), observer)?;
+    let mut prepared = prepare(problem, params, Some(start), observer)?;
+    let initial = prepared.take_depth();
     let mut scheme = GaussNewton {
         model,
         params,
@@ -70,6 +71,7 @@ fn solve_on_worker<M: Reflectance>(
     let walk = coarse_to_fine(
         model,
         &prepared,
+        initial,
         show_start,
         prepared.shown,
         start,

@@ -381,7 +381,8 @@ fn run<M: Reflectance>(
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
     explicit.validate()?;
-    let prepared = prepare(problem, params, None, observer)?;
+    let mut prepared = prepare(problem, params, None, observer)?;
+    let initial = prepared.take_depth();
     let mut scheme = Descent {
         model,
         explicit,
@@ -390,7 +391,16 @@ fn run<M: Reflectance>(
         z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         total_steps: 0,
     };
-    let walk = coarse_to_fine(model, &prepared, false, 0, start, observer, &mut scheme)?;
+    let walk = coarse_to_fine(
+        model,
+        &prepared,
+        initial,
+        false,
+        0,
+        start,
+        observer,
+        &mut scheme,
+    )?;
     let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
     Solution {
         depth,

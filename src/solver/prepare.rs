@@ -48,6 +48,13 @@ pub(crate) struct Prepared {
     pub refines_warm_start: bool,
 }
 
+impl Prepared {
+    /// The initial depth, moved out (an empty grid is left behind).
+    pub fn take_depth(&mut self) -> Grid<f64> {
+        std::mem::replace(&mut self.depth, Grid::filled(0, 0, 0.0))
+    }
+}
+
 /// The per-pixel limit on one update `|dz|`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) enum Crop {
