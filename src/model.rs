@@ -496,11 +496,41 @@ pub fn energy<M: Reflectance + ?Sized>(
     alpha: f64,
     lambda: f64,
 ) -> Energy {
+    energy_polled(
+        model,
+        geometry,
+        image,
+        confidence,
+        domain,
+        depth,
+        alpha,
+        lambda,
+        &|| false,
+    )
+}
+
+/// [`energy`], calling `cancelled` before each row and skipping the rest
+/// once it says true (the sum is then meaningless: the caller stops).
+#[allow(clippy::too_many_arguments)]
+pub fn energy_polled<M: Reflectance + ?Sized>(
+    model: &M,
+    geometry: &LevelGeometry,
+    image: &Grid<f64>,
+    confidence: &Grid<f64>,
+    domain: &Grid<bool>,
+    depth: &Grid<f64>,
+    alpha: f64,
+    lambda: f64,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Energy {
     use rayon::prelude::*;
     let (data, smoothness) = (0..geometry.height)
         .into_par_iter()
         .map(|r| {
             let (mut data, mut smooth) = (0.0, 0.0);
+            if cancelled() {
+                return (data, smooth);
+            }
             for c in 0..geometry.width {
                 if !domain.at(c, r) {
                     continue;

@@ -9,7 +9,7 @@ use std::time::Instant;
 use crate::grid::Grid;
 use crate::model::{self, Energy, Reflectance};
 
-use super::prepare::{Prepared, level_energy, level_result};
+use super::prepare::{Prepared, level_energy, level_energy_polled, level_result};
 use super::problem::{LevelReport, SolveError, SolveObserver, check_cancelled};
 use super::pyramid::{self, PyramidLevel};
 
@@ -87,7 +87,9 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
     let offset = usize::from(show_start) + shown;
     let count = levels.len() + offset;
     check_cancelled(observer)?;
-    let initial_energy = level_energy(model, &levels[0], &depth, alpha, lambda);
+    let initial_energy = level_energy_polled(model, &levels[0], &depth, alpha, lambda, &|| {
+        observer.is_cancelled()
+    });
     check_cancelled(observer)?;
     if show_start {
         let result = level_result(

@@ -15,7 +15,7 @@ use crate::params::{InitialDepth, LinearSolver, SolverParams, StepControl};
 
 use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::multigrid::Multigrid;
-use super::prepare::{Crop, Prepared, level_energy, prepare};
+use super::prepare::{Crop, Prepared, level_energy_polled, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
     on_object,
@@ -128,7 +128,13 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             refines_warm_start,
             ..
         } = *self.prepared;
-        let energy_of = |depth: &Grid<f64>| level_energy(model, level, depth, alpha, lambda);
+        // Every pass over the level polls cancellation per block of rows
+        // (seconds each at 18 megapixels otherwise).
+        let energy_of = |depth: &Grid<f64>, observer: &dyn SolveObserver| {
+            level_energy_polled(model, level, depth, alpha, lambda, &|| {
+                observer.is_cancelled()
+            })
+        };
         let mut system = LinearSystem::new(level);
         check_cancelled(observer)?;
         let mut energies = Vec::with_capacity(params.kappa_max);
@@ -144,7 +150,12 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 break; // the level has converged
             }
             let t0 = Instant::now();
-            if !system.linearise_data(model, level, depth, derivatives) {
+            let linearised =
+                system.linearise_data_polled(model, level, depth, derivatives, &|| {
+                    observer.is_cancelled()
+                });
+            check_cancelled(observer)?;
+            if !linearised {
                 return Err(SolveError::Input(
                     "the reflectance model has no exact derivatives; use numeric derivatives"
                         .into(),
@@ -163,7 +174,9 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let mut first_solve_converged = true;
             for inner in 0..params.inner_iterations {
                 let t1 = Instant::now();
-                let change = system.add_smoothness(level, alpha, lambda);
+                let change =
+                    system.add_smoothness_polled(level, alpha, lambda, &|| observer.is_cancelled());
+                check_cancelled(observer)?;
                 self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
                 let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
                 if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
@@ -189,8 +202,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     observer,
                 )?;
                 if inner == 0 && adaptive {
-                    first_solve_converged =
-                        residual_norm(&system) <= LOCAL_REACH * start_residual;
+                    first_solve_converged = residual_norm(&system) <= LOCAL_REACH * start_residual;
                 }
             }
             let t3 = Instant::now();
@@ -198,16 +210,17 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let (max_step, energy) = match params.step_control {
                 StepControl::Crop => {
                     let step = apply_update(depth, &system, &level.domain, crop, 1.0, z_floor);
-                    (step, energy_of(depth))
+                    (step, energy_of(depth, observer))
                 }
                 StepControl::Backtracking => {
-                    let before = current.unwrap_or_else(|| energy_of(depth));
+                    let before = current.unwrap_or_else(|| energy_of(depth, observer));
                     previous.as_mut_slice().copy_from_slice(depth.as_slice());
                     let mut scale = 1.0;
                     loop {
                         let step =
                             apply_update(depth, &system, &level.domain, crop, scale, z_floor);
-                        let after = energy_of(depth);
+                        let after = energy_of(depth, observer);
+                        check_cancelled(observer)?;
                         if after.total <= before.total || scale < 1.0 / 16.0 {
                             break (step, after);
                         }
@@ -216,6 +229,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     }
                 }
             };
+            check_cancelled(observer)?;
             energies.push(energy.total);
             current = Some(energy);
             self.phases.update_seconds += t3.elapsed().as_secs_f64();
@@ -232,7 +246,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         }
         Ok(LevelEnd {
             energies,
-            energy: current.unwrap_or_else(|| energy_of(depth)),
+            energy: current.unwrap_or_else(|| energy_of(depth, observer)),
             out_of_budget: false,
         })
     }
@@ -295,7 +309,8 @@ fn residual_norm(system: &LinearSystem) -> f64 {
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the
-/// largest applied step.
+/// largest applied step. Rows in parallel (the largest step does not depend
+/// on their order).
 fn apply_update(
     depth: &mut Grid<f64>,
     system: &LinearSystem,
@@ -304,25 +319,31 @@ fn apply_update(
     scale: f64,
     z_floor: f64,
 ) -> f64 {
-    let (w, h) = depth.size();
-    let mut max_step: f64 = 0.0;
-    for r in 0..h {
-        for c in 0..w {
-            if !domain.at(c, r) {
-                continue;
+    use rayon::prelude::*;
+    let w = depth.size().0;
+    depth
+        .as_mut_slice()
+        .par_chunks_mut(w)
+        .enumerate()
+        .with_min_len((8192 / w.max(1)).max(1))
+        .map(|(r, row)| {
+            let mut max_step: f64 = 0.0;
+            for (c, z) in row.iter_mut().enumerate() {
+                if !domain.at(c, r) {
+                    continue;
+                }
+                let dz = f64::from(system.dz_padded[system.padded_index(c, r)]);
+                let limit = crop.limit(*z);
+                let dz = if dz.is_finite() {
+                    scale * dz.clamp(-limit, limit)
+                } else {
+                    0.0
+                };
+                let new = (*z + dz).max(z_floor);
+                max_step = max_step.max((new - *z).abs());
+                *z = new;
             }
-            let dz = f64::from(system.dz_padded[system.padded_index(c, r)]);
-            let z = depth.at_mut(c, r);
-            let limit = crop.limit(*z);
-            let dz = if dz.is_finite() {
-                scale * dz.clamp(-limit, limit)
-            } else {
-                0.0
-            };
-            let new = (*z + dz).max(z_floor);
-            max_step = max_step.max((new - *z).abs());
-            *z = new;
-        }
-    }
-    max_step
+            max_step
+        })
+        .reduce(|| 0.0, f64::max)
 }

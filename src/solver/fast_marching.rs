@@ -222,7 +222,11 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
         let half_curvature = 0.5 * equation.curvature();
         let by_g = 2.0 * gap / (dg + (dg * dg + 4.0 * half_curvature * gap).sqrt());
         let by_v = -0.5 * h_facing;
-        let bound = if by_g.is_finite() { by_g.min(by_v) } else { by_v };
+        let bound = if by_g.is_finite() {
+            by_g.min(by_v)
+        } else {
+            by_v
+        };
         (facing, facing + bound)
     } else if equation.eval(lower).0 < 0.0 {
         (lower, facing)
@@ -345,11 +349,8 @@ pub(crate) fn march(
             (None, Some(_)) => false,
             (None, None) => break,
         };
-        let Some(Trial { value: v, index }) = (if from_heap {
-            heap.pop()
-        } else {
-            frontal.pop()
-        }) else {
+        let Some(Trial { value: v, index }) = (if from_heap { heap.pop() } else { frontal.pop() })
+        else {
             break;
         };
         // Polled per pop, not per accepted pixel: stale entries can run for
@@ -425,7 +426,9 @@ pub(crate) fn march(
     let depth_at = |q: usize| geometry.ray(q % w, q / w).q() * value[q].exp();
     let (sum, count) = (0..w * h)
         .filter(|&q| inside[q] && value[q].is_finite())
-        .fold((0.0, 0usize), |(sum, count), q| (sum + depth_at(q), count + 1));
+        .fold((0.0, 0usize), |(sum, count), q| {
+            (sum + depth_at(q), count + 1)
+        });
     let mean = sum / count.max(1) as f64;
     let solved = Grid::from_fn(w, h, |c, r| {
         let q = r * w + c;

@@ -14,7 +14,9 @@ use crate::params::{
     Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
 };
 
-use super::problem::{LevelResult, Problem, SolveError, SolveObserver, check_cancelled, masked};
+use super::problem::{
+    LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked,
+};
 use super::pyramid::{self, PyramidLevel};
 
 /// A validated problem ready for a coarse-to-fine scheme: its pyramid
@@ -473,7 +475,20 @@ pub(crate) fn level_energy<M: Reflectance>(
     alpha: f64,
     lambda: f64,
 ) -> Energy {
-    model::energy(
+    level_energy_polled(model, level, depth, alpha, lambda, NEVER)
+}
+
+/// [`level_energy`] polling `cancelled` per row (meaningless once it said
+/// true).
+pub(crate) fn level_energy_polled<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    alpha: f64,
+    lambda: f64,
+    cancelled: Probe<'_>,
+) -> Energy {
+    model::energy_polled(
         model,
         &level.geometry,
         &level.image,
@@ -482,5 +497,6 @@ pub(crate) fn level_energy<M: Reflectance>(
         depth,
         alpha,
         lambda,
+        cancelled,
     )
 }

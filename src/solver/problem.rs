@@ -388,6 +388,14 @@ impl Problem {
 /// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
 /// the long single passes over an image (each about a second at 18
 /// megapixels).
+/// A cancellation probe that long parallel passes call per block of rows
+/// (`true`: stop; the pass's result is then garbage and its caller returns
+/// [`SolveError::Cancelled`]).
+pub type Probe<'a> = &'a (dyn Fn() -> bool + Sync);
+
+/// A probe that never cancels.
+pub const NEVER: Probe<'static> = &|| false;
+
 pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveError> {
     if observer.is_cancelled() {
         Err(SolveError::Cancelled)

@@ -12,6 +12,7 @@ use rayon::prelude::*;
 use crate::grid::Grid;
 use crate::model::{self, Derivatives, Reflectance};
 
+use super::problem::{NEVER, Probe};
 use super::pyramid::PyramidLevel;
 
 /// Offsets `(dx, dy)` of the 17-point stencil; entry 0 is the pixel itself,
@@ -176,23 +177,24 @@ impl LinearSystem {
         let pw = w + 2 * HALO;
         let padded = pw * (h + 2 * HALO);
         let mut masks = vec![0u8; padded * MASK_PLANES];
-        for r in 0..h {
-            for c in 0..w {
-                let at = |dc, dr| inside(c, r, dc, dr);
-                if !at(0, 0) {
-                    continue;
+        image_row_blocks(&mut masks, MASK_PLANES * pw, h, rows_per_task(w)).for_each(
+            |(r, block)| {
+                for c in 0..w {
+                    let at = |dc, dr| inside(c, r, dc, dr);
+                    if !at(0, 0) {
+                        continue;
+                    }
+                    let flags = [
+                        at(-1, 0) && at(1, 0),
+                        at(0, -1) && at(0, 1),
+                        at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1),
+                    ];
+                    for (k, on) in flags.into_iter().enumerate() {
+                        block[k * pw + c + HALO] = u8::from(on);
+                    }
                 }
-                let block = (r + HALO) * MASK_PLANES * pw;
-                let flags = [
-                    at(-1, 0) && at(1, 0),
-                    at(0, -1) && at(0, 1),
-                    at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1),
-                ];
-                for (k, on) in flags.into_iter().enumerate() {
-                    masks[block + k * pw + c + HALO] = u8::from(on);
-                }
-            }
-        }
+            },
+        );
         let padded = (w + 2 * HALO) * (h + 2 * HALO);
         Self {
             width: w,
@@ -310,6 +312,20 @@ impl LinearSystem {
         depth: &Grid<f64>,
         derivatives: Derivatives,
     ) -> bool {
+        self.linearise_data_polled(model, level, depth, derivatives, NEVER)
+    }
+
+    /// [`Self::linearise_data`], calling `cancelled` per block of rows and
+    /// skipping the rest once it says true (the system is then garbage: the
+    /// caller stops).
+    pub fn linearise_data_polled<M: Reflectance + ?Sized>(
+        &mut self,
+        model: &M,
+        level: &PyramidLevel,
+        depth: &Grid<f64>,
+        derivatives: Derivatives,
+        cancelled: Probe<'_>,
+    ) -> bool {
         let w = self.width;
         let pw = self.padded_width();
         let min_rows = rows_per_task(w);
@@ -318,6 +334,9 @@ impl LinearSystem {
         let masks = &self.masks;
         image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, height, min_rows).for_each(
             |(r, block)| {
+                if cancelled() {
+                    return;
+                }
                 let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..];
                 let mask = |k: usize, c: usize| mask_block[k * pw + c + HALO] != 0;
                 let kz = &mut block[SMOOTH_KZ * pw..(SMOOTH_KZ + 3) * pw];
@@ -338,10 +357,8 @@ impl LinearSystem {
                     let kept = |k: usize, v: f64| if mask(k, c) { v as f32 } else { 0.0 };
                     xx[c + HALO] = kept(0, at(c, -1, 0) - centre + at(c, 1, 0));
                     yy[c + HALO] = kept(1, at(c, 0, -1) - centre + at(c, 0, 1));
-                    xy[c + HALO] = kept(
-                        2,
-                        at(c, 1, 1) - at(c, 1, -1) - at(c, -1, 1) + at(c, -1, -1),
-                    );
+                    xy[c + HALO] =
+                        kept(2, at(c, 1, 1) - at(c, 1, -1) - at(c, -1, 1) + at(c, -1, -1));
                 }
             },
         );
@@ -360,52 +377,58 @@ impl LinearSystem {
             .zip(self.data_rhs.par_chunks_mut(w * block_rows))
             .zip(self.coefficients[HALO * PLANES * pw..].par_chunks_mut(PLANES * pw * block_rows))
             .enumerate()
-            .map(|(block, (((forward_rows, diagonal_rows), rhs_rows), coefficient_rows))| {
-                let r0 = block * block_rows;
-                let rows = diagonal_rows.len() / w;
-                // Pixel rows p0..p1 reach rows r0..r0 + rows through the slots.
-                let p0 = r0.saturating_sub(1);
-                let p1 = (r0 + rows + 1).min(height);
-                let mut residual = vec![0.0f32; (p1 - p0) * w];
-                let mut jacobian = vec![[0.0f32; 5]; (p1 - p0) * w];
-                let mut ok = true;
-                for (k, (res_row, jac_row)) in residual
-                    .chunks_mut(w)
-                    .zip(jacobian.chunks_mut(w))
-                    .enumerate()
-                {
-                    ok &= linearise_row(
-                        model,
-                        level,
-                        depth,
-                        derivatives,
-                        p0 + k,
-                        res_row,
-                        jac_row,
-                    );
-                }
-                for k in 0..rows {
-                    data_row(
-                        &DataRowInputs {
-                            row: r0 + k,
-                            first_pixel_row: p0,
-                            width: w,
-                            height,
-                            residual: &residual,
-                            jacobian: &jacobian,
-                            confidence,
-                            domain,
-                        },
-                        DataRowOutputs {
-                            forward: &mut forward_rows[shared * k * w..shared * (k + 1) * w],
-                            diagonal: &mut diagonal_rows[k * w..(k + 1) * w],
-                            rhs: &mut rhs_rows[k * w..(k + 1) * w],
-                            coefficients: &mut coefficient_rows[PLANES * pw * k..][..PLANES * pw],
-                        },
-                    );
-                }
-                ok
-            })
+            .map(
+                |(block, (((forward_rows, diagonal_rows), rhs_rows), coefficient_rows))| {
+                    if cancelled() {
+                        return true;
+                    }
+                    let r0 = block * block_rows;
+                    let rows = diagonal_rows.len() / w;
+                    // Pixel rows p0..p1 reach rows r0..r0 + rows through the slots.
+                    let p0 = r0.saturating_sub(1);
+                    let p1 = (r0 + rows + 1).min(height);
+                    let mut residual = vec![0.0f32; (p1 - p0) * w];
+                    let mut jacobian = vec![[0.0f32; 5]; (p1 - p0) * w];
+                    let mut ok = true;
+                    for (k, (res_row, jac_row)) in residual
+                        .chunks_mut(w)
+                        .zip(jacobian.chunks_mut(w))
+                        .enumerate()
+                    {
+                        ok &= linearise_row(
+                            model,
+                            level,
+                            depth,
+                            derivatives,
+                            p0 + k,
+                            res_row,
+                            jac_row,
+                        );
+                    }
+                    for k in 0..rows {
+                        data_row(
+                            &DataRowInputs {
+                                row: r0 + k,
+                                first_pixel_row: p0,
+                                width: w,
+                                height,
+                                residual: &residual,
+                                jacobian: &jacobian,
+                                confidence,
+                                domain,
+                            },
+                            DataRowOutputs {
+                                forward: &mut forward_rows[shared * k * w..shared * (k + 1) * w],
+                                diagonal: &mut diagonal_rows[k * w..(k + 1) * w],
+                                rhs: &mut rhs_rows[k * w..(k + 1) * w],
+                                coefficients: &mut coefficient_rows[PLANES * pw * k..]
+                                    [..PLANES * pw],
+                            },
+                        );
+                    }
+                    ok
+                },
+            )
             .reduce(|| true, |a, b| a && b)
     }
 
@@ -424,6 +447,18 @@ impl LinearSystem {
     /// this much, weighted): the inner fixed point has converged when it is
     /// small. The first call on a system compares with zero weights (1).
     pub fn add_smoothness(&mut self, level: &PyramidLevel, alpha: f64, lambda: f64) -> f64 {
+        self.add_smoothness_polled(level, alpha, lambda, NEVER)
+    }
+
+    /// [`Self::add_smoothness`], calling `cancelled` per row and skipping the
+    /// rest once it says true (the system is then garbage: the caller stops).
+    pub fn add_smoothness_polled(
+        &mut self,
+        level: &PyramidLevel,
+        alpha: f64,
+        lambda: f64,
+        cancelled: Probe<'_>,
+    ) -> f64 {
         let w = self.width;
         let pw = self.padded_width();
         let h = level.geometry.spacing;
@@ -451,6 +486,9 @@ impl LinearSystem {
         let (changed, total) =
             image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows)
                 .map(|(r, block)| {
+                    if cancelled() {
+                        return (0.0, 0.0);
+                    }
                     let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
                     simd.run(|| weight_row(&inputs, r, mask_block, block))
                 })
@@ -462,6 +500,9 @@ impl LinearSystem {
         let domain = level.domain.as_slice();
         image_row_blocks(&mut self.coefficients, PLANES * pw, self.height, min_rows).for_each(
             |(r, block)| {
+                if cancelled() {
+                    return;
+                }
                 let inputs = RowInputs {
                     row: r,
                     padded_width: pw,
