@@ -72,6 +72,7 @@ pub(crate) struct Walk {
 /// `depth` is the initial depth on the coarsest level (taken out of
 /// `prepared` by [`Prepared::take_depth`]: one copy at full resolution, not
 /// two).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn coarse_to_fine<M: Reflectance>(
     model: &M,
     prepared: &Prepared,
