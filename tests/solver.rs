@@ -242,7 +242,8 @@ fn levels_arrive_coarse_to_fine_with_growing_sizes() {
     // energy. Besides, the passes over a level poll once per row (per block
     // of rows in the data part): the start's energy, and per outer
     // iteration the linearisation (two passes), two passes per assembly and
-    // the energy of each trial step (at most 5 with backtracking).
+    // the energy of each trial step (at most 5 with backtracking); each SOR
+    // sweep once per band of rows.
     let outer = levels.len() * params.kappa;
     let inner = outer * params.inner_iterations;
     let sweeps = inner * params.sor_iterations;
@@ -250,7 +251,15 @@ fn levels_arrive_coarse_to_fine_with_growing_sizes() {
     // After the linearisation, each assembly, each trial step and its keeping.
     let between_passes =
         levels.len() - 1 + sweeps + 3 + 2 + levels.len() + outer + inner + 2 * outer;
-    let per_row_most = 48 + rows * params.kappa * (2 + 2 * params.inner_iterations + 5);
+    // Each SOR sweep polls once per band of rows.
+    let bands: usize = solution
+        .levels
+        .iter()
+        .map(|l| sfs_studio::solver::sor::band_count(l.height))
+        .sum();
+    let per_row_most = 48
+        + rows * params.kappa * (2 + 2 * params.inner_iterations + 5)
+        + bands * params.kappa * params.inner_iterations * params.sor_iterations;
     let polls = recorder.polls.load(std::sync::atomic::Ordering::Relaxed);
     assert!(
         polls > between_passes && polls <= between_passes + per_row_most,

@@ -180,7 +180,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
                 let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
                 if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
-                    start_residual = residual_norm(&system);
+                    start_residual = residual_norm(&system, observer)?;
                 }
                 // Refining a full-resolution start, the weights have settled
                 // and the sweeps reach only locally: the later inner
@@ -202,7 +202,8 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     observer,
                 )?;
                 if inner == 0 && adaptive {
-                    first_solve_converged = residual_norm(&system) <= LOCAL_REACH * start_residual;
+                    first_solve_converged =
+                        residual_norm(&system, observer)? <= LOCAL_REACH * start_residual;
                 }
             }
             let t3 = Instant::now();
@@ -210,21 +211,23 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let (max_step, energy) = match params.step_control {
                 StepControl::Crop => {
                     let step = apply_update(depth, &system, &level.domain, crop, 1.0, z_floor);
+                    check_cancelled(observer)?;
                     (step, energy_of(depth, observer))
                 }
                 StepControl::Backtracking => {
                     let before = current.unwrap_or_else(|| energy_of(depth, observer));
-                    previous.as_mut_slice().copy_from_slice(depth.as_slice());
+                    copy_depth(&mut previous, depth);
                     let mut scale = 1.0;
                     loop {
                         let step =
                             apply_update(depth, &system, &level.domain, crop, scale, z_floor);
+                        check_cancelled(observer)?;
                         let after = energy_of(depth, observer);
                         check_cancelled(observer)?;
                         if after.total <= before.total || scale < 1.0 / 16.0 {
                             break (step, after);
                         }
-                        depth.as_mut_slice().copy_from_slice(previous.as_slice());
+                        copy_depth(depth, &previous);
                         scale *= 0.5;
                     }
                 }
@@ -269,7 +272,7 @@ impl<M> GaussNewton<'_, M> {
             LinearSolver::Sor => {
                 for _ in 0..params.sor_iterations {
                     check_cancelled(observer)?;
-                    sor::sweep(system, params.omega);
+                    sor::sweep_polled(system, params.omega, &|| observer.is_cancelled());
                     self.phases.linear_iterations += 1;
                 }
             }
@@ -303,9 +306,25 @@ impl<M> GaussNewton<'_, M> {
 /// of the residual has sweeps that reach only locally (see `solve_level`).
 const LOCAL_REACH: f64 = 0.1;
 
-/// The norm of the system's residual at its current unknowns.
-fn residual_norm(system: &LinearSystem) -> f64 {
-    system.residual_norm_squared().sqrt()
+/// The norm of the system's residual at its current unknowns (`Err` once
+/// cancelled).
+fn residual_norm(system: &LinearSystem, observer: &dyn SolveObserver) -> Result<f64, SolveError> {
+    let norm = system
+        .residual_norm_squared(&|| observer.is_cancelled())
+        .sqrt();
+    check_cancelled(observer)?;
+    Ok(norm)
+}
+
+/// Copies `from` into `to` (the same size), rows in parallel.
+fn copy_depth(to: &mut Grid<f64>, from: &Grid<f64>) {
+    use rayon::prelude::*;
+    let w = from.size().0.max(1);
+    to.as_mut_slice()
+        .par_chunks_mut(w)
+        .zip(from.as_slice().par_chunks(w))
+        .with_min_len((8192 / w).max(1))
+        .for_each(|(to, from)| to.copy_from_slice(from));
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the

@@ -37,17 +37,19 @@
 //! `p` is replaced by the upwind differences of the paper (Eqs. 9-11) taken
 //! towards the smaller neighbour along each axis, as in fast marching for the
 //! eikonal equation: a pixel's value depends only on neighbours with smaller
-//! values. Fast marching then accepts pixels in increasing order of `v` from
-//! a binary heap. Every object pixel starts as a trial pixel with its
-//! frontal value `v_f` (the state constraint above); so the singular points,
+//! values. Fast marching then accepts pixels in increasing order of `v`.
+//! Every object pixel starts as a trial pixel with its
+//! frontal value `v_f` (the state constraint above; these are sorted once,
+//! and a binary heap holds only the propagated values); so the singular points,
 //! whose frontal value no propagated value undercuts, are accepted first
 //! and the front marches outwards from them. When a pixel is accepted, each
 //! not yet accepted object neighbour gets the local solution of the
 //! discrete equation from its accepted neighbours (one axis with the
 //! smaller neighbour first; both axes if the one-axis value exceeds the other
-//! neighbour), found by safeguarded regula falsi (Illinois) on a bracket
-//! above the neighbours; where even a zero slope predicts a darker pixel
-//! than observed, the neighbour's value is kept.
+//! neighbour), found by Newton's method on the logarithm of the equation,
+//! safeguarded by bisection in a bracket above the neighbours; where even a
+//! zero slope predicts a darker pixel than observed, the neighbour's value is
+//! kept.
 //!
 //! It relies entirely on the data: noise creates false brightest points
 //! (trial values that are accepted too early) and kinks propagate along the

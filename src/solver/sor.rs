@@ -11,6 +11,7 @@
 
 use rayon::prelude::*;
 
+use super::problem::{NEVER, Probe};
 use super::system::{HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES};
 
 /// Rows per band (at least 2, the stencil's reach).
@@ -70,6 +71,13 @@ unsafe impl Sync for SharedUnknowns {}
 /// those; the FMA path rounds differently in the last bit, so results are
 /// deterministic per machine, not across machines.
 pub fn sweep(system: &mut LinearSystem, omega: f64) {
+    sweep_polled(system, omega, NEVER);
+}
+
+/// [`sweep`], calling `cancelled` before each band and skipping the rest of
+/// the sweep once it says true (the unknowns are then half-swept: the caller
+/// stops).
+pub fn sweep_polled(system: &mut LinearSystem, omega: f64, cancelled: Probe<'_>) {
     let height = system.height;
     let pw = system.padded_width();
     let count_all = band_count(height);
@@ -93,7 +101,7 @@ pub fn sweep(system: &mut LinearSystem, omega: f64) {
     let omega = omega as f32;
     for colour in 0..2 {
         let run = |(b, work): (usize, &mut [f32])| {
-            if b % 2 != colour {
+            if b % 2 != colour || cancelled() {
                 return;
             }
             // SAFETY: `unknowns` points to `len` f32s owned by `system`, which is

@@ -587,13 +587,17 @@ impl LinearSystem {
 
     /// The squared Euclidean norm of the residual `b - A dz`, without
     /// storing it (the same sum as [`Self::residual_into`] returns).
-    pub fn residual_norm_squared(&self) -> f64 {
+    /// Calls `cancelled` per row (meaningless once it said true).
+    pub fn residual_norm_squared(&self, cancelled: Probe<'_>) -> f64 {
         let min_rows = rows_per_task(self.width);
         (0..self.height + 2 * HALO)
             .into_par_iter()
             .with_min_len(min_rows)
             .map(|pr| {
                 let mut norm = 0.0f64;
+                if cancelled() {
+                    return norm;
+                }
                 self.row_residuals(pr, |_, value| {
                     norm += f64::from(value) * f64::from(value);
                 });
