@@ -140,8 +140,6 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         let mut energies = Vec::with_capacity(params.kappa_max);
         // Energy of the current depth on this level, once known.
         let mut current: Option<Energy> = None;
-        // The depth before a trial step (backtracking), reused across iterations.
-        let mut previous = depth.clone();
         for iteration in 0..params.kappa_max {
             if iteration >= params.kappa
                 && let [.., before, after] = energies[..]
@@ -216,7 +214,9 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 }
                 StepControl::Backtracking => {
                     let before = current.unwrap_or_else(|| energy_of(depth, observer));
-                    copy_depth(&mut previous, depth);
+                    // The depth before the trial steps, kept in the
+                    // system's data part (dead until the next linearisation).
+                    system.stash_depth(depth);
                     let mut scale = 1.0;
                     loop {
                         let step =
@@ -227,7 +227,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                         if after.total <= before.total || scale < 1.0 / 16.0 {
                             break (step, after);
                         }
-                        copy_depth(depth, &previous);
+                        system.restore_depth(depth);
                         scale *= 0.5;
                     }
                 }
@@ -314,17 +314,6 @@ fn residual_norm(system: &LinearSystem, observer: &dyn SolveObserver) -> Result<
         .sqrt();
     check_cancelled(observer)?;
     Ok(norm)
-}
-
-/// Copies `from` into `to` (the same size), rows in parallel.
-fn copy_depth(to: &mut Grid<f64>, from: &Grid<f64>) {
-    use rayon::prelude::*;
-    let w = from.size().0.max(1);
-    to.as_mut_slice()
-        .par_chunks_mut(w)
-        .zip(from.as_slice().par_chunks(w))
-        .with_min_len((8192 / w).max(1))
-        .for_each(|(to, from)| to.copy_from_slice(from));
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the

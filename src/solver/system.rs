@@ -139,8 +139,15 @@ pub struct LinearSystem {
     /// smoothness part adds to, as [`SHARED_FORWARD`]`.len()` planes per image
     /// row (row `r` owns `[6 r w, 6 (r + 1) w)`), the diagonal and the
     /// right-hand side. The data-only couplings ([`DATA_ONLY_FORWARD`]) go
-    /// straight into [`Self::coefficients`].
-    data_forward: Vec<f32>,
+    /// straight into [`Self::coefficients`]. Held as f64 words (3 per
+    /// pixel) and used as f32 (6 per pixel) through bytemuck: between an
+    /// outer iteration's last assembly and the next linearisation the data
+    /// part is dead, and the same memory holds the backtracking's copy of the
+    /// depth ([`Self::stash_depth`]; 8 bytes per pixel not allocated).
+    data_forward: Vec<f64>,
+    /// The data part is the current linearisation's (not overwritten by a
+    /// stashed depth).
+    data_current: bool,
     data_diagonal: Vec<f32>,
     data_rhs: Vec<f32>,
     /// Smoothness planes, padded like `dz_padded` (0 in the halo), each
@@ -202,7 +209,8 @@ impl LinearSystem {
             coefficients: vec![0.0; padded * PLANES],
             dz_padded: vec![0.0; padded],
             sweep_scratch: Vec::new(),
-            data_forward: vec![0.0; SHARED_FORWARD.len() * n],
+            data_forward: vec![0.0; SHARED_FORWARD.len() * n / 2],
+            data_current: false,
             data_diagonal: vec![0.0; n],
             data_rhs: vec![0.0; n],
             smooth: vec![0.0; padded * SMOOTH_PLANES],
@@ -216,7 +224,7 @@ impl LinearSystem {
         self.coefficients.capacity() * size_of::<f32>()
             + self.dz_padded.capacity() * size_of::<f32>()
             + self.sweep_scratch.capacity() * size_of::<f32>()
-            + self.data_forward.capacity() * size_of::<f32>()
+            + self.data_forward.capacity() * size_of::<f64>()
             + (self.data_diagonal.capacity() + self.data_rhs.capacity()) * size_of::<f32>()
             + self.smooth.capacity() * size_of::<f32>()
             + self.masks.capacity()
@@ -232,6 +240,34 @@ impl LinearSystem {
     #[inline]
     pub fn padded_index(&self, column: usize, row: usize) -> usize {
         (row + HALO) * self.padded_width() + column + HALO
+    }
+
+    /// Keeps a copy of `depth` (this level's size) in the data part's
+    /// memory: the data part is lost until the next
+    /// [`Self::linearise_data`] (an assembly before it panics).
+    pub fn stash_depth(&mut self, depth: &Grid<f64>) {
+        let n = depth.as_slice().len();
+        assert_eq!(n, self.width * self.height, "a depth of this level");
+        self.data_current = false;
+        let min_len = rows_per_task(self.width) * self.width;
+        self.data_forward[..n]
+            .par_iter_mut()
+            .zip(depth.as_slice().par_iter())
+            .with_min_len(min_len)
+            .for_each(|(to, from)| *to = *from);
+    }
+
+    /// Copies the depth kept by [`Self::stash_depth`] back into `depth`.
+    pub fn restore_depth(&self, depth: &mut Grid<f64>) {
+        let n = depth.as_slice().len();
+        assert!(!self.data_current, "a depth was stashed");
+        let min_len = rows_per_task(self.width) * self.width;
+        depth
+            .as_mut_slice()
+            .par_iter_mut()
+            .zip(self.data_forward[..n].par_iter())
+            .with_min_len(min_len)
+            .for_each(|(to, from)| *to = *from);
     }
 
     /// Sets every unknown to 0.
@@ -371,7 +407,8 @@ impl LinearSystem {
         let confidence = level.confidence.as_slice();
         let domain = &level.domain;
         let shared = SHARED_FORWARD.len();
-        self.data_forward
+        self.data_current = true;
+        bytemuck::cast_slice_mut::<f64, f32>(&mut self.data_forward)
             .par_chunks_mut(shared * w * block_rows)
             .zip(self.data_diagonal.par_chunks_mut(w * block_rows))
             .zip(self.data_rhs.par_chunks_mut(w * block_rows))
@@ -493,8 +530,12 @@ impl LinearSystem {
                     simd.run(|| weight_row(&inputs, r, mask_block, block))
                 })
                 .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        assert!(
+            self.data_current,
+            "the system is assembled after a linearisation, not after a stash"
+        );
         let smooth = &self.smooth;
-        let data_forward = &self.data_forward;
+        let data_forward: &[f32] = bytemuck::cast_slice(&self.data_forward);
         let data_diagonal = &self.data_diagonal;
         let data_rhs = &self.data_rhs;
         let domain = level.domain.as_slice();
