@@ -562,15 +562,40 @@ pub fn reproject<M: Reflectance + ?Sized>(
     domain: &Grid<bool>,
     depth: &Grid<f64>,
 ) -> Grid<f64> {
-    Grid::from_fn(geometry.width, geometry.height, |c, r| {
-        if !domain.at(c, r) {
-            return 0.0;
-        }
-        let nb = neighbourhood(depth, domain, c, r);
-        let (_, gx, gy) = nb.upwind(geometry.spacing);
-        let value = model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
-        if value.is_finite() { value } else { 0.0 }
-    })
+    reproject_polled(model, geometry, domain, depth, &|| false)
+}
+
+/// [`reproject`], rows in parallel, calling `cancelled` before each row and
+/// leaving the rest 0 once it says true (the caller stops).
+pub fn reproject_polled<M: Reflectance + ?Sized>(
+    model: &M,
+    geometry: &LevelGeometry,
+    domain: &Grid<bool>,
+    depth: &Grid<f64>,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Grid<f64> {
+    use rayon::prelude::*;
+    let (w, h) = (geometry.width, geometry.height);
+    let mut out = Grid::filled(w, h, 0.0);
+    out.as_mut_slice()
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .with_min_len((8192 / w.max(1)).max(1))
+        .for_each(|(r, row)| {
+            if cancelled() {
+                return;
+            }
+            for (c, out) in row.iter_mut().enumerate() {
+                if !domain.at(c, r) {
+                    continue;
+                }
+                let nb = neighbourhood(depth, domain, c, r);
+                let (_, gx, gy) = nb.upwind(geometry.spacing);
+                let value = model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
+                *out = if value.is_finite() { value } else { 0.0 };
+            }
+        });
+    out
 }
 
 #[cfg(test)]

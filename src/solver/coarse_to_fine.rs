@@ -101,7 +101,10 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             count,
             initial_energy,
             start,
+            &|| observer.is_cancelled(),
         );
+        // A cancelled reprojection is incomplete: it is not shown.
+        check_cancelled(observer)?;
         observer.on_level(&result);
         check_cancelled(observer)?;
     }
@@ -128,7 +131,17 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
         };
         let end = scheme.solve_level(&step, &mut depth, observer)?;
         walk.final_energy = end.energy;
-        let result = level_result(model, level, &depth, step.index, count, end.energy, start);
+        let result = level_result(
+            model,
+            level,
+            &depth,
+            step.index,
+            count,
+            end.energy,
+            start,
+            &|| observer.is_cancelled(),
+        );
+        check_cancelled(observer)?;
         observer.on_level(&result);
         walk.reprojection = std::sync::Arc::unwrap_or_clone(result.reprojection);
         walk.reports.push(LevelReport {

@@ -55,7 +55,8 @@ use crate::params::SolverParams;
 use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::prepare::{Prepared, level_energy, level_result, prepare};
 use super::problem::{
-    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, on_object,
+    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
+    on_object,
 };
 use super::pyramid::PyramidLevel;
 
@@ -520,7 +521,7 @@ impl<M: Reflectance> LevelScheme for Descent<'_, M> {
                 && let Some(every) = explicit.snapshot_seconds
                 && last_snapshot.elapsed().as_secs_f64() >= every
             {
-                observer.on_level(&level_result(
+                let result = level_result(
                     model,
                     level,
                     depth,
@@ -528,7 +529,10 @@ impl<M: Reflectance> LevelScheme for Descent<'_, M> {
                     step.levels,
                     energy,
                     step.start,
-                ));
+                    &|| observer.is_cancelled(),
+                );
+                check_cancelled(observer)?;
+                observer.on_level(&result);
                 last_snapshot = Instant::now();
             }
             let tolerance = if step.finest {

@@ -60,6 +60,8 @@ use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use crate::grid::Grid;
 use crate::light::LightModel;
 use crate::model::{self, Lambertian, LevelGeometry};
@@ -277,16 +279,17 @@ pub(crate) fn march(
     settings: &FastMarchingParams,
     observer: &dyn SolveObserver,
 ) -> Result<(Grid<f64>, f64), SolveError> {
-    use rayon::prelude::*;
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let f2 = problem.camera.focal_px * problem.camera.focal_px;
     let inside = domain.as_slice();
     let image = problem.image.as_slice();
-    let brightest = (0..w * h)
-        .filter(|&q| inside[q])
-        .map(|q| image[q])
-        .fold(0.0, f64::max);
+    let brightest = inside
+        .par_iter()
+        .zip(image.par_iter())
+        .filter(|(inside, _)| **inside)
+        .map(|(_, &v)| v)
+        .reduce(|| 0.0, f64::max);
     let floor = settings.min_relative_intensity * brightest;
     let pixel = |q: usize, log_target: f64| {
         let ray = geometry.ray(q % w, q / w);
@@ -298,28 +301,35 @@ pub(crate) fn march(
             log_target,
         }
     };
-    let log_target: Vec<f64> = (0..w * h)
-        .into_par_iter()
-        .map(|q| (s * geometry.ray(q % w, q / w).q() / image[q].max(floor)).ln())
-        .collect();
-    check_cancelled(observer)?;
-
-    let mut value = vec![f64::INFINITY; w * h];
-    let mut accepted = vec![false; w * h];
+    let mut log_target = vec![0.0; w * h];
+    fill_rows(&mut log_target, w, observer, |q| {
+        (s * geometry.ray(q % w, q / w).q() / image[q].max(floor)).ln()
+    })?;
     // Frontal values: a light-facing patch at distance e^v has I = s e^{-2v}.
+    let mut value = vec![f64::INFINITY; w * h];
+    fill_rows(&mut value, w, observer, |q| {
+        if inside[q] {
+            0.5 * (s / image[q].max(floor)).ln()
+        } else {
+            f64::INFINITY
+        }
+    })?;
+    let mut accepted = vec![false; w * h];
     // Sorted so that `pop` gives the smallest first (the heap's order).
-    let mut frontal: Vec<Trial> = (0..w * h)
-        .into_par_iter()
-        .filter(|&q| inside[q])
-        .map(|q| Trial {
-            value: 0.5 * (s / image[q].max(floor)).ln(),
-            index: q,
-        })
-        .collect();
-    for trial in &frontal {
-        value[trial.index] = trial.value;
+    let mut frontal = Vec::with_capacity(inside.iter().filter(|&&d| d).count());
+    for r in 0..h {
+        if r % 64 == 0 {
+            check_cancelled(observer)?;
+        }
+        for q in r * w..(r + 1) * w {
+            if inside[q] {
+                frontal.push(Trial {
+                    value: value[q],
+                    index: q,
+                });
+            }
+        }
     }
-    check_cancelled(observer)?;
     frontal.par_sort_unstable();
     check_cancelled(observer)?;
     let mut heap: BinaryHeap<Trial> = BinaryHeap::new();
@@ -426,21 +436,50 @@ pub(crate) fn march(
     drop((heap, frontal, accepted, log_target));
 
     let depth_at = |q: usize| geometry.ray(q % w, q / w).q() * value[q].exp();
-    let (sum, count) = (0..w * h)
-        .filter(|&q| inside[q] && value[q].is_finite())
-        .fold((0.0, 0usize), |(sum, count), q| {
-            (sum + depth_at(q), count + 1)
-        });
+    let reached = |q: usize| inside[q] && value[q].is_finite();
+    // Row sums in parallel, added in row order (deterministic).
+    let row_sums: Vec<(f64, usize)> = (0..h)
+        .into_par_iter()
+        .map(|r| {
+            (r * w..(r + 1) * w)
+                .filter(|&q| reached(q))
+                .fold((0.0, 0), |(sum, count), q| (sum + depth_at(q), count + 1))
+        })
+        .collect();
+    check_cancelled(observer)?;
+    let (sum, count) = row_sums
+        .iter()
+        .fold((0.0, 0usize), |a, b| (a.0 + b.0, a.1 + b.1));
     let mean = sum / count.max(1) as f64;
-    let solved = Grid::from_fn(w, h, |c, r| {
-        let q = r * w + c;
-        if inside[q] && value[q].is_finite() {
-            depth_at(q)
-        } else {
-            mean
-        }
-    });
+    let mut solved = vec![0.0; w * h];
+    fill_rows(&mut solved, w, observer, |q| {
+        if reached(q) { depth_at(q) } else { mean }
+    })?;
+    let solved = Grid::from_vec(w, h, solved)
+        .ok_or_else(|| SolveError::Input("fast marching: the depth has the image's size".into()))?;
     Ok((solved, mean))
+}
+
+/// Sets `out[q] = value(q)` for every pixel of a `w`-wide image, rows in
+/// parallel, polling `observer`'s cancellation per row.
+fn fill_rows<T: Send>(
+    out: &mut [T],
+    w: usize,
+    observer: &dyn SolveObserver,
+    value: impl Fn(usize) -> T + Sync,
+) -> Result<(), SolveError> {
+    out.par_chunks_mut(w.max(1))
+        .enumerate()
+        .with_min_len((8192 / w.max(1)).max(1))
+        .for_each(|(r, row)| {
+            if observer.is_cancelled() {
+                return;
+            }
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = value(r * w + c);
+            }
+        });
+    check_cancelled(observer)
 }
 
 /// Heap operations between two polls of the observer's cancellation (a few

@@ -441,6 +441,7 @@ fn fill_warm_start(map: &Grid<f64>) -> (Grid<f64>, f64) {
 }
 
 /// A level's depth (NaN off its domain) and reprojection, as observers get them.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn level_result<M: Reflectance>(
     model: &M,
     level: &PyramidLevel,
@@ -449,16 +450,18 @@ pub(crate) fn level_result<M: Reflectance>(
     levels: usize,
     energy: Energy,
     start: Instant,
+    cancelled: Probe<'_>,
 ) -> LevelResult {
     LevelResult {
         level: index,
         levels,
         depth: std::sync::Arc::new(masked(depth, &level.domain)),
-        reprojection: std::sync::Arc::new(model::reproject(
+        reprojection: std::sync::Arc::new(model::reproject_polled(
             model,
             &level.geometry,
             &level.domain,
             depth,
+            cancelled,
         )),
         geometry: level.geometry,
         domain_pixels: level.domain.as_slice().iter().filter(|&&d| d).count(),
