@@ -1184,6 +1184,88 @@ mod tests {
     }
 
     #[test]
+    fn the_data_part_is_whole_across_the_blocks_of_rows() {
+        // Wide enough that the data part streams its Jacobian in several
+        // blocks of rows: the rows beside a block's edge read the Jacobian
+        // of the next block's first row, computed twice. The right-hand
+        // side there is still minus half the data energy's gradient.
+        let (w, h) = (300, 3 * MIN_DATA_BLOCK_ROWS);
+        assert!(rows_per_task(w).max(MIN_DATA_BLOCK_ROWS) < h);
+        let camera = Intrinsics::centred(300.0, w, h);
+        let depth = Grid::from_fn(w, h, |c, r| {
+            2.0 + 0.05 * ((c * 7 + r * 3) as f64 * 0.1).sin() + 0.03 * (r as f64 * 0.2).cos()
+        });
+        let level = PyramidLevel {
+            geometry: LevelGeometry::new(w, h, w, h, camera),
+            image: Grid::from_fn(w, h, |c, r| 0.25 + 0.01 * ((c * 5 + r * 11) as f64).cos()),
+            confidence: Grid::from_fn(w, h, |c, r| if (c + r) % 5 == 0 { 0.5 } else { 1.0 }),
+            domain: Grid::filled(w, h, true),
+        };
+        let model = Lambertian {
+            intensity_scale: 1.3,
+        };
+        let mut system = LinearSystem::new(&level);
+        assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        // alpha 0: the rows are the data part alone.
+        system.add_smoothness(&level, 0.0, 1.0);
+        let data_energy = |z: &Grid<f64>| {
+            model::energy(
+                &model,
+                &level.geometry,
+                &level.image,
+                &level.confidence,
+                &level.domain,
+                z,
+                0.0,
+                1.0,
+            )
+            .data
+        };
+        let edge = rows_per_task(w).max(MIN_DATA_BLOCK_ROWS);
+        for r in [edge - 2, edge - 1, edge, edge + 1, 2 * edge - 1, 2 * edge] {
+            for c in [1, 150, 298] {
+                let e = 1e-6;
+                let mut plus = depth.clone();
+                *plus.at_mut(c, r) += e;
+                let mut minus = depth.clone();
+                *minus.at_mut(c, r) -= e;
+                let gradient = (data_energy(&plus) - data_energy(&minus)) / (2.0 * e);
+                let rhs = f64::from(system.row(c, r).rhs);
+                assert!(
+                    (gradient + 2.0 * rhs).abs() < 1e-5 * (1.0 + gradient.abs()),
+                    "({c}, {r}): numeric {gradient} vs -2 rhs {}",
+                    -2.0 * rhs
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_stashed_depth_comes_back_bit_for_bit_and_needs_a_new_linearisation() {
+        let (level, depth) = small_level(true);
+        let model = Lambertian {
+            intensity_scale: 1.0,
+        };
+        let mut system = LinearSystem::new(&level);
+        assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        let odd = Grid::from_fn(9, 8, |c, r| {
+            [f64::MIN_POSITIVE, -0.0, 1e300, 2.0 + (c * r) as f64 * 1e-17][(c + r) % 4]
+        });
+        system.stash_depth(&odd);
+        let mut back = Grid::filled(9, 8, 0.0);
+        system.restore_depth(&mut back);
+        for (a, b) in odd.as_slice().iter().zip(back.as_slice()) {
+            assert_eq!(a.to_bits(), b.to_bits());
+        }
+        let assembled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            system.add_smoothness(&level, 1.0, 1.0)
+        }));
+        assert!(assembled.is_err(), "the data part was overwritten");
+        assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        system.add_smoothness(&level, 1.0, 1.0);
+    }
+
+    #[test]
     fn stencil_lookup_is_consistent() {
         for (k, &(dx, dy)) in STENCIL.iter().enumerate() {
             assert_eq!(stencil_index(dx, dy), k);
