@@ -198,7 +198,7 @@ fn main() {
     let n = 256;
     let level = PyramidLevel {
         geometry: sfs_studio::model::LevelGeometry::new(n, n, n, n, case.scene.camera),
-        image: case.scene.image.clone(),
+        image: std::borrow::Cow::Borrowed(&case.scene.image),
         confidence: Grid::filled(n, n, 1.0),
         domain: Grid::filled(n, n, true),
     };

@@ -16,7 +16,7 @@ use super::pyramid::{self, PyramidLevel};
 /// One level as the loop hands it to a scheme.
 pub(crate) struct LevelStep<'a> {
     /// The level.
-    pub level: &'a PyramidLevel,
+    pub level: &'a PyramidLevel<'a>,
     /// Its index as observers see it (after a shown start).
     pub index: usize,
     /// The number of levels observers see.

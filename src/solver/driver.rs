@@ -107,7 +107,7 @@ fn solve_on_worker<M: Reflectance>(
 struct GaussNewton<'a, M> {
     model: &'a M,
     params: &'a SolverParams,
-    prepared: &'a Prepared,
+    prepared: &'a Prepared<'a>,
     z_floor: f64,
     phases: PhaseTimes,
 }

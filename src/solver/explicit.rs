@@ -429,7 +429,7 @@ fn run<M: Reflectance>(
 struct Descent<'a, M> {
     model: &'a M,
     explicit: &'a ExplicitParams,
-    prepared: &'a Prepared,
+    prepared: &'a Prepared<'a>,
     z_floor: f64,
     /// Gradient steps over all levels so far.
     total_steps: usize,
@@ -572,7 +572,7 @@ mod tests {
         let scene = sombrero(24, 24);
         let level = PyramidLevel {
             geometry: LevelGeometry::new(24, 24, 24, 24, scene.camera),
-            image: scene.image.clone(),
+            image: std::borrow::Cow::Borrowed(&scene.image),
             confidence: Grid::from_fn(24, 24, |c, _| if c < 5 { 0.0 } else { 1.0 }),
             domain: Grid::filled(24, 24, true),
         };

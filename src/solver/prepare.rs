@@ -23,9 +23,9 @@ use super::pyramid::{self, PyramidLevel};
 /// (coarsest first), the initial depth on the coarsest level and the
 /// smoothness weights in pixel units. Shared by every variational scheme so
 /// that they minimise the same discrete energy on the same levels.
-pub(crate) struct Prepared {
+pub(crate) struct Prepared<'a> {
     /// Levels, coarsest first; the last one is the full image.
-    pub levels: Vec<PyramidLevel>,
+    pub levels: Vec<PyramidLevel<'a>>,
     /// Levels already sent to the observer (a preview).
     pub shown: usize,
     /// Initial depth on the coarsest level.
@@ -50,7 +50,7 @@ pub(crate) struct Prepared {
     pub refines_warm_start: bool,
 }
 
-impl Prepared {
+impl Prepared<'_> {
     /// The initial depth, moved out (an empty grid is left behind).
     pub fn take_depth(&mut self) -> Grid<f64> {
         std::mem::replace(&mut self.depth, Grid::filled(0, 0, 0.0))
@@ -82,12 +82,12 @@ impl Crop {
 /// before a fast-marching start on a large image, sends the start's preview
 /// to `observer` (level 0 of 3: preview, start, refined; timed from
 /// `start`).
-pub(crate) fn prepare(
-    problem: &Problem,
+pub(crate) fn prepare<'a>(
+    problem: &'a Problem,
     params: &SolverParams,
     preview: Option<Instant>,
     observer: &mut dyn SolveObserver,
-) -> Result<Prepared, SolveError> {
+) -> Result<Prepared<'a>, SolveError> {
     params.validate()?;
     let (domain, confidence) = problem.validate(params)?;
     check_cancelled(observer)?;
@@ -96,7 +96,7 @@ pub(crate) fn prepare(
     check_cancelled(observer)?;
     let finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
-        image: problem.image.clone(),
+        image: std::borrow::Cow::Borrowed(&problem.image),
         confidence,
         domain,
     };

@@ -2,16 +2,19 @@
 //! image and masks (normalised convolution over the domain), and resampling of
 //! depth from one level to the next finer one.
 
+use std::borrow::Cow;
+
 use crate::grid::Grid;
 use crate::model::LevelGeometry;
 
 /// The data of one pyramid level.
 #[derive(Clone, Debug)]
-pub struct PyramidLevel {
+pub struct PyramidLevel<'a> {
     /// Size, spacing and camera.
     pub geometry: LevelGeometry,
-    /// Linear image values.
-    pub image: Grid<f64>,
+    /// Linear image values: the problem's own image on the finest level
+    /// (borrowed, not copied: 8 bytes per pixel), a downsampled one below.
+    pub image: Cow<'a, Grid<f64>>,
     /// Confidence `c` in [0, 1] (0 outside the object).
     pub confidence: Grid<f64>,
     /// Pixels that carry an unknown depth.
@@ -122,7 +125,11 @@ pub fn map_coordinate(index: usize, to: usize, from: usize) -> f64 {
 /// `sigma = sigma_scale * sqrt(1/ratio^2 - 1)` (finer pixels, IPOL style) as a
 /// normalised convolution over the finer domain, then bilinear sampling. A
 /// coarse pixel is in the domain when at least half of its neighbourhood is.
-pub fn downsample(finer: &PyramidLevel, geometry: LevelGeometry, sigma_scale: f64) -> PyramidLevel {
+pub fn downsample(
+    finer: &PyramidLevel<'_>,
+    geometry: LevelGeometry,
+    sigma_scale: f64,
+) -> PyramidLevel<'static> {
     let (fw, fh) = finer.image.size();
     let (w, h) = (geometry.width, geometry.height);
     let ratio = (w as f64 / fw as f64).min(h as f64 / fh as f64);
@@ -177,7 +184,7 @@ pub fn downsample(finer: &PyramidLevel, geometry: LevelGeometry, sigma_scale: f6
     }
     PyramidLevel {
         geometry,
-        image,
+        image: Cow::Owned(image),
         confidence,
         domain,
     }

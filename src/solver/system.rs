@@ -1080,9 +1080,9 @@ pub(crate) fn test_system(
     let camera = Intrinsics::centred(w as f64, w, h);
     let level = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, camera),
-        image: Grid::from_fn(w, h, |c, r| {
+        image: std::borrow::Cow::Owned(Grid::from_fn(w, h, |c, r| {
             0.3 + 0.05 * ((c * 3 + r * 7) as f64 * 0.1).sin()
-        }),
+        })),
         confidence: Grid::filled(w, h, 1.0),
         domain: Grid::from_fn(w, h, domain),
     };
@@ -1104,7 +1104,7 @@ mod tests {
     use crate::model::{Lambertian, LevelGeometry};
 
     /// A small level with a random-looking smooth depth and a domain hole.
-    fn small_level(domain_hole: bool) -> (PyramidLevel, Grid<f64>) {
+    fn small_level(domain_hole: bool) -> (PyramidLevel<'static>, Grid<f64>) {
         let (w, h) = (9, 8);
         let camera = Intrinsics::centred(12.0, w, h);
         let geometry = LevelGeometry::new(w, h, w, h, camera);
@@ -1119,7 +1119,7 @@ mod tests {
         (
             PyramidLevel {
                 geometry,
-                image,
+                image: std::borrow::Cow::Owned(image),
                 confidence,
                 domain,
             },
@@ -1197,7 +1197,9 @@ mod tests {
         });
         let level = PyramidLevel {
             geometry: LevelGeometry::new(w, h, w, h, camera),
-            image: Grid::from_fn(w, h, |c, r| 0.25 + 0.01 * ((c * 5 + r * 11) as f64).cos()),
+            image: std::borrow::Cow::Owned(Grid::from_fn(w, h, |c, r| {
+                0.25 + 0.01 * ((c * 5 + r * 11) as f64).cos()
+            })),
             confidence: Grid::from_fn(w, h, |c, r| if (c + r) % 5 == 0 { 0.5 } else { 1.0 }),
             domain: Grid::filled(w, h, true),
         };

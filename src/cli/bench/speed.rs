@@ -220,7 +220,7 @@ fn convergence(
     let omega = SolverParams::default().omega;
     let level = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, scene.camera),
-        image: scene.image.clone(),
+        image: std::borrow::Cow::Borrowed(&scene.image),
         confidence: scene.object_mask.map(|&o| if o { 1.0 } else { 0.0 }),
         domain: scene.object_mask.clone(),
     };
