@@ -117,17 +117,28 @@ pub fn default_tv_weight(image: &Grid<f64>) -> f64 {
 /// noise: on a clean 128x64 Suzanne the median read 5.2/255, the quartile
 /// 1.8/255. 0 when no such pixel exists.
 pub fn robust_noise_sigma(image: &Grid<f64>, trusted: &Grid<bool>) -> f64 {
+    robust_noise_sigma_polled(image, trusted, &|| false)
+        .unwrap_or_else(|| unreachable!("never cancelled"))
+}
+
+/// [`robust_noise_sigma`], rows in parallel, polling `cancelled` per row;
+/// `None` once it said true.
+pub fn robust_noise_sigma_polled(
+    image: &Grid<f64>,
+    trusted: &Grid<bool>,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<f64> {
     let (w, h) = image.size();
     if w < 3 || h < 3 {
-        return 0.0;
+        return Some(0.0);
     }
     const MASK: [[f64; 3]; 3] = [[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]];
-    let mut responses = Vec::new();
-    for r in 1..h - 1 {
+    let responses = |row: usize, out: &mut Vec<f64>| {
+        let r = row + 1;
         'pixel: for c in 1..w - 1 {
             let mut sum = 0.0;
-            for (dr, row) in MASK.iter().enumerate() {
-                for (dc, weight) in row.iter().enumerate() {
+            for (dr, mask_row) in MASK.iter().enumerate() {
+                for (dc, weight) in mask_row.iter().enumerate() {
                     let (cc, rr) = (c + dc - 1, r + dr - 1);
                     if !trusted.at(cc, rr) {
                         continue 'pixel;
@@ -135,15 +146,14 @@ pub fn robust_noise_sigma(image: &Grid<f64>, trusted: &Grid<bool>) -> f64 {
                     sum += weight * image.at(cc, rr);
                 }
             }
-            responses.push(sum.abs());
+            out.push(sum.abs());
         }
+    };
+    let quartile = crate::order::kth_smallest(h - 2, responses, |n| n / 4, cancelled);
+    if cancelled() {
+        return None;
     }
-    if responses.is_empty() {
-        return 0.0;
-    }
-    let rank = responses.len() / 4;
-    let quartile = *responses.select_nth_unstable_by(rank, f64::total_cmp).1;
-    quartile / (6.0 * ABS_NORMAL_LOWER_QUARTILE)
+    Some(quartile.map_or(0.0, |q| q / (6.0 * ABS_NORMAL_LOWER_QUARTILE)))
 }
 
 /// The lower quartile of `|N(0, 1)|`: the normal quantile at 0.625.

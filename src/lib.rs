@@ -29,6 +29,7 @@ pub mod mask_edit;
 pub mod memory;
 pub mod metrics;
 pub mod model;
+pub mod order;
 pub mod output;
 pub mod params;
 pub mod photo;

@@ -24,10 +24,21 @@ pub const TAU: f64 = 75.0;
 
 /// The relative noise level `sigma / I_ref` of the problem's finest level.
 pub fn relative_noise(finest: &PyramidLevel, scales: &ProblemScales) -> f64 {
+    relative_noise_polled(finest, scales, &|| false)
+        .unwrap_or_else(|| unreachable!("never cancelled"))
+}
+
+/// [`relative_noise`], polling `cancelled` per row; `None` once it said true.
+pub fn relative_noise_polled(
+    finest: &PyramidLevel,
+    scales: &ProblemScales,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<f64> {
     let trusted = Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
         *finest.domain.at(c, r) && *finest.confidence.at(c, r) > 0.0
     });
-    crate::denoise::robust_noise_sigma(&finest.image, &trusted) / scales.intensity
+    crate::denoise::robust_noise_sigma_polled(&finest.image, &trusted, cancelled)
+        .map(|sigma| sigma / scales.intensity)
 }
 
 /// The automatic alpha in relative units for an image whose relative noise

@@ -18,7 +18,7 @@ use super::multigrid::Multigrid;
 use super::prepare::{Crop, Prepared, level_energy_polled, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
-    on_object,
+    on_object, rows_per_task,
 };
 use super::sor;
 use super::system::LinearSystem;
@@ -333,7 +333,7 @@ fn apply_update(
         .as_mut_slice()
         .par_chunks_mut(w)
         .enumerate()
-        .with_min_len((8192 / w.max(1)).max(1))
+        .with_min_len(rows_per_task(w))
         .map(|(r, row)| {
             let mut max_step: f64 = 0.0;
             for (c, z) in row.iter_mut().enumerate() {

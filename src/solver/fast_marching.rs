@@ -69,7 +69,7 @@ use crate::params::{DomainMode, SolverParams};
 
 use super::problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver, check_cancelled, masked,
+    SolveObserver, check_cancelled, masked, rows_per_task,
 };
 
 /// Settings of the fast marching baseline.
@@ -470,7 +470,7 @@ fn fill_rows<T: Send>(
 ) -> Result<(), SolveError> {
     out.par_chunks_mut(w.max(1))
         .enumerate()
-        .with_min_len((8192 / w.max(1)).max(1))
+        .with_min_len(rows_per_task(w))
         .for_each(|(r, row)| {
             if observer.is_cancelled() {
                 return;

@@ -89,19 +89,20 @@ pub(crate) fn prepare<'a>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Prepared<'a>, SolveError> {
     params.validate()?;
-    let (domain, confidence) = problem.validate(params)?;
+    let (domain, confidence) = problem.validate_polled(params, &|| observer.is_cancelled())?;
     check_cancelled(observer)?;
     let (w, h) = problem.image.size();
-    let scales = problem_scales(problem, &confidence);
-    check_cancelled(observer)?;
+    let scales = problem_scales_polled(problem, &confidence, &|| observer.is_cancelled())
+        .ok_or(SolveError::Cancelled)?;
     let finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
         image: std::borrow::Cow::Borrowed(&problem.image),
         confidence,
         domain,
     };
-    let relative_noise = super::auto_alpha::relative_noise(&finest, &scales);
-    check_cancelled(observer)?;
+    let relative_noise =
+        super::auto_alpha::relative_noise_polled(&finest, &scales, &|| observer.is_cancelled())
+            .ok_or(SolveError::Cancelled)?;
     // Fast marching knows only the centred light; with lights elsewhere the
     // default start is the plane that best explains the image, refined
     // through the whole pyramid (the paper's path).
@@ -308,11 +309,21 @@ const TV_ITERATIONS: usize = 200;
 /// `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already 0 off the
 /// object; `validate` guarantees a trusted pixel with brightness > 0.
 pub(crate) fn problem_scales(problem: &Problem, confidence: &Grid<f64>) -> ProblemScales {
-    let (w, h) = problem.image.size();
+    problem_scales_polled(problem, confidence, NEVER)
+        .unwrap_or_else(|| unreachable!("never cancelled"))
+}
+
+/// [`problem_scales`] by rows in parallel, polling `cancelled` per row;
+/// `None` once it said true.
+pub(crate) fn problem_scales_polled(
+    problem: &Problem,
+    confidence: &Grid<f64>,
+    cancelled: Probe<'_>,
+) -> Option<ProblemScales> {
+    let w = problem.image.width();
     let s = problem.intensity_scale;
     let camera = problem.camera;
-    let mut facing: Vec<f64> = Vec::with_capacity(w * h);
-    for r in 0..h {
+    let facing = |r: usize, out: &mut Vec<f64>| {
         for c in 0..w {
             let v = *problem.image.at(c, r);
             if *confidence.at(c, r) > 0.0 && v > 0.0 {
@@ -322,21 +333,20 @@ pub(crate) fn problem_scales(problem: &Problem, confidence: &Grid<f64>) -> Probl
                     focal_px: camera.focal_px,
                 }
                 .q();
-                facing.push(q * (s / v).sqrt());
+                out.push(q * (s / v).sqrt());
             }
         }
-    }
-    let depth = if facing.is_empty() {
-        1.0
-    } else {
-        let middle = facing.len() / 2;
-        *facing.select_nth_unstable_by(middle, f64::total_cmp).1
     };
-    ProblemScales {
+    let median = crate::order::kth_smallest(problem.image.height(), facing, |n| n / 2, cancelled);
+    if cancelled() {
+        return None;
+    }
+    let depth = median.unwrap_or(1.0);
+    Some(ProblemScales {
         depth,
         intensity: s / (depth * depth),
         focal_px: camera.focal_px,
-    }
+    })
 }
 
 /// The constant initial depth of [`InitialDepth::FromImage`] on a level: the
@@ -427,17 +437,25 @@ pub fn nearest_object_depth(lights: &[crate::light::PointLight]) -> f64 {
 
 /// Replaces non-finite or non-positive values of a warm start by the mean.
 fn fill_warm_start(map: &Grid<f64>) -> (Grid<f64>, f64) {
-    let valid: Vec<f64> = map
+    use rayon::prelude::*;
+    let valid = |z: f64| z.is_finite() && z > 0.0;
+    let (sum, count) = map
         .as_slice()
         .iter()
-        .cloned()
-        .filter(|z| z.is_finite() && *z > 0.0)
-        .collect();
-    let mean = valid.iter().sum::<f64>() / valid.len().max(1) as f64;
-    (
-        map.map(|&z| if z.is_finite() && z > 0.0 { z } else { mean }),
-        mean,
-    )
+        .filter(|&&z| valid(z))
+        .fold((0.0, 0usize), |(sum, count), &z| (sum + z, count + 1));
+    let mean = sum / count.max(1) as f64;
+    let mut filled = map.clone();
+    filled
+        .as_mut_slice()
+        .par_iter_mut()
+        .with_min_len(8192)
+        .for_each(|z| {
+            if !valid(*z) {
+                *z = mean;
+            }
+        });
+    (filled, mean)
 }
 
 /// A level's depth (NaN off its domain) and reprojection, as observers get them.

@@ -262,6 +262,17 @@ impl Problem {
         &self,
         params: &SolverParams,
     ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+        self.validate_polled(params, NEVER)
+    }
+
+    /// [`Self::validate`], its passes over the pixels by rows in parallel,
+    /// polling `cancelled` per row.
+    pub(crate) fn validate_polled(
+        &self,
+        params: &SolverParams,
+        cancelled: Probe<'_>,
+    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+        use rayon::prelude::*;
         let (w, h) = self.image.size();
         let bad = |m: String| Err(SolveError::Input(m));
         if w < MIN_IMAGE_SIDE || h < MIN_IMAGE_SIDE {
@@ -286,12 +297,21 @@ impl Problem {
         for (k, light) in self.lights.iter().enumerate() {
             light.validated(k + 1).map_err(SolveError::Input)?;
         }
-        if let Some(bad_value) = self
+        let invalid = |v: &f64| !v.is_finite() || *v < 0.0;
+        let first_bad_row = self
             .image
             .as_slice()
-            .iter()
-            .find(|v| !v.is_finite() || **v < 0.0)
-        {
+            .par_chunks(w)
+            .with_min_len(rows_per_task(w))
+            .position_first(|row| !cancelled() && row.iter().any(invalid));
+        if cancelled() {
+            return Err(SolveError::Cancelled);
+        }
+        if let Some(bad_value) = first_bad_row.and_then(|r| {
+            self.image.as_slice()[r * w..(r + 1) * w]
+                .iter()
+                .find(|v| invalid(v))
+        }) {
             return bad(format!(
                 "image contains an invalid value {bad_value} (values must be finite and >= 0)"
             ));
@@ -307,7 +327,7 @@ impl Problem {
             Some(m) => m.clone(),
             None => Grid::filled(w, h, true),
         };
-        let confidence = match &self.confidence {
+        let given = match &self.confidence {
             Some(c) if c.size() != (w, h) => {
                 return bad(format!(
                     "confidence is {}x{} but the image is {w}x{h}",
@@ -319,55 +339,69 @@ impl Problem {
                 if c.as_slice().iter().any(|v| !(0.0..=1.0).contains(v)) {
                     return bad("confidence values must lie in [0, 1]".into());
                 }
-                c.clone()
+                Some(c)
             }
-            None => Grid::filled(w, h, 1.0),
+            None => None,
         };
-        let confidence = Grid::from_fn(w, h, |c, r| {
-            if *object.at(c, r) {
-                *confidence.at(c, r)
-            } else {
-                0.0
-            }
-        });
-        let trusted: Vec<f64> = (0..w * h)
-            .filter(|&q| confidence.as_slice()[q] > 0.0)
-            .map(|q| self.image.as_slice()[q])
-            .collect();
-        if !object.as_slice().iter().any(|&o| o) {
+        // 0 off the object; a clipped pixel only says "at least this
+        // bright": the model cannot match it, so it is not trusted either
+        // (as if painted with confidence 0).
+        let mut confidence = Grid::filled(w, h, 0.0);
+        let image = self.image.as_slice();
+        let (objects, trusted, saturated, brightest) = confidence
+            .as_mut_slice()
+            .par_chunks_mut(w)
+            .enumerate()
+            .with_min_len(rows_per_task(w))
+            .map(|(r, row)| {
+                let mut counts = (0usize, 0usize, 0usize, 0.0f64);
+                if cancelled() {
+                    return counts;
+                }
+                for (c, out) in row.iter_mut().enumerate() {
+                    if !*object.at(c, r) {
+                        continue;
+                    }
+                    counts.0 += 1;
+                    let trust = given.map_or(1.0, |g| *g.at(c, r));
+                    if trust > 0.0 {
+                        let v = image[r * w + c];
+                        counts.1 += 1;
+                        counts.3 = counts.3.max(v);
+                        if v >= SATURATED {
+                            counts.2 += 1;
+                            continue;
+                        }
+                    }
+                    *out = trust;
+                }
+                counts
+            })
+            .reduce(
+                || (0, 0, 0, 0.0),
+                |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3.max(b.3)),
+            );
+        if cancelled() {
+            return Err(SolveError::Cancelled);
+        }
+        if objects == 0 {
             return bad("the object mask is empty".into());
         }
-        if trusted.is_empty() {
+        if trusted == 0 {
             return bad("no pixel is both on the object and trusted (confidence > 0)".into());
         }
-        let brightest = trusted.iter().cloned().fold(0.0, f64::max);
         if brightest <= 0.0 {
             return bad(
                 "the image is black on every trusted object pixel: there is no shading to explain"
                     .into(),
             );
         }
-        let saturated = trusted.iter().filter(|&&v| v >= SATURATED).count();
-        if saturated * 2 > trusted.len() {
+        if saturated * 2 > trusted {
             return bad(format!(
-                "the image is saturated: {saturated} of {} trusted object pixels are at the maximum value; \
-                 lower the exposure or mask the saturated region (confidence 0)",
-                trusted.len()
+                "the image is saturated: {saturated} of {trusted} trusted object pixels are at the maximum value; \
+                 lower the exposure or mask the saturated region (confidence 0)"
             ));
         }
-        // A clipped pixel only says "at least this bright": the model cannot
-        // match it, so it is not trusted (as if painted with confidence 0).
-        let confidence = if saturated > 0 {
-            Grid::from_fn(w, h, |c, r| {
-                if *self.image.at(c, r) >= SATURATED {
-                    0.0
-                } else {
-                    *confidence.at(c, r)
-                }
-            })
-        } else {
-            confidence
-        };
         if let InitialDepth::Map(map) = &params.initial_depth
             && map.size() != (w, h)
         {
@@ -388,6 +422,12 @@ impl Problem {
 /// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
 /// the long single passes over an image (each about a second at 18
 /// megapixels).
+/// Rows per rayon task of a pass over a `width`-pixel-wide level, so that
+/// small levels run as one task.
+pub(crate) fn rows_per_task(width: usize) -> usize {
+    (8192 / width.max(1)).max(1)
+}
+
 /// A cancellation probe that long parallel passes call per block of rows
 /// (`true`: stop; the pass's result is then garbage and its caller returns
 /// [`SolveError::Cancelled`]).
@@ -428,11 +468,16 @@ pub(crate) fn on_object(
 
 /// The depth with NaN outside `domain`.
 pub(crate) fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
-    Grid::from_fn(depth.width(), depth.height(), |c, r| {
-        if *domain.at(c, r) {
-            *depth.at(c, r)
-        } else {
-            f64::NAN
-        }
-    })
+    use rayon::prelude::*;
+    let mut out = depth.clone();
+    out.as_mut_slice()
+        .par_iter_mut()
+        .zip(domain.as_slice().par_iter())
+        .with_min_len(8192)
+        .for_each(|(z, &inside)| {
+            if !inside {
+                *z = f64::NAN;
+            }
+        });
+    out
 }

@@ -12,7 +12,7 @@ use rayon::prelude::*;
 use crate::grid::Grid;
 use crate::model::{self, Derivatives, Reflectance};
 
-use super::problem::{NEVER, Probe};
+use super::problem::{NEVER, Probe, rows_per_task};
 use super::pyramid::PyramidLevel;
 
 /// Offsets `(dx, dy)` of the 17-point stencil; entry 0 is the pixel itself,
@@ -1057,11 +1057,6 @@ fn image_row_blocks<T: Send>(
         .take(height)
         .with_min_len(min_rows)
         .enumerate()
-}
-
-/// Rows per rayon task so that small levels run as one task.
-fn rows_per_task(width: usize) -> usize {
-    (8192 / width.max(1)).max(1)
 }
 
 /// A test system on a `w x h` level: a gently varying image, the depth
