@@ -23,22 +23,56 @@ pub fn working_size(width: usize, height: usize, max_side: Option<usize>) -> (us
 /// pixel is the mean of the input area it covers (fractional overlaps
 /// weighted). Upsampling repeats values.
 pub fn resize_area(grid: &Grid<f64>, width: usize, height: usize) -> Grid<f64> {
+    resize_area_polled(grid, width, height, &|| false)
+        .unwrap_or_else(|| unreachable!("never cancelled"))
+}
+
+/// [`resize_area`], rows in parallel, polling `cancelled` per row; `None`
+/// once it said true.
+pub fn resize_area_polled(
+    grid: &Grid<f64>,
+    width: usize,
+    height: usize,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<Grid<f64>> {
+    use rayon::prelude::*;
     let (w, h) = grid.size();
     if (w, h) == (width, height) {
-        return grid.clone();
+        return Some(grid.clone());
     }
     let columns = weights(w, width);
     let rows = weights(h, height);
     // Horizontal pass (w -> width) per input row, then vertical.
     let mut across = Grid::filled(width, h, 0.0);
-    for r in 0..h {
-        for (c, taps) in columns.iter().enumerate() {
-            *across.at_mut(c, r) = taps.iter().map(|&(i, wt)| wt * grid.at(i, r)).sum();
-        }
+    across
+        .as_mut_slice()
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .with_min_len((8192 / w.max(1)).max(1))
+        .for_each(|(r, out)| {
+            if cancelled() {
+                return;
+            }
+            for (c, taps) in columns.iter().enumerate() {
+                out[c] = taps.iter().map(|&(i, wt)| wt * grid.at(i, r)).sum();
+            }
+        });
+    if cancelled() {
+        return None;
     }
-    Grid::from_fn(width, height, |c, r| {
-        rows[r].iter().map(|&(i, wt)| wt * across.at(c, i)).sum()
-    })
+    let mut out = Grid::filled(width, height, 0.0);
+    out.as_mut_slice()
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .for_each(|(r, out)| {
+            if cancelled() {
+                return;
+            }
+            for (c, value) in out.iter_mut().enumerate() {
+                *value = rows[r].iter().map(|&(i, wt)| wt * across.at(c, i)).sum();
+            }
+        });
+    (!cancelled()).then_some(out)
 }
 
 /// Per output index, the input indices it covers and their weights (sum 1).

@@ -39,8 +39,9 @@
 //! eikonal equation: a pixel's value depends only on neighbours with smaller
 //! values. Fast marching then accepts pixels in increasing order of `v`.
 //! Every object pixel starts as a trial pixel with its
-//! frontal value `v_f` (the state constraint above; these are sorted once,
-//! and a binary heap holds only the propagated values); so the singular points,
+//! frontal value `v_f` (the state constraint above; these are read in order
+//! from a [`FrontalQueue`], and a binary heap holds only the propagated
+//! values); so the singular points,
 //! whose frontal value no propagated value undercuts, are accepted first
 //! and the front marches outwards from them. When a pixel is accepted, each
 //! not yet accepted object neighbour gets the local solution of the
@@ -268,8 +269,8 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
 /// depth off the domain and where the front did not arrive; and that mean.
 /// Polls `observer`'s cancellation every [`CANCEL_POLL`] heap operations.
 ///
-/// Every domain pixel starts with its frontal value; those are sorted once
-/// (in parallel) and read in order beside a binary heap that holds only the
+/// Every domain pixel starts with its frontal value; those are read in
+/// order from a [`FrontalQueue`] beside a binary heap that holds only the
 /// propagated values (the front, not the whole image), so a pop costs a
 /// comparison of the two heads and a heap operation on the front's size.
 pub(crate) fn march(
@@ -315,23 +316,7 @@ pub(crate) fn march(
         }
     })?;
     let mut accepted = vec![false; w * h];
-    // Sorted so that `pop` gives the smallest first (the heap's order).
-    let mut frontal = Vec::with_capacity(inside.iter().filter(|&&d| d).count());
-    for r in 0..h {
-        if r % 64 == 0 {
-            check_cancelled(observer)?;
-        }
-        for q in r * w..(r + 1) * w {
-            if inside[q] {
-                frontal.push(Trial {
-                    value: value[q],
-                    index: q,
-                });
-            }
-        }
-    }
-    frontal.par_sort_unstable();
-    check_cancelled(observer)?;
+    let mut frontal = FrontalQueue::new(&value, inside, w, observer)?;
     let mut heap: BinaryHeap<Trial> = BinaryHeap::new();
     let axis = |value: &[f64], accepted: &[bool], minus: Option<usize>, plus: Option<usize>| {
         let m = minus.filter(|&n| accepted[n]).map(|n| value[n]);
@@ -355,14 +340,17 @@ pub(crate) fn march(
     let mut popped = 0usize;
     loop {
         // The smaller head of the two queues (the greater in `Trial`'s order).
-        let from_heap = match (heap.peek(), frontal.last()) {
+        let from_heap = match (heap.peek(), frontal.peek()) {
             (Some(a), Some(b)) => a > b,
             (Some(_), None) => true,
             (None, Some(_)) => false,
             (None, None) => break,
         };
-        let Some(Trial { value: v, index }) = (if from_heap { heap.pop() } else { frontal.pop() })
-        else {
+        let Some(Trial { value: v, index }) = (if from_heap {
+            heap.pop()
+        } else {
+            frontal.next()
+        }) else {
             break;
         };
         // Polled per pop, not per accepted pixel: stale entries can run for
@@ -480,6 +468,125 @@ fn fill_rows<T: Send>(
             }
         });
     check_cancelled(observer)
+}
+
+/// The frontal values of the domain pixels in increasing order (ties by
+/// index: the heap's order), without sorting them all up front: they are
+/// counted into buckets of equal width in value (a monotone map, so the
+/// buckets are in order), and each bucket is sorted when the queue reaches
+/// it, inside the march (which polls cancellation), not in one long pass.
+struct FrontalQueue {
+    /// The trials, bucket after bucket.
+    trials: Vec<Trial>,
+    /// Where each bucket starts in `trials` (and the end, last).
+    starts: Vec<usize>,
+    /// The next trial to give.
+    next: usize,
+    /// `trials[..sorted_until]` is sorted; the current bucket ends there.
+    sorted_until: usize,
+    /// The bucket after the sorted ones.
+    bucket: usize,
+}
+
+impl FrontalQueue {
+    /// Trials per bucket on average.
+    const PER_BUCKET: usize = 64;
+
+    /// The queue of `value[q]` over the pixels `inside`, in rows of `w`.
+    fn new(
+        value: &[f64],
+        inside: &[bool],
+        w: usize,
+        observer: &dyn SolveObserver,
+    ) -> Result<Self, SolveError> {
+        let (low, high, count) = value
+            .par_iter()
+            .zip(inside.par_iter())
+            .filter(|(_, inside)| **inside)
+            .map(|(&v, _)| (v, v, 1usize))
+            .reduce(
+                || (f64::INFINITY, f64::NEG_INFINITY, 0),
+                |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
+            );
+        let buckets = (count / Self::PER_BUCKET).max(1);
+        let scale = if high > low {
+            (buckets - 1) as f64 / (high - low)
+        } else {
+            0.0
+        };
+        let bucket_of = |v: f64| (((v - low) * scale) as usize).min(buckets - 1);
+        let rows = inside.chunks(w.max(1)).zip(value.chunks(w.max(1)));
+        let mut starts = vec![0usize; buckets + 1];
+        for (r, (inside, value)) in rows.clone().enumerate() {
+            if r % 64 == 0 {
+                check_cancelled(observer)?;
+            }
+            for (&inside, &v) in inside.iter().zip(value) {
+                if inside {
+                    starts[bucket_of(v) + 1] += 1;
+                }
+            }
+        }
+        for b in 0..buckets {
+            starts[b + 1] += starts[b];
+        }
+        let mut fill = starts.clone();
+        let mut trials = vec![
+            Trial {
+                value: 0.0,
+                index: 0
+            };
+            count
+        ];
+        for (r, (inside, value)) in rows.enumerate() {
+            if r % 64 == 0 {
+                check_cancelled(observer)?;
+            }
+            for (c, (&inside, &v)) in inside.iter().zip(value).enumerate() {
+                if inside {
+                    let slot = &mut fill[bucket_of(v)];
+                    trials[*slot] = Trial {
+                        value: v,
+                        index: r * w + c,
+                    };
+                    *slot += 1;
+                }
+            }
+        }
+        Ok(Self {
+            trials,
+            starts,
+            next: 0,
+            sorted_until: 0,
+            bucket: 0,
+        })
+    }
+
+    /// Sorts the next non-empty bucket once the sorted ones are used up.
+    fn sort_ahead(&mut self) {
+        while self.next == self.sorted_until && self.bucket + 1 < self.starts.len() {
+            let (start, end) = (self.starts[self.bucket], self.starts[self.bucket + 1]);
+            // `Trial`'s order is reversed (the heap's greatest is the
+            // smallest value): descending order gives the smallest first.
+            self.trials[start..end].sort_unstable_by(|a, b| b.cmp(a));
+            self.sorted_until = end;
+            self.bucket += 1;
+        }
+    }
+
+    /// The smallest trial left.
+    fn peek(&mut self) -> Option<&Trial> {
+        self.sort_ahead();
+        self.trials.get(self.next)
+    }
+
+    /// Takes the smallest trial left.
+    fn next(&mut self) -> Option<Trial> {
+        self.sort_ahead();
+        let trial = self.trials.get(self.next).copied();
+        self.next += usize::from(trial.is_some());
+        trial
+    }
 }
 
 /// Heap operations between two polls of the observer's cancellation (a few

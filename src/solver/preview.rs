@@ -7,7 +7,8 @@ use std::time::Instant;
 
 use super::fast_marching::{FastMarchingParams, solve_fast_marching};
 use super::problem::{IterationReport, LevelResult, Problem, SolveError, SolveObserver};
-use crate::resample::{resize_area, scale_intrinsics, working_size};
+use crate::grid::Grid;
+use crate::resample::{resize_area_polled, scale_intrinsics, working_size};
 
 /// Longest side of the preview, in pixels.
 pub const PREVIEW_SIDE: usize = 256;
@@ -53,15 +54,25 @@ pub(crate) fn send_preview(
         return Ok(false);
     }
     let (pw, ph) = working_size(w, h, Some(PREVIEW_SIDE));
+    let cancelled = || observer.is_cancelled();
+    let resize = |grid: &Grid<f64>| {
+        resize_area_polled(grid, pw, ph, &cancelled).ok_or(SolveError::Cancelled)
+    };
+    let image = resize(&problem.image)?;
+    let object_mask = match &problem.object_mask {
+        Some(mask) => Some(resize(&mask.map(|&o| f64::from(u8::from(o))))?.map(|&v| v >= 0.5)),
+        None => None,
+    };
+    let confidence = match &problem.confidence {
+        Some(confidence) => Some(resize(confidence)?),
+        None => None,
+    };
     let small = Problem {
-        image: resize_area(&problem.image, pw, ph),
+        image,
         camera: scale_intrinsics(problem.camera, (w, h), (pw, ph)),
         intensity_scale: problem.intensity_scale,
-        object_mask: problem
-            .object_mask
-            .as_ref()
-            .map(|m| resize_area(&m.map(|&o| f64::from(u8::from(o))), pw, ph).map(|&v| v >= 0.5)),
-        confidence: problem.confidence.as_ref().map(|c| resize_area(c, pw, ph)),
+        object_mask,
+        confidence,
         lights: problem.lights.clone(),
     };
     let mut relabel = Relabel {
