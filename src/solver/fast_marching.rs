@@ -40,7 +40,7 @@
 //! values. Fast marching then accepts pixels in increasing order of `v`.
 //! Every object pixel starts as a trial pixel with its
 //! frontal value `v_f` (the state constraint above; these are read in order
-//! from a [`FrontalQueue`], and a binary heap holds only the propagated
+//! from a `FrontalQueue`, and a binary heap holds only the propagated
 //! values); so the singular points,
 //! whose frontal value no propagated value undercuts, are accepted first
 //! and the front marches outwards from them. When a pixel is accepted, each
