@@ -183,6 +183,8 @@ struct Recorder {
     polls: std::sync::atomic::AtomicUsize,
     cancel_at_poll: Option<usize>,
     events_after_cancel: usize,
+    /// Polls before the first level arrived.
+    polls_before_first_level: Option<usize>,
 }
 
 impl SolveObserver for Recorder {
@@ -197,6 +199,8 @@ impl SolveObserver for Recorder {
         assert!(report.energy.total.is_finite());
     }
     fn on_level(&mut self, result: &LevelResult) {
+        self.polls_before_first_level
+            .get_or_insert(self.polls.load(std::sync::atomic::Ordering::Relaxed));
         let (w, h) = result.depth.size();
         assert_eq!(result.reprojection.size(), (w, h));
         assert!(
@@ -296,16 +300,31 @@ fn cancel_reaches_the_fast_marching_start_and_its_denoising() {
     let noisy = sfs_studio::scene::add_noise(&scene.image, 25.0, 3);
     let mut p = problem(&scene);
     p.image = noisy;
-    for cancel_at in [1, 2, 5] {
+    let mut whole = Recorder::default();
+    solve(&p, &SolverParams::default(), &mut whole).expect("solves");
+    let before_start = whole.polls_before_first_level.expect("levels arrive");
+    // The preparation polls per row (a few hundred polls here); the
+    // denoising and fast marching go on polling well past it.
+    assert!(before_start > 1000, "{before_start} polls before the start");
+    for cancel_at in [
+        1,
+        2,
+        5,
+        before_start / 2,
+        before_start * 3 / 4,
+        before_start - 1,
+    ] {
         let mut recorder = Recorder {
             cancel_at_poll: Some(cancel_at),
             ..Default::default()
         };
         let result = solve(&p, &SolverParams::default(), &mut recorder);
         assert!(matches!(result, Err(SolveError::Cancelled)), "{result:?}");
-        assert_eq!(
-            recorder.polls.load(std::sync::atomic::Ordering::Relaxed),
-            cancel_at
+        // Only the rest of the pass that saw it polls once per row.
+        let polls = recorder.polls.load(std::sync::atomic::Ordering::Relaxed);
+        assert!(
+            polls >= cancel_at && polls <= cancel_at + 96 + 1,
+            "cancelled at poll {cancel_at}, {polls} polls"
         );
         assert!(
             recorder.levels.is_empty(),

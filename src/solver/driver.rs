@@ -208,7 +208,8 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let z_floor = self.z_floor;
             let (max_step, energy) = match params.step_control {
                 StepControl::Crop => {
-                    let step = apply_update(depth, &system, &level.domain, crop, 1.0, z_floor);
+                    let step =
+                        apply_update(depth, &system, &level.domain, crop, 1.0, z_floor, observer);
                     check_cancelled(observer)?;
                     (step, energy_of(depth, observer))
                 }
@@ -219,8 +220,15 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     system.stash_depth(depth);
                     let mut scale = 1.0;
                     loop {
-                        let step =
-                            apply_update(depth, &system, &level.domain, crop, scale, z_floor);
+                        let step = apply_update(
+                            depth,
+                            &system,
+                            &level.domain,
+                            crop,
+                            scale,
+                            z_floor,
+                            observer,
+                        );
                         check_cancelled(observer)?;
                         let after = energy_of(depth, observer);
                         check_cancelled(observer)?;
@@ -318,7 +326,8 @@ fn residual_norm(system: &LinearSystem, observer: &dyn SolveObserver) -> Result<
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the
 /// largest applied step. Rows in parallel (the largest step does not depend
-/// on their order).
+/// on their order), each polling `observer`'s cancellation (the depth is
+/// then half updated: the caller stops).
 fn apply_update(
     depth: &mut Grid<f64>,
     system: &LinearSystem,
@@ -326,6 +335,7 @@ fn apply_update(
     crop: Crop,
     scale: f64,
     z_floor: f64,
+    observer: &dyn SolveObserver,
 ) -> f64 {
     use rayon::prelude::*;
     let w = depth.size().0;
@@ -336,6 +346,9 @@ fn apply_update(
         .with_min_len(rows_per_task(w))
         .map(|(r, row)| {
             let mut max_step: f64 = 0.0;
+            if observer.is_cancelled() {
+                return max_step;
+            }
             for (c, z) in row.iter_mut().enumerate() {
                 if !domain.at(c, r) {
                     continue;

@@ -63,6 +63,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::light::LightModel;
 use crate::model::{self, Lambertian, LevelGeometry};
@@ -264,8 +265,8 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
     v
 }
 
-/// The fast-marching depth of `problem` on `domain` (validated by the
-/// caller, intensity scale `s`): a value at every pixel, the mean reached
+/// The fast-marching depth of `image` seen by `camera` on `domain` (a
+/// problem validated by the caller, intensity scale `s`): a value at every pixel, the mean reached
 /// depth off the domain and where the front did not arrive; and that mean.
 /// Polls `observer`'s cancellation every [`CANCEL_POLL`] heap operations.
 ///
@@ -274,17 +275,18 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
 /// propagated values (the front, not the whole image), so a pop costs a
 /// comparison of the two heads and a heap operation on the front's size.
 pub(crate) fn march(
-    problem: &Problem,
+    image: &Grid<f64>,
+    camera: Intrinsics,
     domain: &Grid<bool>,
     s: f64,
     settings: &FastMarchingParams,
     observer: &dyn SolveObserver,
 ) -> Result<(Grid<f64>, f64), SolveError> {
-    let (w, h) = problem.image.size();
-    let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
-    let f2 = problem.camera.focal_px * problem.camera.focal_px;
+    let (w, h) = image.size();
+    let geometry = LevelGeometry::new(w, h, w, h, camera);
+    let f2 = camera.focal_px * camera.focal_px;
     let inside = domain.as_slice();
-    let image = problem.image.as_slice();
+    let image = image.as_slice();
     let brightest = inside
         .par_iter()
         .zip(image.par_iter())
@@ -625,7 +627,14 @@ pub fn solve_fast_marching(
             ));
         }
     };
-    let (solved, mean) = march(problem, &domain, s, settings, observer)?;
+    let (solved, mean) = march(
+        &problem.image,
+        problem.camera,
+        &domain,
+        s,
+        settings,
+        observer,
+    )?;
     let model = Lambertian { intensity_scale: s };
     let reprojection = model::reproject(&model, &geometry, &domain, &solved);
     let ones = Grid::filled(w, h, 1.0);

@@ -16,6 +16,7 @@ use crate::params::{
 
 use super::problem::{
     LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked,
+    rows_per_task,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -169,7 +170,7 @@ pub(crate) fn prepare<'a>(
 
     let coarsest = &levels[0];
     let (depth, initial_depth) = match (&params.initial_depth, warm) {
-        (_, Some(map)) => fill_warm_start(map),
+        (_, Some(map)) => fill_warm_start(map, &cancelled).ok_or(SolveError::Cancelled)?,
         (InitialDepth::Constant(z0), None) => (
             Grid::filled(coarsest.geometry.width, coarsest.geometry.height, *z0),
             *z0,
@@ -257,39 +258,80 @@ fn fast_marching_start(
     // need filling; with denoising the background is filled too, so that
     // TV does not pull the silhouette towards the (black) background. At
     // 1920x1080 the background's diffusion cost a quarter of a second.
-    let object = problem.object_mask.as_ref();
-    let on_object = |c: usize, r: usize| object.is_none_or(|m| *m.at(c, r));
+    use rayon::prelude::*;
+    use std::borrow::Cow;
     let (w, h) = problem.image.size();
-    let known = Grid::from_fn(w, h, |c, r| {
-        *finest.confidence.at(c, r) >= 0.5 || (!denoise && !on_object(c, r))
-    });
-    let mut image = crate::denoise::fill_unknown_cancellable(&problem.image, &known, cancelled)
-        .ok_or(SolveError::Cancelled)?;
-    if denoise {
-        image =
-            crate::denoise::tv_denoise_cancellable(&image, noise_sigma, TV_ITERATIONS, cancelled)
-                .ok_or(SolveError::Cancelled)?;
+    let object = problem.object_mask.as_ref();
+    let on_object = |q: usize| object.is_none_or(|m| m.as_slice()[q]);
+    let mut known = Grid::filled(w, h, false);
+    let unknown = known
+        .as_mut_slice()
+        .par_iter_mut()
+        .enumerate()
+        .with_min_len(8192)
+        .map(|(q, known)| {
+            *known = finest.confidence.as_slice()[q] >= 0.5 || (!denoise && !on_object(q));
+            usize::from(!*known)
+        })
+        .sum::<usize>();
+    if cancelled() {
+        return Err(SolveError::Cancelled);
     }
-    let start = Problem {
-        image,
-        camera: problem.camera,
-        intensity_scale: problem.intensity_scale,
-        object_mask: problem.object_mask.clone(),
-        confidence: None,
-        lights: Vec::new(),
-    };
+    // Nothing to fill and no denoising: the problem's own image (no copy).
+    let mut image = Cow::Borrowed(&problem.image);
+    if unknown > 0 {
+        image = Cow::Owned(
+            crate::denoise::fill_unknown_cancellable(&problem.image, &known, cancelled)
+                .ok_or(SolveError::Cancelled)?,
+        );
+    }
+    drop(known);
+    if denoise {
+        image = Cow::Owned(
+            crate::denoise::tv_denoise_cancellable(&image, noise_sigma, TV_ITERATIONS, cancelled)
+                .ok_or(SolveError::Cancelled)?,
+        );
+    }
     // The problem is validated already; the start needs only the depth (no
     // reprojection, energy or second validation: seconds at 18 megapixels).
-    let object = Grid::from_fn(w, h, on_object);
+    let everywhere;
+    let object: &Grid<bool> = match object {
+        Some(mask) => mask,
+        None => {
+            everywhere = Grid::filled(w, h, true);
+            &everywhere
+        }
+    };
     let settings = super::fast_marching::FastMarchingParams::default();
-    let (solved, _) = super::fast_marching::march(
-        &start,
-        &object,
+    let (mut solved, _) = super::fast_marching::march(
+        &image,
+        problem.camera,
+        object,
         problem.intensity_scale,
         &settings,
         &ForwardCancel(cancelled),
     )?;
-    Ok(masked(&solved, &object))
+    drop(image);
+    // NaN off the object, in place.
+    solved
+        .as_mut_slice()
+        .par_chunks_mut(w)
+        .zip(object.as_slice().par_chunks(w))
+        .with_min_len(rows_per_task(w))
+        .for_each(|(depth, inside)| {
+            if cancelled() {
+                return;
+            }
+            for (z, &inside) in depth.iter_mut().zip(inside) {
+                if !inside {
+                    *z = f64::NAN;
+                }
+            }
+        });
+    if cancelled() {
+        return Err(SolveError::Cancelled);
+    }
+    Ok(solved)
 }
 
 /// An observer that only forwards cancellation.
@@ -436,26 +478,38 @@ pub fn nearest_object_depth(lights: &[crate::light::PointLight]) -> f64 {
 }
 
 /// Replaces non-finite or non-positive values of a warm start by the mean.
-fn fill_warm_start(map: &Grid<f64>) -> (Grid<f64>, f64) {
+/// Polls `cancelled` per row (`None` once it said true).
+fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, f64)> {
     use rayon::prelude::*;
     let valid = |z: f64| z.is_finite() && z > 0.0;
-    let (sum, count) = map
-        .as_slice()
-        .iter()
-        .filter(|&&z| valid(z))
-        .fold((0.0, 0usize), |(sum, count), &z| (sum + z, count + 1));
+    let w = map.width().max(1);
+    // Summed in order (the mean is the same to the bit as one pass's).
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    for (r, row) in map.as_slice().chunks(w).enumerate() {
+        if r % 64 == 0 && cancelled() {
+            return None;
+        }
+        for &z in row.iter().filter(|&&z| valid(z)) {
+            sum += z;
+            count += 1;
+        }
+    }
     let mean = sum / count.max(1) as f64;
     let mut filled = map.clone();
     filled
         .as_mut_slice()
-        .par_iter_mut()
-        .with_min_len(8192)
-        .for_each(|z| {
-            if !valid(*z) {
-                *z = mean;
+        .par_chunks_mut(w)
+        .with_min_len(rows_per_task(w))
+        .for_each(|row| {
+            if cancelled() {
+                return;
             }
+            row.iter_mut()
+                .filter(|z| !valid(**z))
+                .for_each(|z| *z = mean);
         });
-    (filled, mean)
+    (!cancelled()).then_some((filled, mean))
 }
 
 /// A level's depth (NaN off its domain) and reprojection, as observers get them.

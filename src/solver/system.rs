@@ -272,7 +272,10 @@ impl LinearSystem {
 
     /// Sets every unknown to 0.
     pub fn clear_dz(&mut self) {
-        self.dz_padded.iter_mut().for_each(|v| *v = 0.0);
+        self.dz_padded
+            .par_iter_mut()
+            .with_min_len(8192)
+            .for_each(|v| *v = 0.0);
     }
 
     /// Copies the unknowns into a `width x height` grid.
