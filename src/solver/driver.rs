@@ -79,7 +79,7 @@ fn solve_on_worker<M: Reflectance>(
         &mut scheme,
     )?;
     let phases = scheme.phases;
-    let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
+    let (depth, reprojection) = on_object(problem, walk.depth, walk.reprojection);
     let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
     Solution {
         depth,

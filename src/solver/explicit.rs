@@ -402,7 +402,7 @@ fn run<M: Reflectance>(
         observer,
         &mut scheme,
     )?;
-    let (depth, reprojection) = on_object(problem, &walk.depth, &walk.reprojection);
+    let (depth, reprojection) = on_object(problem, walk.depth, walk.reprojection);
     Solution {
         depth,
         reprojection,

@@ -536,7 +536,10 @@ pub(crate) fn level_result<M: Reflectance>(
             cancelled,
         )),
         geometry: level.geometry,
-        domain_pixels: level.domain.as_slice().iter().filter(|&&d| d).count(),
+        domain_pixels: {
+            use rayon::prelude::*;
+            level.domain.as_slice().par_iter().filter(|&&d| d).count()
+        },
         energy,
         elapsed: start.elapsed(),
     }

@@ -203,14 +203,21 @@ impl Solution {
     /// that is not NaN (NaN: off the object) is positive and at most
     /// [`MAX_SOLVED_DEPTH`], and its reprojection is finite.
     pub(crate) fn checked(self) -> Result<Self, SolveError> {
+        use rayon::prelude::*;
         let z_max = MAX_SOLVED_DEPTH;
-        // No copy: the depth can be a photograph's size.
-        let values = || self.depth.as_slice().iter().filter(|z| !z.is_nan());
+        // No copy, in parallel: the depth can be a photograph's size.
+        let values = || {
+            self.depth
+                .as_slice()
+                .par_iter()
+                .with_min_len(8192)
+                .filter(|z| !z.is_nan())
+        };
         let outside = |z: &&f64| !(**z > 0.0 && **z <= z_max);
-        if values().next().is_none() {
+        if values().find_any(|_| true).is_none() {
             return Err(SolveError::Diverged("no pixel has a depth".into()));
         }
-        if let Some(example) = values().find(outside) {
+        if let Some(example) = values().find_first(outside) {
             return Err(SolveError::Diverged(format!(
                 "{} of {} depths are not in (0, {z_max:e}] (e.g. {example:e}); \
                  check the intensity scale and the parameters",
@@ -218,7 +225,13 @@ impl Solution {
                 values().count()
             )));
         }
-        if self.reprojection.as_slice().iter().any(|v| !v.is_finite()) {
+        if self
+            .reprojection
+            .as_slice()
+            .par_iter()
+            .with_min_len(8192)
+            .any(|v| !v.is_finite())
+        {
             return Err(SolveError::Diverged(
                 "the reprojection is not finite".into(),
             ));
@@ -448,22 +461,26 @@ pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveE
 /// problem's object mask, as a [`Solution`] holds them.
 pub(crate) fn on_object(
     problem: &Problem,
-    depth: &Grid<f64>,
-    reprojection: &Grid<f64>,
+    mut depth: Grid<f64>,
+    mut reprojection: Grid<f64>,
 ) -> (Grid<f64>, Grid<f64>) {
-    let (w, h) = problem.image.size();
-    let object = problem
-        .object_mask
-        .clone()
-        .unwrap_or_else(|| Grid::filled(w, h, true));
-    let reprojection = Grid::from_fn(w, h, |c, r| {
-        if *object.at(c, r) {
-            *reprojection.at(c, r)
-        } else {
-            0.0
-        }
-    });
-    (masked(depth, &object), reprojection)
+    use rayon::prelude::*;
+    // In place, by pixels in parallel: no copies at a photograph's size.
+    if let Some(object) = &problem.object_mask {
+        depth
+            .as_mut_slice()
+            .par_iter_mut()
+            .zip(reprojection.as_mut_slice().par_iter_mut())
+            .zip(object.as_slice().par_iter())
+            .with_min_len(8192)
+            .for_each(|((z, value), &inside)| {
+                if !inside {
+                    *z = f64::NAN;
+                    *value = 0.0;
+                }
+            });
+    }
+    (depth, reprojection)
 }
 
 /// The depth with NaN outside `domain`.
