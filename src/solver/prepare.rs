@@ -15,7 +15,7 @@ use crate::params::{
 };
 
 use super::problem::{
-    LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked,
+    LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked_polled,
     rows_per_task,
 };
 use super::pyramid::{self, PyramidLevel};
@@ -496,18 +496,19 @@ fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, 
         }
     }
     let mean = sum / count.max(1) as f64;
-    let mut filled = map.clone();
+    let mut filled = Grid::filled(map.width(), map.height(), 0.0);
     filled
         .as_mut_slice()
         .par_chunks_mut(w)
+        .zip(map.as_slice().par_chunks(w))
         .with_min_len(rows_per_task(w))
-        .for_each(|row| {
+        .for_each(|(out, row)| {
             if cancelled() {
                 return;
             }
-            row.iter_mut()
-                .filter(|z| !valid(**z))
-                .for_each(|z| *z = mean);
+            for (out, &z) in out.iter_mut().zip(row) {
+                *out = if valid(z) { z } else { mean };
+            }
         });
     (!cancelled()).then_some((filled, mean))
 }
@@ -527,7 +528,7 @@ pub(crate) fn level_result<M: Reflectance>(
     LevelResult {
         level: index,
         levels,
-        depth: std::sync::Arc::new(masked(depth, &level.domain)),
+        depth: std::sync::Arc::new(masked_polled(depth, &level.domain, cancelled)),
         reprojection: std::sync::Arc::new(model::reproject_polled(
             model,
             &level.geometry,

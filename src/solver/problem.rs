@@ -485,15 +485,31 @@ pub(crate) fn on_object(
 
 /// The depth with NaN outside `domain`.
 pub(crate) fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
+    masked_polled(depth, domain, NEVER)
+}
+
+/// [`masked`], rows in parallel (the copy's pages are first touched there
+/// too), polling `cancelled` per row (the rest is left 0 once it said true:
+/// the caller stops).
+pub(crate) fn masked_polled(
+    depth: &Grid<f64>,
+    domain: &Grid<bool>,
+    cancelled: Probe<'_>,
+) -> Grid<f64> {
     use rayon::prelude::*;
-    let mut out = depth.clone();
+    let (w, h) = depth.size();
+    let mut out = Grid::filled(w, h, 0.0);
     out.as_mut_slice()
-        .par_iter_mut()
-        .zip(domain.as_slice().par_iter())
-        .with_min_len(8192)
-        .for_each(|(z, &inside)| {
-            if !inside {
-                *z = f64::NAN;
+        .par_chunks_mut(w.max(1))
+        .zip(depth.as_slice().par_chunks(w.max(1)))
+        .zip(domain.as_slice().par_chunks(w.max(1)))
+        .with_min_len(rows_per_task(w))
+        .for_each(|((out, depth), domain)| {
+            if cancelled() {
+                return;
+            }
+            for ((out, &z), &inside) in out.iter_mut().zip(depth).zip(domain) {
+                *out = if inside { z } else { f64::NAN };
             }
         });
     out

@@ -170,6 +170,12 @@ pub struct LinearSystem {
 impl LinearSystem {
     /// Allocates the system for a level.
     pub fn new(level: &PyramidLevel) -> Self {
+        Self::new_polled(level, NEVER)
+    }
+
+    /// [`Self::new`], its masks built by rows in parallel, polling
+    /// `cancelled` per row (the masks are then incomplete: the caller stops).
+    pub fn new_polled(level: &PyramidLevel, cancelled: Probe<'_>) -> Self {
         let (w, h) = level.domain.size();
         let n = w * h;
         let domain = &level.domain;
@@ -186,6 +192,9 @@ impl LinearSystem {
         let mut masks = vec![0u8; padded * MASK_PLANES];
         image_row_blocks(&mut masks, MASK_PLANES * pw, h, rows_per_task(w)).for_each(
             |(r, block)| {
+                if cancelled() {
+                    return;
+                }
                 for c in 0..w {
                     let at = |dc, dr| inside(c, r, dc, dr);
                     if !at(0, 0) {
