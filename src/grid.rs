@@ -1,7 +1,36 @@
 //! A dense 2-D grid of values in row-major order, the image/depth/mask container
 //! shared by every layer.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+
+/// Rows per parallel task of a pass over a `width`-pixel-wide image (about
+/// 8192 pixels), so that small images run as one task.
+pub fn rows_per_task(width: usize) -> usize {
+    (8192 / width.max(1)).max(1)
+}
+
+/// Runs `row(r, values_of_row_r)` over the rows of the row-major buffer
+/// `values` (`width` wide), rows in parallel, calling `cancelled` before
+/// each row and skipping the rest once it says true. Returns false when it
+/// did (the buffer is then incomplete).
+pub fn for_rows_polled<T: Send>(
+    values: &mut [T],
+    width: usize,
+    cancelled: &(dyn Fn() -> bool + Sync),
+    row: impl Fn(usize, &mut [T]) + Sync,
+) -> bool {
+    values
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .with_min_len(rows_per_task(width))
+        .for_each(|(r, values)| {
+            if !cancelled() {
+                row(r, values);
+            }
+        });
+    !cancelled()
+}
 
 /// A dense row-major 2-D array: `data[row * width + column]`.
 ///

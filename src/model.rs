@@ -574,27 +574,19 @@ pub fn reproject_polled<M: Reflectance + ?Sized>(
     depth: &Grid<f64>,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Grid<f64> {
-    use rayon::prelude::*;
     let (w, h) = (geometry.width, geometry.height);
     let mut out = Grid::filled(w, h, 0.0);
-    out.as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .with_min_len((8192 / w.max(1)).max(1))
-        .for_each(|(r, row)| {
-            if cancelled() {
-                return;
+    crate::grid::for_rows_polled(out.as_mut_slice(), w, cancelled, |r, row| {
+        for (c, out) in row.iter_mut().enumerate() {
+            if !domain.at(c, r) {
+                continue;
             }
-            for (c, out) in row.iter_mut().enumerate() {
-                if !domain.at(c, r) {
-                    continue;
-                }
-                let nb = neighbourhood(depth, domain, c, r);
-                let (_, gx, gy) = nb.upwind(geometry.spacing);
-                let value = model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
-                *out = if value.is_finite() { value } else { 0.0 };
-            }
-        });
+            let nb = neighbourhood(depth, domain, c, r);
+            let (_, gx, gy) = nb.upwind(geometry.spacing);
+            let value = model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
+            *out = if value.is_finite() { value } else { 0.0 };
+        }
+    });
     out
 }
 

@@ -35,7 +35,7 @@ pub fn resize_area_polled(
     height: usize,
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Option<Grid<f64>> {
-    use rayon::prelude::*;
+    use crate::grid::for_rows_polled;
     let (w, h) = grid.size();
     if (w, h) == (width, height) {
         return Some(grid.clone());
@@ -44,35 +44,21 @@ pub fn resize_area_polled(
     let rows = weights(h, height);
     // Horizontal pass (w -> width) per input row, then vertical.
     let mut across = Grid::filled(width, h, 0.0);
-    across
-        .as_mut_slice()
-        .par_chunks_mut(width.max(1))
-        .enumerate()
-        .with_min_len((8192 / w.max(1)).max(1))
-        .for_each(|(r, out)| {
-            if cancelled() {
-                return;
-            }
-            for (c, taps) in columns.iter().enumerate() {
-                out[c] = taps.iter().map(|&(i, wt)| wt * grid.at(i, r)).sum();
-            }
-        });
-    if cancelled() {
+    let done = for_rows_polled(across.as_mut_slice(), width, cancelled, |r, out| {
+        for (c, taps) in columns.iter().enumerate() {
+            out[c] = taps.iter().map(|&(i, wt)| wt * grid.at(i, r)).sum();
+        }
+    });
+    if !done {
         return None;
     }
     let mut out = Grid::filled(width, height, 0.0);
-    out.as_mut_slice()
-        .par_chunks_mut(width.max(1))
-        .enumerate()
-        .for_each(|(r, out)| {
-            if cancelled() {
-                return;
-            }
-            for (c, value) in out.iter_mut().enumerate() {
-                *value = rows[r].iter().map(|&(i, wt)| wt * across.at(c, i)).sum();
-            }
-        });
-    (!cancelled()).then_some(out)
+    let done = for_rows_polled(out.as_mut_slice(), width, cancelled, |r, out| {
+        for (c, value) in out.iter_mut().enumerate() {
+            *value = rows[r].iter().map(|&(i, wt)| wt * across.at(c, i)).sum();
+        }
+    });
+    done.then_some(out)
 }
 
 /// Per output index, the input indices it covers and their weights (sum 1).

@@ -71,7 +71,7 @@ use crate::params::{DomainMode, SolverParams};
 
 use super::problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver, check_cancelled, masked, rows_per_task,
+    SolveObserver, check_cancelled, masked,
 };
 
 /// Settings of the fast marching baseline.
@@ -459,17 +459,12 @@ fn fill_rows<T: Send>(
     observer: &dyn SolveObserver,
     value: impl Fn(usize) -> T + Sync,
 ) -> Result<(), SolveError> {
-    out.par_chunks_mut(w.max(1))
-        .enumerate()
-        .with_min_len(rows_per_task(w))
-        .for_each(|(r, row)| {
-            if observer.is_cancelled() {
-                return;
-            }
-            for (c, v) in row.iter_mut().enumerate() {
-                *v = value(r * w + c);
-            }
-        });
+    let cancelled = || observer.is_cancelled();
+    crate::grid::for_rows_polled(out, w, &cancelled, |r, row| {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = value(r * w + c);
+        }
+    });
     check_cancelled(observer)
 }
 

@@ -16,7 +16,6 @@ use crate::params::{
 
 use super::problem::{
     LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked_polled,
-    rows_per_task,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -313,22 +312,14 @@ fn fast_marching_start(
     )?;
     drop(image);
     // NaN off the object, in place.
-    solved
-        .as_mut_slice()
-        .par_chunks_mut(w)
-        .zip(object.as_slice().par_chunks(w))
-        .with_min_len(rows_per_task(w))
-        .for_each(|(depth, inside)| {
-            if cancelled() {
-                return;
+    let done = crate::grid::for_rows_polled(solved.as_mut_slice(), w, cancelled, |r, depth| {
+        for (c, z) in depth.iter_mut().enumerate() {
+            if !object.at(c, r) {
+                *z = f64::NAN;
             }
-            for (z, &inside) in depth.iter_mut().zip(inside) {
-                if !inside {
-                    *z = f64::NAN;
-                }
-            }
-        });
-    if cancelled() {
+        }
+    });
+    if !done {
         return Err(SolveError::Cancelled);
     }
     Ok(solved)
@@ -480,7 +471,6 @@ pub fn nearest_object_depth(lights: &[crate::light::PointLight]) -> f64 {
 /// Replaces non-finite or non-positive values of a warm start by the mean.
 /// Polls `cancelled` per row (`None` once it said true).
 fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, f64)> {
-    use rayon::prelude::*;
     let valid = |z: f64| z.is_finite() && z > 0.0;
     let w = map.width().max(1);
     // Summed in order (the mean is the same to the bit as one pass's).
@@ -497,20 +487,13 @@ fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, 
     }
     let mean = sum / count.max(1) as f64;
     let mut filled = Grid::filled(map.width(), map.height(), 0.0);
-    filled
-        .as_mut_slice()
-        .par_chunks_mut(w)
-        .zip(map.as_slice().par_chunks(w))
-        .with_min_len(rows_per_task(w))
-        .for_each(|(out, row)| {
-            if cancelled() {
-                return;
-            }
-            for (out, &z) in out.iter_mut().zip(row) {
-                *out = if valid(z) { z } else { mean };
-            }
-        });
-    (!cancelled()).then_some((filled, mean))
+    let done = crate::grid::for_rows_polled(filled.as_mut_slice(), w, cancelled, |r, out| {
+        for (c, out) in out.iter_mut().enumerate() {
+            let z = *map.at(c, r);
+            *out = if valid(z) { z } else { mean };
+        }
+    });
+    done.then_some((filled, mean))
 }
 
 /// A level's depth (NaN off its domain) and reprojection, as observers get them.

@@ -435,11 +435,7 @@ impl Problem {
 /// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
 /// the long single passes over an image (each about a second at 18
 /// megapixels).
-/// Rows per rayon task of a pass over a `width`-pixel-wide level, so that
-/// small levels run as one task.
-pub(crate) fn rows_per_task(width: usize) -> usize {
-    (8192 / width.max(1)).max(1)
-}
+pub(crate) use crate::grid::rows_per_task;
 
 /// A cancellation probe that long parallel passes call per block of rows
 /// (`true`: stop; the pass's result is then garbage and its caller returns
@@ -496,21 +492,16 @@ pub(crate) fn masked_polled(
     domain: &Grid<bool>,
     cancelled: Probe<'_>,
 ) -> Grid<f64> {
-    use rayon::prelude::*;
     let (w, h) = depth.size();
     let mut out = Grid::filled(w, h, 0.0);
-    out.as_mut_slice()
-        .par_chunks_mut(w.max(1))
-        .zip(depth.as_slice().par_chunks(w.max(1)))
-        .zip(domain.as_slice().par_chunks(w.max(1)))
-        .with_min_len(rows_per_task(w))
-        .for_each(|((out, depth), domain)| {
-            if cancelled() {
-                return;
-            }
-            for ((out, &z), &inside) in out.iter_mut().zip(depth).zip(domain) {
-                *out = if inside { z } else { f64::NAN };
-            }
-        });
+    crate::grid::for_rows_polled(out.as_mut_slice(), w, cancelled, |r, out| {
+        for (c, out) in out.iter_mut().enumerate() {
+            *out = if *domain.at(c, r) {
+                *depth.at(c, r)
+            } else {
+                f64::NAN
+            };
+        }
+    });
     out
 }
