@@ -199,7 +199,7 @@ fn main() {
     let level = PyramidLevel {
         geometry: sfs_studio::model::LevelGeometry::new(n, n, n, n, case.scene.camera),
         image: std::borrow::Cow::Borrowed(&case.scene.image),
-        confidence: Grid::filled(n, n, 1.0),
+        confidence: sfs_studio::grid::Confidence::from_grid(Grid::filled(n, n, 1.0)),
         domain: Grid::filled(n, n, true),
     };
     let mut system = LinearSystem::new(&level);

@@ -174,9 +174,107 @@ impl<T> Grid<T> {
     }
 }
 
+/// Per-pixel weights in [0, 1] read by index (`row * width + column`): a
+/// confidence map, as a plain `Grid<f64>` or as a compact [`Confidence`].
+pub trait Weights: Sync {
+    /// The weight of pixel `index`.
+    fn weight(&self, index: usize) -> f64;
+}
+
+impl Weights for Grid<f64> {
+    #[inline]
+    fn weight(&self, index: usize) -> f64 {
+        self.data[index]
+    }
+}
+
+/// A confidence map in [0, 1] as the solver holds it: one byte per pixel
+/// where every value is 0 or 1 (no partial weights painted: the common case,
+/// 7 bytes per pixel less than `f64` at the solve's peak), the weights
+/// themselves otherwise. Reads give the same `f64` values either way.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Confidence {
+    /// Every value is 0 (`false`) or 1 (`true`).
+    Binary(Grid<bool>),
+    /// Any values in [0, 1].
+    Weights(Grid<f64>),
+}
+
+impl Confidence {
+    /// `grid`, stored as [`Confidence::Binary`] when every value is exactly 0
+    /// or 1.
+    pub fn from_grid(grid: Grid<f64>) -> Self {
+        if grid.data.par_iter().all(|&v| v == 0.0 || v == 1.0) {
+            Confidence::Binary(grid.map(|&v| v == 1.0))
+        } else {
+            Confidence::Weights(grid)
+        }
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        match self {
+            Confidence::Binary(grid) => grid.size(),
+            Confidence::Weights(grid) => grid.size(),
+        }
+    }
+
+    /// The value at `(column, row)`.
+    #[inline]
+    pub fn at(&self, column: usize, row: usize) -> f64 {
+        match self {
+            Confidence::Binary(grid) => f64::from(u8::from(*grid.at(column, row))),
+            Confidence::Weights(grid) => *grid.at(column, row),
+        }
+    }
+
+    /// The values as a `Grid<f64>` (a copy).
+    pub fn to_grid(&self) -> Grid<f64> {
+        match self {
+            Confidence::Binary(grid) => grid.map(|&v| if v { 1.0 } else { 0.0 }),
+            Confidence::Weights(grid) => grid.clone(),
+        }
+    }
+}
+
+impl Weights for Confidence {
+    #[inline]
+    fn weight(&self, index: usize) -> f64 {
+        match self {
+            Confidence::Binary(grid) => {
+                if grid.data[index] {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Confidence::Weights(grid) => grid.data[index],
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_confidence_reads_the_values_it_was_given_in_either_storage() {
+        let binary = Grid::from_fn(5, 3, |c, r| if (c + r) % 2 == 0 { 1.0 } else { 0.0 });
+        let partial = Grid::from_fn(5, 3, |c, r| if c == 4 { 0.25 } else { (r % 2) as f64 });
+        for (grid, compact) in [(binary, true), (partial, false)] {
+            let confidence = Confidence::from_grid(grid.clone());
+            assert_eq!(matches!(confidence, Confidence::Binary(_)), compact);
+            assert_eq!(confidence.size(), (5, 3));
+            assert_eq!(confidence.to_grid(), grid);
+            for r in 0..3 {
+                for c in 0..5 {
+                    let q = grid.index(c, r);
+                    assert_eq!(confidence.at(c, r).to_bits(), grid.at(c, r).to_bits());
+                    assert_eq!(confidence.weight(q).to_bits(), grid.weight(q).to_bits());
+                }
+            }
+        }
+    }
 
     #[test]
     fn indexing_is_row_major() {

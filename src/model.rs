@@ -5,7 +5,7 @@
 //! Everything here is a pure function of its arguments; the solver builds on it.
 
 use crate::camera::Intrinsics;
-use crate::grid::Grid;
+use crate::grid::{Grid, Weights};
 
 /// Where a pixel sits on the image plane at some pyramid level.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -486,11 +486,11 @@ pub struct Energy {
 /// Evaluates the energy (paper Eqs. 6-8) of `depth` on one level (rows
 /// summed in parallel).
 #[allow(clippy::too_many_arguments)]
-pub fn energy<M: Reflectance + ?Sized>(
+pub fn energy<M: Reflectance + ?Sized, C: Weights + ?Sized>(
     model: &M,
     geometry: &LevelGeometry,
     image: &Grid<f64>,
-    confidence: &Grid<f64>,
+    confidence: &C,
     domain: &Grid<bool>,
     depth: &Grid<f64>,
     alpha: f64,
@@ -512,11 +512,11 @@ pub fn energy<M: Reflectance + ?Sized>(
 /// [`energy`], calling `cancelled` before each row and skipping the rest
 /// once it says true (the sum is then meaningless: the caller stops).
 #[allow(clippy::too_many_arguments)]
-pub fn energy_polled<M: Reflectance + ?Sized>(
+pub fn energy_polled<M: Reflectance + ?Sized, C: Weights + ?Sized>(
     model: &M,
     geometry: &LevelGeometry,
     image: &Grid<f64>,
-    confidence: &Grid<f64>,
+    confidence: &C,
     domain: &Grid<bool>,
     depth: &Grid<f64>,
     alpha: f64,
@@ -538,7 +538,7 @@ pub fn energy_polled<M: Reflectance + ?Sized>(
                 let nb = neighbourhood(depth, domain, c, r);
                 let (_, gx, gy) = nb.upwind(geometry.spacing);
                 let d = image.at(c, r) - model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
-                data += confidence.at(c, r) * d * d;
+                data += confidence.weight(r * geometry.width + c) * d * d;
                 smooth += charbonnier(
                     smoothness_squared(depth, domain, c, r, geometry.spacing),
                     lambda,

@@ -35,7 +35,7 @@ pub fn relative_noise_polled(
     cancelled: &(dyn Fn() -> bool + Sync),
 ) -> Option<f64> {
     let trusted = Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
-        *finest.domain.at(c, r) && *finest.confidence.at(c, r) > 0.0
+        *finest.domain.at(c, r) && finest.confidence.at(c, r) > 0.0
     });
     crate::denoise::robust_noise_sigma_polled(&finest.image, &trusted, cancelled)
         .map(|sigma| sigma / scales.intensity)

@@ -25,6 +25,10 @@ pub(crate) struct LevelStep<'a> {
     pub finest: bool,
     /// When the solve started.
     pub start: Instant,
+    /// The energy of the depth the level starts from, where the loop knows
+    /// it (the first level: computed for the walk's report), so that a
+    /// scheme need not evaluate it again.
+    pub start_energy: Option<Energy>,
 }
 
 /// What a scheme reports at the end of a level.
@@ -128,6 +132,7 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             levels: count,
             finest: index + 1 == levels.len(),
             start,
+            start_energy: (index == 0).then_some(initial_energy),
         };
         let end = scheme.solve_level(&step, &mut depth, observer)?;
         walk.final_energy = end.energy;

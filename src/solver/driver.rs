@@ -18,7 +18,7 @@ use super::multigrid::Multigrid;
 use super::prepare::{Crop, Prepared, level_energy_polled, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
-    on_object, rows_per_task,
+    free_on_pool, on_object, rows_per_task,
 };
 use super::sor;
 use super::system::LinearSystem;
@@ -139,7 +139,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         check_cancelled(observer)?;
         let mut energies = Vec::with_capacity(params.kappa_max);
         // Energy of the current depth on this level, once known.
-        let mut current: Option<Energy> = None;
+        let mut current: Option<Energy> = step.start_energy;
         for iteration in 0..params.kappa_max {
             if iteration >= params.kappa
                 && let [.., before, after] = energies[..]
@@ -169,29 +169,37 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             // `linear_tolerance` (inexact Newton), the stopping test below
             // compares the first solve's residual with it.
             let mut start_residual = 0.0;
-            let mut first_solve_converged = true;
+            // Whether the later inner iterations would only polish the step
+            // (decided after the first solve).
+            let mut only_polish = false;
+            let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
             for inner in 0..params.inner_iterations {
                 let t1 = Instant::now();
                 let change =
-                    system.add_smoothness_polled(level, alpha, lambda, &|| observer.is_cancelled());
+                    system.update_weights_polled(level, lambda, &|| observer.is_cancelled());
                 check_cancelled(observer)?;
                 self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
-                let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
-                if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
-                    start_residual = residual_norm(&system, observer)?;
-                }
-                // Refining a full-resolution start, the weights have settled
-                // and the sweeps reach only locally: the later inner
-                // iterations would polish the step where the crop cuts it
-                // anyway. Where one solve's sweeps converge the system (small
-                // images), they go on: there they change the answer.
-                if inner > 0
-                    && adaptive
-                    && change < params.inner_tolerance
-                    && !first_solve_converged
-                {
+                // Refining a full-resolution start, once the weights have
+                // settled the later inner iterations only polish the step:
+                // where the step is small against the crop (the start is
+                // nearly the minimum), and where the sweeps reach only
+                // locally (large images). Where one solve's sweeps converge
+                // the system and the step is large (small images, far from
+                // the minimum), they go on: their sweeps lengthen the step
+                // and change the answer. The rows of a system not solved
+                // again are not assembled.
+                if inner > 0 && adaptive && change < params.inner_tolerance && only_polish {
                     break;
                 }
+                let t2 = Instant::now();
+                system.assemble_polled(level, alpha, &|| observer.is_cancelled());
+                check_cancelled(observer)?;
+                if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
+                    // At dz = 0 the residual is the right-hand side.
+                    start_residual = system.rhs_norm_squared(&|| observer.is_cancelled()).sqrt();
+                    check_cancelled(observer)?;
+                }
+                self.phases.assemble_seconds += t2.elapsed().as_secs_f64();
                 self.phases.inner_iterations += 1;
                 self.linear_solve(
                     &mut system,
@@ -200,8 +208,13 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     observer,
                 )?;
                 if inner == 0 && adaptive {
-                    first_solve_converged =
-                        residual_norm(&system, observer)? <= LOCAL_REACH * start_residual;
+                    // The step's length first (a light pass); the residual
+                    // (a pass over the whole system) only where that does
+                    // not decide.
+                    only_polish =
+                        step_share_of_crop(depth, &system, &level.domain, crop, observer)?
+                            < SMALL_STEP
+                            || residual_norm(&system, observer)? > LOCAL_REACH * start_residual;
                 }
             }
             let t3 = Instant::now();
@@ -256,9 +269,10 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             });
         }
         let energy = current.unwrap_or_else(|| energy_of(depth, observer));
-        // Freeing the system's pages takes tens of milliseconds at 18 MP:
-        // on the pool, not on the way to the next poll.
-        rayon::spawn(move || drop(system));
+        // Freeing the system's pages takes tens of milliseconds at 18 MP: on
+        // the pool, polling meanwhile, and done before the level's results
+        // are allocated (a peak that does not depend on thread timing).
+        free_on_pool(system, observer)?;
         Ok(LevelEnd {
             energies,
             energy,
@@ -317,6 +331,49 @@ impl<M> GaussNewton<'_, M> {
 /// The first solve of an outer iteration that leaves more than this share
 /// of the residual has sweeps that reach only locally (see `solve_level`).
 const LOCAL_REACH: f64 = 0.1;
+
+/// A first step whose mean length is below this share of the crop's mean
+/// limit is small: the start is nearly the level's minimum (see
+/// `solve_level`).
+const SMALL_STEP: f64 = 0.25;
+
+/// The mean length of the system's step `dz` over `domain` as a share of the
+/// mean limit `crop` puts on it at `depth` (`Err` once cancelled).
+fn step_share_of_crop(
+    depth: &Grid<f64>,
+    system: &LinearSystem,
+    domain: &Grid<bool>,
+    crop: Crop,
+    observer: &dyn SolveObserver,
+) -> Result<f64, SolveError> {
+    use rayon::prelude::*;
+    let w = depth.size().0;
+    let (step, limit) = depth
+        .as_slice()
+        .par_chunks(w)
+        .enumerate()
+        .with_min_len(rows_per_task(w))
+        .map(|(r, row)| {
+            let mut sums = (0.0, 0.0);
+            if observer.is_cancelled() {
+                return sums;
+            }
+            for (c, &z) in row.iter().enumerate() {
+                if *domain.at(c, r) {
+                    let dz = f64::from(system.dz_padded[system.padded_index(c, r)]);
+                    sums.0 += if dz.is_finite() { dz.abs() } else { 0.0 };
+                    sums.1 += crop.limit(z);
+                }
+            }
+            sums
+        })
+        // Summed in row order: the same decision on every run.
+        .collect::<Vec<(f64, f64)>>()
+        .into_iter()
+        .fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    check_cancelled(observer)?;
+    Ok(if limit > 0.0 { step / limit } else { 0.0 })
+}
 
 /// The norm of the system's residual at its current unknowns (`Err` once
 /// cancelled).

@@ -48,7 +48,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::grid::Grid;
+use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
 
@@ -169,7 +169,7 @@ fn linearise_data<M: Reflectance>(
         .enumerate()
         .for_each(|(r, (((((wr, a0), a1), a2), a3), a4))| {
             for c in 0..w {
-                let conf = *level.confidence.at(c, r);
+                let conf = level.confidence.at(c, r);
                 let mut jac = [0.0; 5];
                 let mut d = 0.0;
                 if *level.domain.at(c, r) && conf > 0.0 {
@@ -231,10 +231,9 @@ fn data_gradient(w: usize, h: usize, ws: &mut Workspace) {
 
 /// `max(row sums) * max(column sums)` of `|sqrt(c) J|`: a bound on
 /// `||J^T C J||`.
-fn data_lipschitz(w: usize, h: usize, confidence: &Grid<f64>, ws: &Workspace) -> f64 {
+fn data_lipschitz(w: usize, h: usize, confidence: &Confidence, ws: &Workspace) -> f64 {
     let jac = &ws.jacobian;
-    let conf = confidence.as_slice();
-    let a = |s: usize, p: usize| conf[p].sqrt() * jac[s][p].abs();
+    let a = |s: usize, p: usize| confidence.weight(p).sqrt() * jac[s][p].abs();
     let rows = (0..w * h)
         .into_par_iter()
         .map(|p| (0..5).map(|s| a(s, p)).sum::<f64>())
@@ -570,12 +569,15 @@ mod tests {
     #[test]
     fn gradient_matches_finite_differences_of_the_energy() {
         let scene = sombrero(24, 24);
-        let level = PyramidLevel {
-            geometry: LevelGeometry::new(24, 24, 24, 24, scene.camera),
-            image: std::borrow::Cow::Borrowed(&scene.image),
-            confidence: Grid::from_fn(24, 24, |c, _| if c < 5 { 0.0 } else { 1.0 }),
-            domain: Grid::filled(24, 24, true),
-        };
+        let level =
+            PyramidLevel {
+                geometry: LevelGeometry::new(24, 24, 24, 24, scene.camera),
+                image: std::borrow::Cow::Borrowed(&scene.image),
+                confidence: Confidence::from_grid(Grid::from_fn(24, 24, |c, _| {
+                    if c < 5 { 0.0 } else { 1.0 }
+                })),
+                domain: Grid::filled(24, 24, true),
+            };
         // A depth with distinct neighbours (no upwind ties to flip).
         let depth = Grid::from_fn(24, 24, |c, r| {
             1.8 + 0.013 * c as f64 + 0.007 * r as f64 + 0.02 * ((c * 7 + r * 3) as f64).sin()

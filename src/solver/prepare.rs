@@ -8,7 +8,7 @@
 
 use std::time::Instant;
 
-use crate::grid::Grid;
+use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Energy, LevelGeometry, Reflectance};
 use crate::params::{
     Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
@@ -97,7 +97,8 @@ pub(crate) fn prepare<'a>(
     let finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
         image: std::borrow::Cow::Borrowed(&problem.image),
-        confidence,
+        // One byte per pixel where no partial confidence is painted.
+        confidence: Confidence::from_grid(confidence),
         domain,
     };
     let relative_noise =
@@ -269,7 +270,7 @@ fn fast_marching_start(
         .enumerate()
         .with_min_len(8192)
         .map(|(q, known)| {
-            *known = finest.confidence.as_slice()[q] >= 0.5 || (!denoise && !on_object(q));
+            *known = finest.confidence.weight(q) >= 0.5 || (!denoise && !on_object(q));
             usize::from(!*known)
         })
         .sum::<usize>();
@@ -392,7 +393,7 @@ pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> O
     for r in 0..h {
         for c in 0..w {
             let v = *level.image.at(c, r);
-            if *level.domain.at(c, r) && *level.confidence.at(c, r) > 0.0 && v > best.0 {
+            if *level.domain.at(c, r) && level.confidence.at(c, r) > 0.0 && v > best.0 {
                 best = (v, level.geometry.ray(c, r).q());
             }
         }
@@ -413,7 +414,7 @@ pub fn initial_depth_plane_fit<M: Reflectance>(
     let (w, h) = level.image.size();
     let pixels: Vec<(model::PixelRay, f64)> = (0..h)
         .flat_map(|r| (0..w).map(move |c| (c, r)))
-        .filter(|&(c, r)| *level.domain.at(c, r) && *level.confidence.at(c, r) > 0.0)
+        .filter(|&(c, r)| *level.domain.at(c, r) && level.confidence.at(c, r) > 0.0)
         .map(|(c, r)| (level.geometry.ray(c, r), *level.image.at(c, r)))
         .collect();
     let floor = nearest.max(0.0);

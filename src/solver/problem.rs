@@ -453,6 +453,36 @@ pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveE
     }
 }
 
+/// Frees `value` on rayon's pool (tens of milliseconds for a level's linear
+/// system at 18 megapixels) and waits until it is gone, polling `observer`'s
+/// cancellation meanwhile (`Err` once cancelled; the value is then freed
+/// later). The memory is back before the caller allocates more, so the
+/// solve's peak does not depend on how soon another thread gets to it. On a
+/// pool of one thread the wait runs the job itself.
+pub(crate) fn free_on_pool<T: Send + 'static>(
+    value: T,
+    observer: &dyn SolveObserver,
+) -> Result<(), SolveError> {
+    use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
+    let (done, freed) = std::sync::mpsc::channel::<()>();
+    rayon::spawn(move || {
+        drop(value);
+        drop(done);
+    });
+    loop {
+        if freed.try_recv() != Err(TryRecvError::Empty) {
+            return Ok(());
+        }
+        check_cancelled(observer)?;
+        if rayon::yield_now() != Some(rayon::Yield::Executed)
+            && freed.recv_timeout(std::time::Duration::from_millis(2))
+                != Err(RecvTimeoutError::Timeout)
+        {
+            return Ok(());
+        }
+    }
+}
+
 /// The full-resolution depth (NaN) and reprojection (0) outside the
 /// problem's object mask, as a [`Solution`] holds them.
 pub(crate) fn on_object(

@@ -4,7 +4,7 @@
 
 use std::borrow::Cow;
 
-use crate::grid::Grid;
+use crate::grid::{Confidence, Grid, Weights};
 use crate::model::LevelGeometry;
 
 /// The data of one pyramid level.
@@ -15,8 +15,9 @@ pub struct PyramidLevel<'a> {
     /// Linear image values: the problem's own image on the finest level
     /// (borrowed, not copied: 8 bytes per pixel), a downsampled one below.
     pub image: Cow<'a, Grid<f64>>,
-    /// Confidence `c` in [0, 1] (0 outside the object).
-    pub confidence: Grid<f64>,
+    /// Confidence `c` in [0, 1] (0 outside the object), one byte per pixel
+    /// where it is 0 or 1 everywhere.
+    pub confidence: Confidence,
     /// Pixels that carry an unknown depth.
     pub domain: Grid<bool>,
 }
@@ -162,7 +163,7 @@ pub fn downsample(
                     [
                         cov + wgt,
                         img + wgt * finer.image.as_slice()[q],
-                        conf + wgt * finer.confidence.as_slice()[q],
+                        conf + wgt * finer.confidence.weight(q),
                     ]
                 }),
         }
@@ -185,7 +186,7 @@ pub fn downsample(
     PyramidLevel {
         geometry,
         image: Cow::Owned(image),
-        confidence,
+        confidence: Confidence::from_grid(confidence),
         domain,
     }
 }

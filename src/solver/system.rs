@@ -9,7 +9,7 @@
 
 use rayon::prelude::*;
 
-use crate::grid::Grid;
+use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Reflectance};
 
 use super::problem::{NEVER, Probe, rows_per_task};
@@ -37,24 +37,6 @@ pub const STENCIL: [(isize, isize); 17] = [
     (0, 2),
     (2, 2),
 ];
-
-/// Position of offset `(dx, dy)` (each in -2..=2) in [`STENCIL`], or `usize::MAX`.
-const fn build_lookup() -> [usize; 25] {
-    let mut table = [usize::MAX; 25];
-    let mut k = 0;
-    while k < 17 {
-        let (dx, dy) = STENCIL[k];
-        table[((dy + 2) * 5 + (dx + 2)) as usize] = k;
-        k += 1;
-    }
-    table
-}
-const LOOKUP: [usize; 25] = build_lookup();
-
-#[inline]
-const fn stencil_index(dx: isize, dy: isize) -> usize {
-    LOOKUP[((dy + 2) * 5 + (dx + 2)) as usize]
-}
 
 /// Offsets of the 5-point slots `[centre, left, right, up, down]`.
 const SLOT_OFFSET: [(isize, isize); 5] = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)];
@@ -416,7 +398,7 @@ impl LinearSystem {
         // is never held (24 bytes per pixel; a few per cent more model
         // evaluations on the shared rows).
         let block_rows = min_rows.max(MIN_DATA_BLOCK_ROWS);
-        let confidence = level.confidence.as_slice();
+        let confidence = &level.confidence;
         let domain = &level.domain;
         let shared = SHARED_FORWARD.len();
         self.data_current = true;
@@ -508,6 +490,22 @@ impl LinearSystem {
         lambda: f64,
         cancelled: Probe<'_>,
     ) -> f64 {
+        let change = self.update_weights_polled(level, lambda, cancelled);
+        self.assemble_polled(level, alpha, cancelled);
+        change
+    }
+
+    /// The first pass of [`Self::add_smoothness`] alone: the weights `W` at
+    /// `z^k + dz` and their relative change, without setting the rows (they
+    /// keep the previous weights until [`Self::assemble_polled`]). A caller
+    /// that stops the inner iterations once the weights have settled learns
+    /// so without paying for rows it will not solve.
+    pub fn update_weights_polled(
+        &mut self,
+        level: &PyramidLevel,
+        lambda: f64,
+        cancelled: Probe<'_>,
+    ) -> f64 {
         let w = self.width;
         let pw = self.padded_width();
         let h = level.geometry.spacing;
@@ -542,6 +540,23 @@ impl LinearSystem {
                     simd.run(|| weight_row(&inputs, r, mask_block, block))
                 })
                 .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+        if total > 0.0 {
+            changed / total
+        } else if changed > 0.0 {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// The second pass of [`Self::add_smoothness`]: the full rows from the
+    /// data part and the current weights `W` (polling `cancelled` per block of
+    /// rows, as there).
+    pub fn assemble_polled(&mut self, level: &PyramidLevel, alpha: f64, cancelled: Probe<'_>) {
+        let w = self.width;
+        let pw = self.padded_width();
+        let min_rows = rows_per_task(w);
+        let simd = Simd::detect();
         assert!(
             self.data_current,
             "the system is assembled after a linearisation, not after a stash"
@@ -569,13 +584,6 @@ impl LinearSystem {
                 simd.run(|| assemble_row(&inputs, block));
             },
         );
-        if total > 0.0 {
-            changed / total
-        } else if changed > 0.0 {
-            1.0
-        } else {
-            0.0
-        }
     }
 
     /// Whether pixel `(column, row)` is solved for (a positive diagonal).
@@ -654,6 +662,34 @@ impl LinearSystem {
                 self.row_residuals(pr, |_, value| {
                     norm += f64::from(value) * f64::from(value);
                 });
+                norm
+            })
+            .sum()
+    }
+
+    /// The squared norm of the right-hand side over the solved pixels: the
+    /// same sum as [`Self::residual_norm_squared`] at `dz = 0`, bit for bit,
+    /// reading two planes instead of the whole stencil. Calls `cancelled` per
+    /// row (meaningless once it said true).
+    pub fn rhs_norm_squared(&self, cancelled: Probe<'_>) -> f64 {
+        let pw = self.padded_width();
+        let (w, h) = (self.width, self.height);
+        (0..h + 2 * HALO)
+            .into_par_iter()
+            .with_min_len(rows_per_task(w))
+            .map(|pr| {
+                let mut norm = 0.0f64;
+                if pr < HALO || pr >= h + HALO || cancelled() {
+                    return norm;
+                }
+                let here = &self.coefficients[pr * PLANES * pw..(pr + 1) * PLANES * pw];
+                let inverse = &here[PLANE_INVERSE_DIAGONAL * pw..][HALO..HALO + w];
+                let rhs = &here[PLANE_RHS * pw..][HALO..HALO + w];
+                for (&inverse, &value) in inverse.iter().zip(rhs) {
+                    if inverse != 0.0 {
+                        norm += f64::from(value) * f64::from(value);
+                    }
+                }
                 norm
             })
             .sum()
@@ -811,7 +847,7 @@ struct DataRowInputs<'a> {
     height: usize,
     residual: &'a [f32],
     jacobian: &'a [[f32; 5]],
-    confidence: &'a [f64],
+    confidence: &'a Confidence,
     domain: &'a Grid<bool>,
 }
 
@@ -832,7 +868,9 @@ fn data_row(inputs: &DataRowInputs<'_>, out: DataRowOutputs<'_>) {
     let (w, r) = (inputs.width, inputs.row);
     let pw = w + 2 * HALO;
     for c in 0..w {
-        let mut stencil = [0.0f64; 17];
+        // The diagonal and the forward entries: the backward half is the
+        // forward half of other pixels (the matrix is symmetric).
+        let mut kept = [0.0f64; 1 + FORWARD.len()];
         let mut rhs = 0.0;
         if *inputs.domain.at(c, r) {
             for (s, &(sx, sy)) in SLOT_OFFSET.iter().enumerate() {
@@ -848,20 +886,17 @@ fn data_row(inputs: &DataRowInputs<'_>, out: DataRowOutputs<'_>) {
                 if j_pq == 0.0 {
                     continue;
                 }
-                let weight = inputs.confidence[p] * j_pq;
+                let weight = inputs.confidence.weight(p) * j_pq;
                 rhs -= weight * f64::from(inputs.residual[local]);
-                for (t, &(tx, ty)) in SLOT_OFFSET.iter().enumerate() {
+                for (t, &entry) in KEPT_ENTRY[s].iter().enumerate() {
                     let j_pt = f64::from(j_p[t]);
-                    if j_pt != 0.0 {
-                        stencil[stencil_index(tx - sx, ty - sy)] += weight * j_pt;
+                    if entry != BACKWARD && j_pt != 0.0 {
+                        kept[usize::from(entry)] += weight * j_pt;
                     }
                 }
             }
         }
-        let entry = |k: usize| {
-            let (dx, dy) = FORWARD[k];
-            stencil[stencil_index(dx, dy)] as f32
-        };
+        let entry = |k: usize| kept[1 + k] as f32;
         for (plane, &k) in SHARED_FORWARD.iter().enumerate() {
             out.forward[plane * w + c] = entry(k);
         }
@@ -872,10 +907,42 @@ fn data_row(inputs: &DataRowInputs<'_>, out: DataRowOutputs<'_>) {
                 0.0
             };
         }
-        out.diagonal[c] = stencil[0] as f32;
+        out.diagonal[c] = kept[0] as f32;
         out.rhs[c] = rhs as f32;
     }
 }
+
+/// A backward stencil entry in [`KEPT_ENTRY`].
+const BACKWARD: u8 = u8::MAX;
+
+/// For slots `s` and `t` of one pixel's 5-point residual, where `J_s J_t`
+/// lands in the row of slot `s`'s pixel: 0 for the diagonal, `1 + k` for
+/// forward entry `FORWARD[k]`, [`BACKWARD`] for the backward half (not
+/// stored).
+const KEPT_ENTRY: [[u8; 5]; 5] = {
+    let mut table = [[BACKWARD; 5]; 5];
+    let mut s = 0;
+    while s < 5 {
+        let mut t = 0;
+        while t < 5 {
+            let dx = SLOT_OFFSET[t].0 - SLOT_OFFSET[s].0;
+            let dy = SLOT_OFFSET[t].1 - SLOT_OFFSET[s].1;
+            if dx == 0 && dy == 0 {
+                table[s][t] = 0;
+            }
+            let mut k = 0;
+            while k < FORWARD.len() {
+                if FORWARD[k].0 == dx && FORWARD[k].1 == dy {
+                    table[s][t] = 1 + k as u8;
+                }
+                k += 1;
+            }
+            t += 1;
+        }
+        s += 1;
+    }
+    table
+};
 
 /// What [`weight_row`] reads.
 struct WeightInputs<'a> {
@@ -923,10 +990,9 @@ fn weight_row(
     let il2 = inputs.inverse_lambda_squared;
     let (mut changed, mut total) = (0.0f32, 0.0f32);
     for c in 0..n {
-        let f = |v: f32| v;
-        let txx = kzxx[c] + (f(left[c]) - 2.0 * f(centre[c]) + f(right[c]));
-        let tyy = kzyy[c] + (f(up[c]) - 2.0 * f(centre[c]) + f(down[c]));
-        let txy = kzxy[c] + (f(down_right[c]) - f(up_right[c]) - f(down_left[c]) + f(up_left[c]));
+        let txx = kzxx[c] + (left[c] - 2.0 * centre[c] + right[c]);
+        let tyy = kzyy[c] + (up[c] - 2.0 * centre[c] + down[c]);
+        let txy = kzxy[c] + (down_right[c] - up_right[c] - down_left[c] + up_left[c]);
         let (zxx, zyy, zxy) = (txx * sxx, tyy * syy, txy * sxy);
         let (mx, my, mxy) = (f32::from(mxx[c]), f32::from(myy[c]), f32::from(mxy[c]));
         let s2 = mx * zxx * zxx + my * zyy * zyy + 2.0 * mxy * zxy * zxy;
@@ -1090,7 +1156,7 @@ pub(crate) fn test_system(
         image: std::borrow::Cow::Owned(Grid::from_fn(w, h, |c, r| {
             0.3 + 0.05 * ((c * 3 + r * 7) as f64 * 0.1).sin()
         })),
-        confidence: Grid::filled(w, h, 1.0),
+        confidence: Confidence::from_grid(Grid::filled(w, h, 1.0)),
         domain: Grid::from_fn(w, h, domain),
     };
     let depth = Grid::from_fn(w, h, |c, r| 2.0 + 0.02 * ((c + 2 * r) as f64 * wave).sin());
@@ -1127,7 +1193,7 @@ mod tests {
             PyramidLevel {
                 geometry,
                 image: std::borrow::Cow::Owned(image),
-                confidence,
+                confidence: Confidence::from_grid(confidence),
                 domain,
             },
             depth,
@@ -1207,7 +1273,9 @@ mod tests {
             image: std::borrow::Cow::Owned(Grid::from_fn(w, h, |c, r| {
                 0.25 + 0.01 * ((c * 5 + r * 11) as f64).cos()
             })),
-            confidence: Grid::from_fn(w, h, |c, r| if (c + r) % 5 == 0 { 0.5 } else { 1.0 }),
+            confidence: Confidence::from_grid(Grid::from_fn(w, h, |c, r| {
+                if (c + r) % 5 == 0 { 0.5 } else { 1.0 }
+            })),
             domain: Grid::filled(w, h, true),
         };
         let model = Lambertian {
@@ -1275,9 +1343,69 @@ mod tests {
     }
 
     #[test]
-    fn stencil_lookup_is_consistent() {
-        for (k, &(dx, dy)) in STENCIL.iter().enumerate() {
-            assert_eq!(stencil_index(dx, dy), k);
+    fn the_rhs_norm_is_the_residual_norm_at_zero_step() {
+        // A domain with holes: unsolved pixels count in neither.
+        let mut system = test_system(37, 29, |c, r| (c * 3 + r) % 11 != 0, 0.4, 1e-2);
+        system.clear_dz();
+        let rhs = system.rhs_norm_squared(NEVER);
+        let residual = system.residual_norm_squared(NEVER);
+        assert!(rhs > 0.0);
+        assert!(
+            (rhs - residual).abs() <= 1e-12 * residual,
+            "{rhs} vs {residual}"
+        );
+        // Not at a non-zero step.
+        system.dz_padded.iter_mut().for_each(|x| *x = 0.01);
+        let moved = system.residual_norm_squared(NEVER);
+        assert!((moved - rhs).abs() > 1e-6 * rhs, "{moved} vs {rhs}");
+    }
+
+    #[test]
+    fn weights_alone_leave_the_rows_until_they_are_assembled() {
+        let (level, depth) = small_level(true);
+        let model = Lambertian {
+            intensity_scale: 1.0,
+        };
+        let mut fused = LinearSystem::new(&level);
+        assert!(fused.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        fused.add_smoothness(&level, 0.5, 0.1);
+        let mut split = LinearSystem::new(&level);
+        assert!(split.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        split.add_smoothness(&level, 0.5, 0.1);
+        // A step moves Psi': the weights change, the rows stay until assembled.
+        for system in [&mut fused, &mut split] {
+            system
+                .dz_padded
+                .iter_mut()
+                .enumerate()
+                .for_each(|(i, x)| *x = 0.05 * (i as f32 * 0.37).sin());
+        }
+        let before = split.coefficients.clone();
+        let change = split.update_weights_polled(&level, 0.1, NEVER);
+        assert!(change > 0.0);
+        assert_eq!(split.coefficients, before);
+        split.assemble_polled(&level, 0.5, NEVER);
+        assert_eq!(fused.add_smoothness(&level, 0.5, 0.1), change);
+        assert_eq!(split.coefficients, fused.coefficients);
+        assert_ne!(split.coefficients, before);
+    }
+
+    #[test]
+    fn the_kept_entries_are_the_diagonal_and_the_forward_half() {
+        for (s, &(sx, sy)) in SLOT_OFFSET.iter().enumerate() {
+            for (t, &(tx, ty)) in SLOT_OFFSET.iter().enumerate() {
+                let offset = (tx - sx, ty - sy);
+                let entry = KEPT_ENTRY[s][t];
+                assert!(STENCIL.contains(&offset));
+                if offset == (0, 0) {
+                    assert_eq!(entry, 0);
+                } else if let Some(k) = FORWARD.iter().position(|&f| f == offset) {
+                    assert_eq!(usize::from(entry), 1 + k);
+                } else {
+                    assert_eq!(entry, BACKWARD);
+                    assert!(FORWARD.contains(&(-offset.0, -offset.1)));
+                }
+            }
         }
     }
 }

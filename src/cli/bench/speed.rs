@@ -221,7 +221,7 @@ fn convergence(
     let level = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, scene.camera),
         image: std::borrow::Cow::Borrowed(&scene.image),
-        confidence: scene.object_mask.map(|&o| if o { 1.0 } else { 0.0 }),
+        confidence: crate::grid::Confidence::Binary(scene.object_mask.clone()),
         domain: scene.object_mask.clone(),
     };
     let depth = fast_marching
