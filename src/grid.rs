@@ -204,11 +204,36 @@ impl Confidence {
     /// `grid`, stored as [`Confidence::Binary`] when every value is exactly 0
     /// or 1.
     pub fn from_grid(grid: Grid<f64>) -> Self {
-        if grid.data.par_iter().all(|&v| v == 0.0 || v == 1.0) {
-            Confidence::Binary(grid.map(|&v| v == 1.0))
-        } else {
-            Confidence::Weights(grid)
+        Self::from_grid_polled(grid, &|| false).unwrap_or_else(|| unreachable!())
+    }
+
+    /// [`Self::from_grid`] by rows in parallel, calling `cancelled` per row
+    /// (`None` once it said true). The `f64` grid a binary confidence
+    /// replaces is freed on rayon's pool.
+    pub fn from_grid_polled(
+        grid: Grid<f64>,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Self> {
+        let (width, height) = grid.size();
+        let binary = grid
+            .data
+            .par_chunks(width.max(1))
+            .with_min_len(rows_per_task(width))
+            .all(|row| !cancelled() && row.iter().all(|&v| v == 0.0 || v == 1.0));
+        if cancelled() {
+            return None;
         }
+        if !binary {
+            return Some(Confidence::Weights(grid));
+        }
+        let mut bits = Grid::filled(width, height, false);
+        let whole = for_rows_polled(bits.as_mut_slice(), width, cancelled, |r, row| {
+            for (bit, &value) in row.iter_mut().zip(&grid.data[r * width..]) {
+                *bit = value == 1.0;
+            }
+        });
+        rayon::spawn(move || drop(grid));
+        whole.then_some(Confidence::Binary(bits))
     }
 
     /// `(width, height)`.

@@ -226,9 +226,11 @@ pub struct SolverParams {
     /// this factor (relative to its start); 0 runs the fixed count (the
     /// paper's). Default 0.1.
     pub linear_tolerance: f64,
-    /// The inner iterations stop when the Charbonnier weights Psi' moved by
-    /// less than this (relative, weighted) since the last linear solve; 0
-    /// runs all `inner_iterations` (the paper's). Default 0.05.
+    /// Refining a full-resolution start, the inner iterations stop when the
+    /// Charbonnier weights Psi' moved by less than this (relative, weighted)
+    /// since the last linear solve and the later ones would only polish the
+    /// step (a first step short against the crop, or sweeps that reach only
+    /// locally); 0 runs all `inner_iterations` (the paper's). Default 0.05.
     pub inner_tolerance: f64,
     /// SOR relaxation `omega` in (0, 2); the paper does not state it; default 1.5.
     pub omega: f64,

@@ -387,9 +387,10 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "inner-tolerance",
         label: "inner tolerance",
-        help: "The inner iterations stop when the Charbonnier weights Psi' moved by less than \
-               this (relative) since the last linear solve (default 0.05); 0 runs all of \
-               them (the paper's).",
+        help: "Refining a full-resolution start, the inner iterations stop when the \
+               Charbonnier weights Psi' moved by less than this (relative) since the last \
+               linear solve and the later ones would only polish the step (default 0.05); 0 \
+               runs all of them (the paper's).",
         kind: ParamKind::Real {
             min: 0.0,
             max: 1.0,

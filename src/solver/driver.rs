@@ -159,7 +159,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                         .into(),
                 ));
             }
-            system.clear_dz();
+            system.clear_dz_polled(&|| observer.is_cancelled());
             self.phases.linearise_seconds += t0.elapsed().as_secs_f64();
             check_cancelled(observer)?;
             // The multigrid hierarchy of this outer iteration's first

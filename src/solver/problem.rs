@@ -453,12 +453,20 @@ pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveE
     }
 }
 
+/// How long [`free_on_pool`] leaves its job to other workers before it runs
+/// it itself.
+const FREE_HANDOVER: std::time::Duration = std::time::Duration::from_millis(10);
+
 /// Frees `value` on rayon's pool (tens of milliseconds for a level's linear
 /// system at 18 megapixels) and waits until it is gone, polling `observer`'s
 /// cancellation meanwhile (`Err` once cancelled; the value is then freed
 /// later). The memory is back before the caller allocates more, so the
-/// solve's peak does not depend on how soon another thread gets to it. On a
-/// pool of one thread the wait runs the job itself.
+/// solve's peak does not depend on how soon another thread gets to it.
+/// An idle worker frees it while this one polls (run here, the job would be
+/// tens of milliseconds without a poll). Where no other worker takes it
+/// within [`FREE_HANDOVER`] (a pool of one thread, or every worker busy,
+/// perhaps waiting likewise in other solves) this worker runs it itself:
+/// waiting on, they would wait on each other.
 pub(crate) fn free_on_pool<T: Send + 'static>(
     value: T,
     observer: &dyn SolveObserver,
@@ -469,14 +477,16 @@ pub(crate) fn free_on_pool<T: Send + 'static>(
         drop(value);
         drop(done);
     });
+    let handed = std::time::Instant::now();
     loop {
         if freed.try_recv() != Err(TryRecvError::Empty) {
             return Ok(());
         }
         check_cancelled(observer)?;
-        if rayon::yield_now() != Some(rayon::Yield::Executed)
-            && freed.recv_timeout(std::time::Duration::from_millis(2))
-                != Err(RecvTimeoutError::Timeout)
+        if handed.elapsed() >= FREE_HANDOVER && rayon::yield_now() == Some(rayon::Yield::Executed) {
+            continue;
+        }
+        if freed.recv_timeout(std::time::Duration::from_millis(2)) != Err(RecvTimeoutError::Timeout)
         {
             return Ok(());
         }
@@ -534,4 +544,57 @@ pub(crate) fn masked_polled(
         }
     });
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every worker of the pool waiting in `free_on_pool` at once (solves in
+    /// parallel) must not wait on each other, nor a pool of one thread on
+    /// itself; a cancelled observer stops the wait.
+    #[test]
+    fn freeing_on_the_pool_ends_when_every_worker_waits() {
+        // On its own thread, so that a wait that never ends fails the test
+        // (after a generous minute) instead of hanging it.
+        let (done, ended) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            every_worker_waits();
+            let _ = done.send(());
+        });
+        ended
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("free_on_pool returns");
+    }
+
+    fn every_worker_waits() {
+        let pair = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a pool of two threads");
+        let (a, b) = pair.install(|| {
+            rayon::join(
+                || free_on_pool(vec![1u8; 1 << 22], &()),
+                || free_on_pool(vec![2u8; 1 << 22], &()),
+            )
+        });
+        assert!(a.is_ok() && b.is_ok());
+        let single = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("a pool of one thread");
+        assert!(
+            single
+                .install(|| free_on_pool(vec![3u8; 1 << 22], &()))
+                .is_ok()
+        );
+        struct Cancelled;
+        impl SolveObserver for Cancelled {
+            fn is_cancelled(&self) -> bool {
+                true
+            }
+        }
+        let stopped = single.install(|| free_on_pool(vec![4u8; 1 << 22], &Cancelled));
+        assert!(matches!(stopped, Err(SolveError::Cancelled)));
+    }
 }

@@ -90,7 +90,10 @@ pub fn sweep_polled(system: &mut LinearSystem, omega: f64, cancelled: Probe<'_>)
     // knowledge of the sweep's band layout.
     let needed = band_count(height) * 3 * pw;
     if system.sweep_scratch.len() < needed {
-        system.sweep_scratch.resize(needed, 0.0);
+        // Zeroed by the allocator (fresh pages from the kernel at large
+        // sizes): each band's rows are first touched by the task that sweeps
+        // it, between polls, not in one pass of tens of megabytes here.
+        system.sweep_scratch = vec![0.0; needed];
     }
     let scratch = &mut system.sweep_scratch[..];
     let shape = Shape {

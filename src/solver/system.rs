@@ -263,10 +263,18 @@ impl LinearSystem {
 
     /// Sets every unknown to 0.
     pub fn clear_dz(&mut self) {
-        self.dz_padded
-            .par_iter_mut()
-            .with_min_len(8192)
-            .for_each(|v| *v = 0.0);
+        self.clear_dz_polled(NEVER);
+    }
+
+    /// [`Self::clear_dz`], calling `cancelled` per 8192 unknowns (the first
+    /// clear faults in the unknowns' fresh pages: tens of milliseconds at
+    /// photograph size) and skipping the rest once it says true.
+    pub fn clear_dz_polled(&mut self, cancelled: Probe<'_>) {
+        self.dz_padded.par_chunks_mut(8192).for_each(|chunk| {
+            if !cancelled() {
+                chunk.fill(0.0);
+            }
+        });
     }
 
     /// Copies the unknowns into a `width x height` grid.
@@ -426,6 +434,11 @@ impl LinearSystem {
                         .zip(jacobian.chunks_mut(w))
                         .enumerate()
                     {
+                        // Polled per row too: a block's first pass faults in
+                        // megabytes of fresh pages (tens of milliseconds).
+                        if cancelled() {
+                            return true;
+                        }
                         ok &= linearise_row(
                             model,
                             level,
@@ -437,6 +450,9 @@ impl LinearSystem {
                         );
                     }
                     for k in 0..rows {
+                        if cancelled() {
+                            return true;
+                        }
                         data_row(
                             &DataRowInputs {
                                 row: r0 + k,
