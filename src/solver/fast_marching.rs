@@ -287,12 +287,22 @@ pub(crate) fn march(
     let f2 = camera.focal_px * camera.focal_px;
     let inside = domain.as_slice();
     let image = image.as_slice();
+    // By rows, polled (one pass over 18 MP is tens of milliseconds).
     let brightest = inside
-        .par_iter()
-        .zip(image.par_iter())
-        .filter(|(inside, _)| **inside)
-        .map(|(_, &v)| v)
+        .par_chunks(w.max(1))
+        .zip(image.par_chunks(w.max(1)))
+        .map(|(inside, image)| {
+            if observer.is_cancelled() {
+                return 0.0;
+            }
+            inside
+                .iter()
+                .zip(image)
+                .filter(|(inside, _)| **inside)
+                .fold(0.0, |brightest: f64, (_, &v)| brightest.max(v))
+        })
         .reduce(|| 0.0, f64::max);
+    check_cancelled(observer)?;
     let floor = settings.min_relative_intensity * brightest;
     let pixel = |q: usize, log_target: f64| {
         let ray = geometry.ray(q % w, q / w);
@@ -500,15 +510,25 @@ impl FrontalQueue {
         w: usize,
         observer: &dyn SolveObserver,
     ) -> Result<Self, SolveError> {
+        // By rows, polled (one pass over 18 MP is tens of milliseconds).
         let (low, high, count) = value
-            .par_iter()
-            .zip(inside.par_iter())
-            .filter(|(_, inside)| **inside)
-            .map(|(&v, _)| (v, v, 1usize))
+            .par_chunks(w.max(1))
+            .zip(inside.par_chunks(w.max(1)))
+            .map(|(value, inside)| {
+                let mut range = (f64::INFINITY, f64::NEG_INFINITY, 0usize);
+                if observer.is_cancelled() {
+                    return range;
+                }
+                for (&v, _) in value.iter().zip(inside).filter(|(_, inside)| **inside) {
+                    range = (range.0.min(v), range.1.max(v), range.2 + 1);
+                }
+                range
+            })
             .reduce(
                 || (f64::INFINITY, f64::NEG_INFINITY, 0),
                 |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
             );
+        check_cancelled(observer)?;
         let buckets = (count / Self::PER_BUCKET).max(1);
         let scale = if high > low {
             (buckets - 1) as f64 / (high - low)
