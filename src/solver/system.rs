@@ -684,8 +684,8 @@ impl LinearSystem {
     }
 
     /// The squared norm of the right-hand side over the solved pixels: the
-    /// same sum as [`Self::residual_norm_squared`] at `dz = 0`, bit for bit,
-    /// reading two planes instead of the whole stencil. Calls `cancelled` per
+    /// same sum as [`Self::residual_norm_squared`] at `dz = 0` (each row's
+    /// part bit for bit), reading two planes instead of the whole stencil. Calls `cancelled` per
     /// row (meaningless once it said true).
     pub fn rhs_norm_squared(&self, cancelled: Probe<'_>) -> f64 {
         let pw = self.padded_width();
@@ -1297,8 +1297,7 @@ mod tests {
         let model = Lambertian {
             intensity_scale: 1.3,
         };
-        let mut system = LinearSystem::new(&level);
-        assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        let mut system = linearised(&level, &depth, &model);
         // alpha 0: the rows are the data part alone.
         system.add_smoothness(&level, 0.0, 1.0);
         let data_energy = |z: &Grid<f64>| {
@@ -1333,14 +1332,20 @@ mod tests {
         }
     }
 
+    /// A new system on `level`, its data part linearised at `depth`.
+    fn linearised(level: &PyramidLevel, depth: &Grid<f64>, model: &Lambertian) -> LinearSystem {
+        let mut system = LinearSystem::new(level);
+        assert!(system.linearise_data(model, level, depth, Derivatives::Exact));
+        system
+    }
+
     #[test]
     fn a_stashed_depth_comes_back_bit_for_bit_and_needs_a_new_linearisation() {
         let (level, depth) = small_level(true);
         let model = Lambertian {
             intensity_scale: 1.0,
         };
-        let mut system = LinearSystem::new(&level);
-        assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
+        let mut system = linearised(&level, &depth, &model);
         let odd = Grid::from_fn(9, 8, |c, r| {
             [f64::MIN_POSITIVE, -0.0, 1e300, 2.0 + (c * r) as f64 * 1e-17][(c + r) % 4]
         });
@@ -1382,12 +1387,12 @@ mod tests {
         let model = Lambertian {
             intensity_scale: 1.0,
         };
-        let mut fused = LinearSystem::new(&level);
-        assert!(fused.linearise_data(&model, &level, &depth, Derivatives::Exact));
-        fused.add_smoothness(&level, 0.5, 0.1);
-        let mut split = LinearSystem::new(&level);
-        assert!(split.linearise_data(&model, &level, &depth, Derivatives::Exact));
-        split.add_smoothness(&level, 0.5, 0.1);
+        let assembled = || {
+            let mut system = linearised(&level, &depth, &model);
+            system.add_smoothness(&level, 0.5, 0.1);
+            system
+        };
+        let (mut fused, mut split) = (assembled(), assembled());
         // A step moves Psi': the weights change, the rows stay until assembled.
         for system in [&mut fused, &mut split] {
             system
