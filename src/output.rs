@@ -24,7 +24,7 @@ use std::fs::{self, File};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-use crate::io::IoError;
+use sfs_core::io::{self, IoError};
 
 /// The lock file's name inside a destination folder.
 const LOCK_NAME: &str = ".sfs-studio.lock";
@@ -187,11 +187,6 @@ impl OutputStage {
         Ok(stage)
     }
 
-    /// The folder the outputs go to.
-    pub fn dir(&self) -> &Path {
-        &self.dir
-    }
-
     /// Files this run reads: never removed as stale outputs, even when
     /// their name is one of the command's (`--confidence out/confidence_used.png`).
     pub fn keep_inputs<'a>(&mut self, paths: impl IntoIterator<Item = &'a Path>) {
@@ -295,18 +290,15 @@ impl Drop for OutputStage {
     }
 }
 
-/// Writes `text` to `path` through a temporary name, flushed to the disk
-/// before it gets its name, so `path` is either absent or complete.
+/// Writes `text` to `path` all at once ([`io::write_atomic`]), so `path` is
+/// either absent or complete.
 fn write_synced(path: &Path, text: &str) -> Result<(), IoError> {
-    let error = |cause: std::io::Error| IoError::Write {
-        path: path.to_path_buf(),
-        cause: cause.into(),
-    };
-    let temporary = path.with_extension("partial");
-    let mut file = File::create(&temporary).map_err(error)?;
-    std::io::Write::write_all(&mut file, text.as_bytes()).map_err(error)?;
-    file.sync_all().map_err(error)?;
-    fs::rename(&temporary, path).map_err(error)
+    io::write_atomic(path, |temporary| {
+        fs::write(temporary, text).map_err(|cause| IoError::Write {
+            path: temporary.to_path_buf(),
+            cause: cause.into(),
+        })
+    })
 }
 
 /// Opens and exclusively locks `path` (created if needed); `None` when
@@ -427,8 +419,8 @@ fn unique_suffix() -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::grid::Grid;
-    use crate::io::{read_npy, write_json, write_npy_f64};
+    use sfs_core::grid::Grid;
+    use sfs_core::io::{read_npy, write_json, write_npy_f64};
     use tempfile::tempdir;
 
     fn names_in(dir: &Path) -> Vec<String> {

@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use serde_json::Value;
-use sfs_studio::params::SolverParams;
+use sfs_core::params::SolverParams;
 use tempfile::{TempDir, tempdir};
 
 /// The binary under test.
@@ -301,7 +301,7 @@ fn synth_solve_eval_round_trip() {
     );
 
     // The depth map has the image's size and positive depth on the object.
-    let depth = sfs_studio::io::read_npy(&r.join("depth.npy")).unwrap();
+    let depth = sfs_core::io::read_npy(&r.join("depth.npy")).unwrap();
     assert_eq!(depth.size(), (40, 40));
     assert!(depth.as_slice().iter().any(|z| z.is_finite() && *z > 0.0));
 
@@ -1066,7 +1066,7 @@ fn max_side_solves_at_a_working_size() {
         &s(&r),
     ];
     assert_success(&sfs(args), "solve --max-side");
-    let depth = sfs_studio::io::read_npy(&r.join("depth.npy")).unwrap();
+    let depth = sfs_core::io::read_npy(&r.join("depth.npy")).unwrap();
     assert_eq!(depth.size(), (48, 32));
     let report = read_json(&r.join("report.json"));
     assert_eq!(report["input"]["full_width"], 96);
@@ -1099,8 +1099,8 @@ fn calibration_for_another_size_is_scaled() {
     let mut args = fx.solve_args(&b, &[]);
     args[3] = s(&doubled);
     assert_success(&sfs(&args), "solve with a doubled calibration");
-    let za = sfs_studio::io::read_npy(&a.join("depth.npy")).unwrap();
-    let zb = sfs_studio::io::read_npy(&b.join("depth.npy")).unwrap();
+    let za = sfs_core::io::read_npy(&a.join("depth.npy")).unwrap();
+    let zb = sfs_core::io::read_npy(&b.join("depth.npy")).unwrap();
     let worst = za
         .as_slice()
         .iter()
@@ -1121,9 +1121,9 @@ fn a_dark_image_gets_a_plain_warning() {
         &sfs(["synth", "sombrero", "--size", "32x32", "--out", &s(&scene)]),
         "synth",
     );
-    let image = sfs_studio::io::read_image(&scene.join("image16.png"), false).unwrap();
+    let image = sfs_core::io::read_image(&scene.join("image16.png"), false).unwrap();
     let dark = tmp.path().join("dark.png");
-    sfs_studio::io::write_png16(&dark, &image.map(|v| v * 0.0008)).unwrap();
+    sfs_core::io::write_png16(&dark, &image.map(|v| v * 0.0008)).unwrap();
     let r = tmp.path().join("r");
     let out = sfs(["solve", &s(&dark), "--focal", "32", "--out", &s(&r)]);
     assert_success(&out, "solve a dark image");

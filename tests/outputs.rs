@@ -301,7 +301,7 @@ fn an_input_named_like_an_output_is_never_removed() {
 fn a_grey_float32_tiff_solves() {
     let tmp = tempfile::tempdir().unwrap();
     let (image, camera) = scene(tmp.path());
-    let grid = sfs_studio::io::read_image(&image, false).unwrap();
+    let grid = sfs_core::io::read_image(&image, false).unwrap();
     let path = tmp.path().join("float.tif");
     let values: Vec<f32> = grid.as_slice().iter().map(|&v| v as f32).collect();
     let mut encoder = tiff::encoder::TiffEncoder::new(fs::File::create(&path).unwrap()).unwrap();

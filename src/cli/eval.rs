@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
-use crate::io;
-use crate::light::LightModel;
-use crate::metrics;
+use sfs_core::io;
+use sfs_core::light::LightModel;
+use sfs_core::metrics;
 
 /// Arguments of `eval`.
 #[derive(Debug, Args)]
@@ -25,7 +25,7 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     let depth = io::read_npy(&args.depth)?;
     let gt = super::solve::read_ground_truth(&args.gt)?;
     let camera_path = args.gt.join("scene.json");
-    let camera = io::read_camera(&camera_path)?;
+    let camera = sfs_core::camera_file::read_camera(&camera_path)?;
     camera.validate(&camera_path)?;
     if depth.size() != gt.depth.size() {
         bail!(

@@ -7,8 +7,8 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
-use crate::colour::colour_map;
-use crate::grid::Grid;
+use sfs_core::colour::colour_map;
+use sfs_core::grid::Grid;
 
 /// An RGB picture being composed.
 pub struct Canvas {

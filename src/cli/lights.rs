@@ -5,7 +5,7 @@
 use anyhow::{Result, bail};
 use clap::Args;
 
-use crate::light::PointLight;
+use sfs_core::light::PointLight;
 
 /// Where the lights are (camera frame: x right, y down, z forward; units of
 /// depth). Without `--light` the camera file's lights are used, else one

@@ -1,10 +1,10 @@
 //! The solver parameters on the command line, generated from the one table
-//! [`crate::params::PARAMS`]: one `--NAME VALUE` option per entry, with the
+//! [`sfs_core::params::PARAMS`]: one `--NAME VALUE` option per entry, with the
 //! entry's help; values are parsed and range-checked by the table.
 
 use clap::{Arg, ArgMatches, Args, Command, FromArgMatches};
 
-use crate::params::{PARAMS, ParamError, ParamSpec, SolverParams};
+use sfs_core::params::{PARAMS, ParamError, ParamSpec, SolverParams};
 
 /// The parameter options given on the command line, as written.
 #[derive(Clone, Debug, Default)]
@@ -59,7 +59,7 @@ impl ParamArgs {
         for (spec, text) in &self.given {
             values.push((*spec, spec.parse(text)?));
         }
-        Ok(crate::params::table::params_from(values))
+        Ok(sfs_core::params::table::params_from(values))
     }
 }
 
@@ -78,7 +78,7 @@ mod tests {
     fn options_come_from_the_table_and_units_set_the_defaults() {
         let probe = Probe::try_parse_from(["x", "--alpha", "3e-7", "--kappa", "7"]).expect("parse");
         let p = probe.params.to_params().expect("params");
-        assert_eq!(p.alpha, crate::params::Alpha::Value(3e-7));
+        assert_eq!(p.alpha, sfs_core::params::Alpha::Value(3e-7));
         assert_eq!(p.kappa, 7);
         assert_eq!(p.lambda, SolverParams::default().lambda);
         let paper = Probe::try_parse_from(["x", "--units", "paper"]).expect("parse");

@@ -8,18 +8,18 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use serde_json::json;
 
-use crate::camera::Intrinsics;
-use crate::fit;
-use crate::grid::Grid;
-use crate::io::{self, SrgbMode};
-use crate::light::PointLight;
-use crate::memory;
-use crate::metrics;
 use crate::output::OutputStage;
-use crate::params::{self as parameters, InitialDepth, SolverParams};
-use crate::photo::{self, PhotoSetup, Vignetting};
-use crate::resample::{resize_area, scale_intrinsics};
-use crate::solver::{self, IterationReport, Problem, SolveObserver};
+use sfs_core::camera::Intrinsics;
+use sfs_core::grid::Grid;
+use sfs_core::io::{self, SrgbMode};
+use sfs_core::light::PointLight;
+use sfs_core::memory;
+use sfs_core::metrics;
+use sfs_core::model_fit;
+use sfs_core::params::{self as parameters, InitialDepth, SolverParams};
+use sfs_core::photo::{self, PhotoSetup, Vignetting};
+use sfs_core::resample::{resize_area, scale_intrinsics};
+use sfs_core::solver::{self, IterationReport, Problem, SolveObserver};
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
 #[derive(Debug, Args)]
@@ -290,7 +290,7 @@ struct Setup {
 fn camera_setup(args: &SolveArgs, full_size: (usize, usize)) -> Result<Setup> {
     let mut notes = Vec::new();
     let file = match &args.camera {
-        Some(path) => Some((path, io::read_camera(path)?)),
+        Some(path) => Some((path, sfs_core::camera_file::read_camera(path)?)),
         None => None,
     };
     let camera = match (&file, args.focal) {
@@ -381,7 +381,7 @@ fn camera_setup(args: &SolveArgs, full_size: (usize, usize)) -> Result<Setup> {
             let s: f64 = text
                 .parse()
                 .map_err(|_| anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`"))?;
-            let (s_min, s_max) = solver::INTENSITY_SCALE_RANGE;
+            let (s_min, s_max) = sfs_core::params::INTENSITY_SCALE_RANGE;
             if !(s.is_finite() && (s_min..=s_max).contains(&s)) {
                 bail!("--intensity-scale {text}: must be a number in [{s_min:e}, {s_max:e}]");
             }
@@ -419,8 +419,8 @@ fn check_memory(
     images: usize,
     params: &SolverParams,
 ) -> Result<()> {
-    let working = crate::resample::working_size(full.0, full.1, max_side);
-    let factor = crate::solver::pyramid::pyramid_factor(
+    let working = sfs_core::resample::working_size(full.0, full.1, max_side);
+    let factor = sfs_core::solver::pyramid::pyramid_factor(
         working.0,
         working.1,
         params.eta,
@@ -518,17 +518,17 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         let object = object_mask
             .clone()
             .unwrap_or_else(|| Grid::filled(size.0, size.1, true));
-        let (suggested, counts) = fit::suggest_confidence(&photo.image, &object, None);
+        let (suggested, counts) = model_fit::suggest_confidence(&photo.image, &object, None);
         confidence = Some(match confidence {
             Some(c) => c.zip_map(&suggested, |a, b| a.min(*b)),
             None => suggested,
         });
         suggestion = Some(counts);
     }
-    if let Some(reason) = fit::too_dark_to_solve(&photo.image, object_mask.as_ref()) {
+    if let Some(reason) = model_fit::too_dark_to_solve(&photo.image, object_mask.as_ref()) {
         bail!("cannot solve {}: {reason}", args.images[0].display());
     }
-    let dark = fit::darkness_warning(&photo.image, object_mask.as_ref());
+    let dark = model_fit::darkness_warning(&photo.image, object_mask.as_ref());
     if let Some(warning) = &dark
         && !args.quiet
     {
@@ -678,14 +678,14 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     let domain = solution.depth.map(|z| z.is_finite());
     let fit_confidence = problem.confidence.clone();
-    let model_fit = fit::measure(
+    let model_fit = model_fit::measure(
         &problem.image,
         &solution.reprojection,
         &domain,
         fit_confidence.as_ref(),
         solution.scales.intensity,
     );
-    let residual = fit::residual_map(
+    let residual = model_fit::residual_map(
         &problem.image,
         &solution.reprojection,
         &domain,

@@ -5,10 +5,11 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::calibration::LightEntry;
-use crate::io::{self, CameraFile};
 use crate::output::OutputStage;
-use crate::scene::{self, Scene, mesh, sombrero};
+use sfs_core::camera_file::CameraFile;
+use sfs_core::camera_file::LightEntry;
+use sfs_core::io;
+use sfs_core::scene::{self, Scene, mesh, sombrero};
 
 /// Arguments of `synth`.
 #[derive(Debug, Args)]
@@ -97,9 +98,9 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         );
     }
     let (width, height) = args.size;
-    crate::memory::check(
+    sfs_core::memory::check(
         &format!("rendering {width}x{height} pixels"),
-        crate::memory::synth_estimate(args.size),
+        sfs_core::memory::synth_estimate(args.size),
         "choose a smaller --size",
     )?;
     // The destination is locked and checked writable before any work.
@@ -136,7 +137,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             .collect(),
         ..CameraFile::new(scene.camera, w, h)
     };
-    io::write_camera(&stage.path("scene.json"), &camera)?;
+    sfs_core::camera_file::write_camera(&stage.path("scene.json"), &camera)?;
     stage
         .commit()
         .with_context(|| format!("cannot finish writing {}", args.out.display()))?;

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Result, anyhow};
 use clap::Args;
 
-use crate::app::{APP_ID, ViewerApp, ViewerOptions};
+use sfs_viewer::app::ViewerOptions;
 
 /// Options of `sfs-studio view`.
 #[derive(Debug, Args)]
@@ -54,11 +54,11 @@ pub struct ViewArgs {
 pub fn run(args: &ViewArgs) -> Result<()> {
     let alpha = match &args.alpha {
         Some(text) => {
-            let spec = crate::params::table::spec("alpha")
+            let spec = sfs_core::params::table::spec("alpha")
                 .ok_or_else(|| anyhow!("no alpha in the parameter table"))?;
             Some(match spec.parse(text)? {
-                crate::params::ParamValue::Real(v) => crate::params::Alpha::Value(v),
-                _ => crate::params::Alpha::Auto,
+                sfs_core::params::ParamValue::Real(v) => sfs_core::params::Alpha::Value(v),
+                _ => sfs_core::params::Alpha::Auto,
             })
         }
         None => None,
@@ -97,23 +97,5 @@ pub fn run_sample(screenshot: Option<PathBuf>) -> Result<()> {
 }
 
 fn launch(options: ViewerOptions, window: (usize, usize)) -> Result<()> {
-    let native = eframe::NativeOptions {
-        viewport: eframe::egui::ViewportBuilder::default()
-            .with_title("sfs-studio")
-            .with_inner_size([window.0 as f32, window.1 as f32])
-            .with_drag_and_drop(true),
-        renderer: eframe::Renderer::Wgpu,
-        ..Default::default()
-    };
-    let failure = options.failure.clone();
-    eframe::run_native(
-        APP_ID,
-        native,
-        Box::new(move |cc| Ok(Box::new(ViewerApp::new(cc, options)))),
-    )
-    .map_err(|e| anyhow!("cannot open the viewer window: {e}"))?;
-    match failure.get() {
-        Some(message) => Err(anyhow!("{message}")),
-        None => Ok(()),
-    }
+    sfs_viewer::app::run_window(options, window)
 }

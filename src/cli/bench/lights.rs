@@ -12,12 +12,12 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::light::PointLight;
-use crate::metrics;
-use crate::params::SolverParams;
-use crate::scene::{Scene, mesh, sombrero::sombrero_lit};
-use crate::solver::calibrate::{estimate_intensity_scale, scale_to_known_depth};
-use crate::solver::{Problem, solve};
+use sfs_core::light::PointLight;
+use sfs_core::metrics;
+use sfs_core::params::SolverParams;
+use sfs_core::scene::{Scene, mesh, sombrero::sombrero_lit};
+use sfs_core::solver::calibrate::{estimate_intensity_scale, scale_to_known_depth};
+use sfs_core::solver::{Problem, solve};
 
 /// One scene under one light set-up.
 #[derive(Clone, Debug, Serialize)]

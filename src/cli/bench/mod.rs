@@ -15,12 +15,12 @@ use super::figures::{self, Canvas, Series, Shade};
 mod lights;
 mod robustness;
 mod speed;
-use crate::filters;
-use crate::grid::Grid;
-use crate::metrics;
-use crate::params::SolverParams;
-use crate::scene::{self, Scene, mesh, sombrero::sombrero};
-use crate::solver::{
+use sfs_core::depth_smoothing;
+use sfs_core::grid::Grid;
+use sfs_core::metrics;
+use sfs_core::params::SolverParams;
+use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero};
+use sfs_core::solver::{
     ExplicitParams, FastMarchingParams, LevelResult, Method, Problem, Solution, SolveObserver,
     pyramid, solve_method,
 };
@@ -277,7 +277,7 @@ impl SolveObserver for CurveRecorder<'_> {
         let started = Instant::now();
         let level_domain = result.depth.map(|z| z.is_finite());
         let full = pyramid::upsample_depth(&result.depth, &level_domain, &self.full_domain);
-        let full = crate::solver::problem::masked(&full, &self.full_domain);
+        let full = sfs_core::solver::problem::masked(&full, &self.full_domain);
         if let Ok(rse) = metrics::rse(&full, self.truth) {
             let t = result.elapsed.saturating_sub(self.overhead).as_secs_f64();
             self.points.push((t, rse));
@@ -365,9 +365,9 @@ impl Runner {
         reset_peak_memory();
         let start = Instant::now();
         let input = if pre {
-            crate::denoise::tv_denoise(
+            sfs_core::denoise::tv_denoise(
                 image,
-                crate::denoise::default_tv_weight(image),
+                sfs_core::denoise::default_tv_weight(image),
                 TV_ITERATIONS,
             )
         } else {
@@ -391,7 +391,7 @@ impl Runner {
             .with_context(|| format!("{} with {name} failed", bench.name))?;
         let mut depth = solution.depth;
         if post {
-            depth = filters::smooth_depth(&depth, scene.camera, POST_WEIGHT, &params)
+            depth = depth_smoothing::smooth_depth(&depth, scene.camera, POST_WEIGHT, &params)
                 .with_context(|| format!("post-processing {} failed", bench.name))?;
         }
         let seconds = start
@@ -408,14 +408,14 @@ impl Runner {
         )
         .with_context(|| format!("scoring {} failed", bench.name))?;
         let reprojection = if post {
-            let model = crate::model::Lambertian {
+            let model = sfs_core::model::Lambertian {
                 intensity_scale: scene.intensity_scale,
             };
             let (w, h) = depth.size();
-            let geometry = crate::model::LevelGeometry::new(w, h, w, h, scene.camera);
+            let geometry = sfs_core::model::LevelGeometry::new(w, h, w, h, scene.camera);
             let domain = depth.map(|z| z.is_finite());
             let filled = depth.map(|z| if z.is_finite() { *z } else { 1.0 });
-            crate::model::reproject(&model, &geometry, &domain, &filled)
+            sfs_core::model::reproject(&model, &geometry, &domain, &filled)
         } else {
             solution.reprojection
         };
@@ -857,7 +857,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         skipped,
         total_seconds: started.elapsed().as_secs_f64(),
     };
-    crate::io::write_json(&args.out.join("report.json"), &report)
+    sfs_core::io::write_json(&args.out.join("report.json"), &report)
         .with_context(|| format!("cannot write {}", args.out.join("report.json").display()))?;
     let markdown = markdown(&report, &runner);
     std::fs::write(args.out.join("report.md"), markdown)

@@ -11,11 +11,11 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use crate::grid::Grid;
-use crate::metrics;
-use crate::params::{Alpha, InitialDepth, SolverParams};
-use crate::scene::{self, Scene, mesh, sombrero::sombrero};
-use crate::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
+use sfs_core::grid::Grid;
+use sfs_core::metrics;
+use sfs_core::params::{Alpha, InitialDepth, SolverParams};
+use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero};
+use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
 /// One scene at one size, noise level and exposure.
 #[derive(Clone, Debug, Serialize)]

@@ -16,11 +16,11 @@ use serde::Serialize;
 
 use super::super::figures::{self, Series};
 use super::{BenchArgs, CurveRecorder, proc_mib, reset_peak_memory};
-use crate::metrics;
-use crate::params::{InitialDepth, LinearSolver, SolverParams};
-use crate::scene::Scene;
-use crate::solver::fast_marching::FastMarchingParams;
-use crate::solver::{LevelResult, Method, Problem, Solution, SolveObserver, solve_method};
+use sfs_core::metrics;
+use sfs_core::params::{InitialDepth, LinearSolver, SolverParams};
+use sfs_core::scene::Scene;
+use sfs_core::solver::fast_marching::FastMarchingParams;
+use sfs_core::solver::{LevelResult, Method, Problem, Solution, SolveObserver, solve_method};
 
 /// One solve.
 #[derive(Debug, Serialize)]
@@ -211,17 +211,17 @@ fn convergence(
     fast_marching: &Solution,
     defaults: &Solution,
 ) -> Result<ConvergenceRow> {
-    use crate::model::{Derivatives, LevelGeometry};
-    use crate::solver::multigrid::{Multigrid, Smoother, Sor};
-    use crate::solver::pyramid::PyramidLevel;
-    use crate::solver::system::LinearSystem;
+    use sfs_core::model::{Derivatives, LevelGeometry};
+    use sfs_core::solver::multigrid::{Multigrid, Smoother, Sor};
+    use sfs_core::solver::pyramid::PyramidLevel;
+    use sfs_core::solver::system::LinearSystem;
     let problem = problem(scene);
     let (w, h) = scene.image.size();
     let omega = SolverParams::default().omega;
     let level = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, scene.camera),
         image: std::borrow::Cow::Borrowed(&scene.image),
-        confidence: crate::grid::Confidence::Binary(scene.object_mask.clone()),
+        confidence: sfs_core::grid::Confidence::Binary(scene.object_mask.clone()),
         domain: scene.object_mask.clone(),
     };
     let depth = fast_marching
@@ -307,7 +307,7 @@ fn cancel_latency(scene: &Scene, after: Duration) -> CancelRow {
     let (done_tx, done_rx) = crossbeam_channel::bounded::<Instant>(1);
     let handle = std::thread::spawn(move || {
         let mut observer = Cancel(observer_flag);
-        let _ = crate::solver::solve(&problem, &params, &mut observer);
+        let _ = sfs_core::solver::solve(&problem, &params, &mut observer);
         let _ = done_tx.send(Instant::now());
     });
     let started = Instant::now();
@@ -393,7 +393,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         convergence: convergence_rows,
         skipped,
     };
-    crate::io::write_json(&args.out.join("speed.json"), &report)?;
+    sfs_core::io::write_json(&args.out.join("speed.json"), &report)?;
     std::fs::write(args.out.join("speed.md"), markdown(&report))
         .with_context(|| format!("cannot write {}", args.out.join("speed.md").display()))?;
     Ok(report)

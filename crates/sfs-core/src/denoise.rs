@@ -1,0 +1,316 @@
+//! Image noise and its removal: Immerkaer's noise estimate (whole image, or
+//! robust over trusted pixels), TV (ROF) denoising by primal-dual, and the
+//! filling of untrusted pixels by diffusion. Pure functions over [`Grid`];
+//! used by the solver (the fast-marching start, the automatic alpha) and by
+//! the benchmark's pre-processing.
+
+use crate::grid::Grid;
+
+/// Noise standard deviation of an image (same units as its values), by
+/// Immerkaer's estimator ("Fast noise variance estimation", CVIU 1996): the
+/// mean absolute response to the Laplacian difference mask
+/// `[1 -2 1; -2 4 -2; 1 -2 1]`, which cancels smooth content, times
+/// `sqrt(pi/2) / 6`.
+pub fn estimate_noise_sigma(image: &Grid<f64>) -> f64 {
+    let (w, h) = image.size();
+    if w < 3 || h < 3 {
+        return 0.0;
+    }
+    let z = |c: usize, r: usize| *image.at(c, r);
+    let mut sum = 0.0;
+    for r in 1..h - 1 {
+        for c in 1..w - 1 {
+            let v = z(c - 1, r - 1) - 2.0 * z(c, r - 1) + z(c + 1, r - 1) - 2.0 * z(c - 1, r)
+                + 4.0 * z(c, r)
+                - 2.0 * z(c + 1, r)
+                + z(c - 1, r + 1)
+                - 2.0 * z(c, r + 1)
+                + z(c + 1, r + 1);
+            sum += v.abs();
+        }
+    }
+    (std::f64::consts::PI / 2.0).sqrt() * sum / (6.0 * ((w - 2) * (h - 2)) as f64)
+}
+
+/// TV (ROF) denoising: the minimiser of
+/// `1/2 sum (u - f)^2 + weight sum |grad u|` (isotropic TV, forward
+/// differences, Neumann boundary), by the accelerated primal-dual algorithm of
+/// Chambolle and Pock (2011, Algorithm 2, the data term being 1-strongly
+/// convex). `weight <= 0` returns the image unchanged.
+pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64> {
+    tv_denoise_cancellable(image, weight, iterations, &|| false).unwrap_or_else(|| image.clone())
+}
+
+/// [`tv_denoise`], polling `cancelled` every few iterations; `None` when it
+/// returned true.
+pub fn tv_denoise_cancellable(
+    image: &Grid<f64>,
+    weight: f64,
+    iterations: usize,
+    cancelled: &dyn Fn() -> bool,
+) -> Option<Grid<f64>> {
+    let (w, h) = image.size();
+    if !(weight > 0.0 && weight.is_finite()) || w == 0 || h == 0 {
+        return Some(image.clone());
+    }
+    let f = image.as_slice();
+    let n = w * h;
+    let mut u = f.to_vec();
+    let mut u_bar = u.clone();
+    let (mut px, mut py) = (vec![0.0; n], vec![0.0; n]);
+    // ||grad||^2 <= 8.
+    let (mut tau, mut sigma) = (0.25f64, 0.5f64);
+    for iteration in 0..iterations {
+        if iteration % 4 == 0 && cancelled() {
+            return None;
+        }
+        // Dual ascent and projection onto |p| <= weight.
+        for r in 0..h {
+            for c in 0..w {
+                let q = r * w + c;
+                let gx = if c + 1 < w {
+                    u_bar[q + 1] - u_bar[q]
+                } else {
+                    0.0
+                };
+                let gy = if r + 1 < h {
+                    u_bar[q + w] - u_bar[q]
+                } else {
+                    0.0
+                };
+                let (nx, ny) = (px[q] + sigma * gx, py[q] + sigma * gy);
+                let scale = ((nx * nx + ny * ny).sqrt() / weight).max(1.0);
+                px[q] = nx / scale;
+                py[q] = ny / scale;
+            }
+        }
+        // Primal descent: u = (u + tau div p + tau f) / (1 + tau).
+        let theta = 1.0 / (1.0 + 2.0 * tau).sqrt();
+        for r in 0..h {
+            for c in 0..w {
+                let q = r * w + c;
+                let dx = if c + 1 < w { px[q] } else { 0.0 } - if c > 0 { px[q - 1] } else { 0.0 };
+                let dy = if r + 1 < h { py[q] } else { 0.0 } - if r > 0 { py[q - w] } else { 0.0 };
+                let new = (u[q] + tau * (dx + dy) + tau * f[q]) / (1.0 + tau);
+                u_bar[q] = new + theta * (new - u[q]);
+                u[q] = new;
+            }
+        }
+        tau *= theta;
+        sigma /= theta;
+    }
+    Some(Grid::from_vec(w, h, u).unwrap_or_else(|| image.clone()))
+}
+
+/// The default TV weight for an image: its estimated noise level
+/// ([`estimate_noise_sigma`]).
+pub fn default_tv_weight(image: &Grid<f64>) -> f64 {
+    estimate_noise_sigma(image)
+}
+
+/// Noise standard deviation of the trusted pixels of `image` (image units):
+/// the lower quartile of the absolute responses to Immerkaer's mask
+/// `[1 -2 1; -2 4 -2; 1 -2 1]` (standard deviation `6 sigma` on pure noise)
+/// over pixels whose 3x3 neighbourhood is trusted, divided by the lower
+/// quartile of `|N(0, 36)|`. A low quantile keeps silhouettes, creases and
+/// fine detail (large responses on part of the image) from counting as
+/// noise: on a clean 128x64 Suzanne the median read 5.2/255, the quartile
+/// 1.8/255. 0 when no such pixel exists.
+pub fn robust_noise_sigma(image: &Grid<f64>, trusted: &Grid<bool>) -> f64 {
+    robust_noise_sigma_polled(image, trusted, &|| false)
+        .unwrap_or_else(|| unreachable!("never cancelled"))
+}
+
+/// [`robust_noise_sigma`], rows in parallel, polling `cancelled` per row;
+/// `None` once it said true.
+pub fn robust_noise_sigma_polled(
+    image: &Grid<f64>,
+    trusted: &Grid<bool>,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Option<f64> {
+    let (w, h) = image.size();
+    if w < 3 || h < 3 {
+        return Some(0.0);
+    }
+    const MASK: [[f64; 3]; 3] = [[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]];
+    let responses = |row: usize, out: &mut Vec<f64>| {
+        let r = row + 1;
+        'pixel: for c in 1..w - 1 {
+            let mut sum = 0.0;
+            for (dr, mask_row) in MASK.iter().enumerate() {
+                for (dc, weight) in mask_row.iter().enumerate() {
+                    let (cc, rr) = (c + dc - 1, r + dr - 1);
+                    if !trusted.at(cc, rr) {
+                        continue 'pixel;
+                    }
+                    sum += weight * image.at(cc, rr);
+                }
+            }
+            out.push(sum.abs());
+        }
+    };
+    let quartile = crate::selection::kth_smallest(h - 2, responses, |n| n / 4, cancelled);
+    if cancelled() {
+        return None;
+    }
+    Some(quartile.map_or(0.0, |q| q / (6.0 * ABS_NORMAL_LOWER_QUARTILE)))
+}
+
+/// The lower quartile of `|N(0, 1)|`: the normal quantile at 0.625.
+const ABS_NORMAL_LOWER_QUARTILE: f64 = 0.318_639_363_964_375;
+
+/// Fills the pixels where `known` is false by diffusion from the known ones
+/// (Jacobi iterations of Laplace's equation on a coarse-to-fine schedule, so
+/// large holes fill in `O(log)` passes); known pixels keep their values.
+/// With no known pixel the image is returned unchanged.
+pub fn fill_unknown(image: &Grid<f64>, known: &Grid<bool>) -> Grid<f64> {
+    fill_unknown_cancellable(image, known, &|| false).unwrap_or_else(|| image.clone())
+}
+
+/// [`fill_unknown`], polling `cancelled` between sweeps; `None` when it
+/// returned true.
+pub fn fill_unknown_cancellable(
+    image: &Grid<f64>,
+    known: &Grid<bool>,
+    cancelled: &dyn Fn() -> bool,
+) -> Option<Grid<f64>> {
+    let (w, h) = image.size();
+    let count = known.as_slice().iter().filter(|&&k| k).count();
+    if count == 0 || count == w * h {
+        return Some(image.clone());
+    }
+    let mean = image
+        .as_slice()
+        .iter()
+        .zip(known.as_slice())
+        .filter(|(_, k)| **k)
+        .map(|(v, _)| v)
+        .sum::<f64>()
+        / count as f64;
+    let mut u = Grid::from_fn(w, h, |c, r| {
+        if *known.at(c, r) {
+            *image.at(c, r)
+        } else {
+            mean
+        }
+    });
+    // Jacobi sweeps with strides from coarse to fine: each stride spreads
+    // values that far per sweep.
+    let mut previous = u.clone();
+    let mut stride = w.max(h).next_power_of_two() / 2;
+    while stride >= 1 {
+        for _ in 0..8 {
+            if cancelled() {
+                return None;
+            }
+            previous.as_mut_slice().copy_from_slice(u.as_slice());
+            for r in 0..h {
+                for c in 0..w {
+                    if *known.at(c, r) {
+                        continue;
+                    }
+                    let mut sum = 0.0;
+                    let mut n = 0.0;
+                    if c >= stride {
+                        sum += previous.at(c - stride, r);
+                        n += 1.0;
+                    }
+                    if c + stride < w {
+                        sum += previous.at(c + stride, r);
+                        n += 1.0;
+                    }
+                    if r >= stride {
+                        sum += previous.at(c, r - stride);
+                        n += 1.0;
+                    }
+                    if r + stride < h {
+                        sum += previous.at(c, r + stride);
+                        n += 1.0;
+                    }
+                    if n > 0.0 {
+                        *u.at_mut(c, r) = sum / n;
+                    }
+                }
+            }
+        }
+        stride /= 2;
+    }
+    Some(u)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{add_noise, sombrero::sombrero};
+
+    #[test]
+    fn noise_estimate_finds_the_added_noise() {
+        let scene = sombrero(128, 128);
+        let noisy = add_noise(&scene.image, 20.0, 5);
+        let sigma = estimate_noise_sigma(&noisy) * 255.0;
+        assert!((sigma - 20.0).abs() < 2.0, "estimated {sigma}");
+        assert!(estimate_noise_sigma(&scene.image) * 255.0 < 1.0);
+    }
+
+    #[test]
+    fn tv_denoising_brings_a_noisy_image_closer_to_the_clean_one() {
+        let scene = sombrero(96, 96);
+        let noisy = add_noise(&scene.image, 20.0, 9);
+        let error = |g: &Grid<f64>| {
+            g.as_slice()
+                .iter()
+                .zip(scene.image.as_slice())
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        };
+        let denoised = tv_denoise(&noisy, default_tv_weight(&noisy), 200);
+        assert!(
+            error(&denoised) < 0.5 * error(&noisy),
+            "{} -> {}",
+            error(&noisy),
+            error(&denoised)
+        );
+        assert_eq!(tv_denoise(&noisy, 0.0, 10), noisy);
+    }
+
+    #[test]
+    fn robust_estimate_ignores_shading_and_finds_added_noise() {
+        let scene = sombrero(128, 128);
+        let all = Grid::filled(128, 128, true);
+        let clean = robust_noise_sigma(&scene.image, &all) * 255.0;
+        let noisy = robust_noise_sigma(&add_noise(&scene.image, 20.0, 3), &all) * 255.0;
+        assert!(clean < 0.5, "clean {clean}");
+        assert!((noisy - 20.0).abs() < 2.0, "noisy {noisy}");
+        // Only trusted pixels count: noise outside them is not seen.
+        let half = Grid::from_fn(128, 128, |c, _| c < 64);
+        let mixed = Grid::from_fn(128, 128, |c, r| {
+            if c < 64 {
+                *scene.image.at(c, r)
+            } else {
+                0.5 + if (c + r) % 2 == 0 { 0.3 } else { -0.3 }
+            }
+        });
+        assert!(robust_noise_sigma(&mixed, &half) * 255.0 < 0.5);
+    }
+
+    #[test]
+    fn filling_keeps_known_pixels_and_interpolates_a_ramp() {
+        let ramp = Grid::from_fn(40, 30, |c, _| c as f64 / 39.0);
+        let known = Grid::from_fn(40, 30, |c, r| {
+            !(10..30).contains(&c) || !(5..25).contains(&r)
+        });
+        let holed = Grid::from_fn(
+            40,
+            30,
+            |c, r| if *known.at(c, r) { *ramp.at(c, r) } else { 7.0 },
+        );
+        let filled = fill_unknown(&holed, &known);
+        for r in 0..30 {
+            for c in 0..40 {
+                let error = (filled.at(c, r) - ramp.at(c, r)).abs();
+                assert!(error < 0.02, "({c}, {r}): {error}");
+            }
+        }
+    }
+}

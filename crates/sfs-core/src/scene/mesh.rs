@@ -1,0 +1,1327 @@
+//! OBJ triangle meshes rendered in perspective with exact ground-truth depth.
+//!
+//! Conventions (METHOD.md section 1): pinhole camera at the origin looking
+//! along +Z; pixel (column `i`, row `j`) has image-plane coordinates
+//! `x = i - cx`, `y = j - cy` (rows go down, so camera +Y is image-down); the
+//! ray through a pixel centre is `d = (x/f, y/f, 1)` and depth is the Cartesian
+//! `Z` of the surface point. A point light sits at the camera centre with
+//! `1/r^2` fall-off and the surface is Lambertian:
+//! `I = s * max(N . L, 0) / r^2` with `r = |P|`, `L = -P/r` and `N` the unit
+//! normal turned to face the camera. The background has image 0, depth NaN and
+//! mask false.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use crate::camera::Intrinsics;
+use crate::grid::Grid;
+use crate::light::PointLight;
+use crate::scene::Scene;
+
+/// Rows per band of the parallel rasteriser (triangles are binned per band).
+const BAND_ROWS: usize = 8;
+
+/// Slack in pixels added to the screen-space bounding box of a triangle so a
+/// pixel centre lying exactly on an edge is never missed by rounding of the
+/// projection; the inclusion test itself is exact in 3-D.
+const BBOX_SLACK_PX: f64 = 1e-6;
+
+/// Errors from loading or rendering a mesh.
+#[derive(Debug, thiserror::Error)]
+pub enum MeshError {
+    /// The file could not be read or parsed as OBJ.
+    #[error("cannot load OBJ file {}: {message}", path.display())]
+    Load {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// The mesh has no vertices or no triangles.
+    #[error("mesh {mesh}: no vertices or no triangles")]
+    Empty {
+        /// The mesh: the file path for [`load_obj`], the scene name for [`render`].
+        mesh: String,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    #[error(
+        "mesh {mesh}: triangle {triangle} refers to vertex {vertex} but there are only {vertex_count} vertices"
+    )]
+    InvalidIndex {
+        /// The mesh: the file path for [`load_obj`], the scene name for [`render`].
+        mesh: String,
+        /// Index of the offending triangle.
+        triangle: usize,
+        /// The out-of-range vertex index (0-based).
+        vertex: u32,
+        /// Number of vertices in the mesh.
+        vertex_count: usize,
+    },
+    /// Non-finite coordinates, a zero-size bounding box or a geometry that
+    /// cannot be framed by the camera.
+    #[error("mesh {mesh} is degenerate: {reason}")]
+    Degenerate {
+        /// The mesh: the file path for [`load_obj`], the scene name for [`render`].
+        mesh: String,
+        /// What is degenerate.
+        reason: String,
+    },
+    /// Invalid image size or placement parameters.
+    #[error("invalid render input: {message}")]
+    InvalidInput {
+        /// What is invalid.
+        message: String,
+    },
+    /// The rendered mesh covers no pixel centre.
+    #[error("mesh {mesh} is not visible: no pixel centre hits a triangle")]
+    Misses {
+        /// The scene name.
+        mesh: String,
+    },
+    /// Every visible pixel has zero intensity (all surfaces seen edge-on).
+    #[error("mesh {mesh} renders completely dark: every visible surface is edge-on to the light")]
+    Unlit {
+        /// The scene name.
+        mesh: String,
+    },
+}
+
+/// A triangle mesh in model space.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleMesh {
+    /// Vertex positions (model units).
+    pub positions: Vec<[f64; 3]>,
+    /// Triangles as 0-based indices into `positions`. The winding is used only
+    /// for smooth normals; each normal is turned to face the camera anyway.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriangleMesh {
+    /// Checks the mesh (non-empty, indices in range, all coordinates finite,
+    /// non-zero bounding box) and returns the bounding box `(min, max)` of the
+    /// vertices referenced by triangles. `label` names the mesh in errors.
+    fn validated_bounds(&self, label: &str) -> Result<([f64; 3], [f64; 3]), MeshError> {
+        if self.positions.is_empty() || self.triangles.is_empty() {
+            return Err(MeshError::Empty {
+                mesh: label.to_owned(),
+            });
+        }
+        if let Some(k) = self
+            .positions
+            .iter()
+            .position(|p| p.iter().any(|c| !c.is_finite()))
+        {
+            return Err(MeshError::Degenerate {
+                mesh: label.to_owned(),
+                reason: format!("vertex {k} has a non-finite coordinate"),
+            });
+        }
+        let vertex_count = self.positions.len();
+        let mut min = [f64::INFINITY; 3];
+        let mut max = [f64::NEG_INFINITY; 3];
+        for (triangle, tri) in self.triangles.iter().enumerate() {
+            for &vertex in tri {
+                let Some(p) = self.positions.get(vertex as usize) else {
+                    return Err(MeshError::InvalidIndex {
+                        mesh: label.to_owned(),
+                        triangle,
+                        vertex,
+                        vertex_count,
+                    });
+                };
+                for axis in 0..3 {
+                    min[axis] = min[axis].min(p[axis]);
+                    max[axis] = max[axis].max(p[axis]);
+                }
+            }
+        }
+        let largest_side = (0..3).map(|a| max[a] - min[a]).fold(0.0, f64::max);
+        if !(largest_side.is_finite() && largest_side > 0.0) {
+            return Err(MeshError::Degenerate {
+                mesh: label.to_owned(),
+                reason: format!("bounding box largest side is {largest_side}"),
+            });
+        }
+        Ok((min, max))
+    }
+}
+
+/// Loads an OBJ file as one triangle mesh.
+///
+/// Triangles and polygons (fan-triangulated by `tobj`) with any `v`, `v/vt`,
+/// `v//vn` or `v/vt/vn` index form are accepted; all objects and groups in the
+/// file are merged; points, lines, texture coordinates, normals and materials
+/// are ignored (the `mtllib` file is never opened). Coordinates are read as
+/// `f32` by `tobj` and widened to `f64`.
+///
+/// # Errors
+/// [`MeshError::Load`] when the file cannot be read or parsed (including
+/// out-of-range face indices); [`MeshError::Empty`], [`MeshError::Degenerate`]
+/// (non-finite coordinates, zero-size bounding box) for unusable content. Every
+/// error names the file.
+pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
+    let load_error = |message: String| MeshError::Load {
+        path: path.to_path_buf(),
+        message,
+    };
+    let file = File::open(path).map_err(|e| load_error(e.to_string()))?;
+    let mut reader = BufReader::new(file);
+    // Triangulated, points and lines dropped (as in GPU_LOAD_OPTIONS), but
+    // positions keep their own index (no duplication per normal/texcoord).
+    let options = tobj::LoadOptions {
+        single_index: false,
+        triangulate: true,
+        ..tobj::GPU_LOAD_OPTIONS
+    };
+    // tobj can overflow index arithmetic on hostile relative indices (a panic
+    // with overflow checks on); turn that into an error as well.
+    let parsed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        tobj::load_obj_buf(&mut reader, &options, |_| {
+            Err(tobj::LoadError::GenericFailure)
+        })
+    }))
+    .map_err(|_| load_error("the OBJ parser failed on malformed input".to_owned()))?;
+    let (models, _materials) = parsed.map_err(|e| load_error(e.to_string()))?;
+
+    let mut mesh = TriangleMesh::default();
+    for model in &models {
+        let m = &model.mesh;
+        if m.positions.len() % 3 != 0 || m.indices.len() % 3 != 0 {
+            return Err(load_error(format!(
+                "object `{}` is not a triangle list after triangulation",
+                model.name
+            )));
+        }
+        let offset = u32::try_from(mesh.positions.len())
+            .map_err(|_| load_error("too many vertices".to_owned()))?;
+        let model_vertices = m.positions.len() / 3;
+        mesh.positions.extend(
+            m.positions
+                .chunks_exact(3)
+                .map(|p| [f64::from(p[0]), f64::from(p[1]), f64::from(p[2])]),
+        );
+        for tri in m.indices.chunks_exact(3) {
+            let mut out = [0u32; 3];
+            for (o, &i) in out.iter_mut().zip(tri) {
+                if i as usize >= model_vertices {
+                    return Err(load_error(format!(
+                        "object `{}` refers to vertex {i} of {model_vertices}",
+                        model.name
+                    )));
+                }
+                *o = offset
+                    .checked_add(i)
+                    .ok_or_else(|| load_error("too many vertices".to_owned()))?;
+            }
+            mesh.triangles.push(out);
+        }
+    }
+    mesh.validated_bounds(&path.display().to_string())?;
+    Ok(mesh)
+}
+
+/// Placement of a mesh in front of the camera, and the exposure.
+///
+/// The mesh's bounding box (of the vertices used by triangles) is centred at
+/// the origin, the mesh is scaled so the largest bounding-box side is 1, rotated
+/// by [`rotation_deg`](Placement::rotation_deg) and translated to
+/// `(0, 0, distance)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Placement {
+    /// Rotation of the centred model as Euler angles in degrees `[a_x, a_y,
+    /// a_z]`: first about the camera X axis by `a_x`, then about the (fixed)
+    /// camera Y axis by `a_y`, then about the camera Z axis by `a_z`, i.e.
+    /// `R = Rz(a_z) Ry(a_y) Rx(a_x)` acting on column vectors, each a
+    /// right-handed rotation. Default `(180, 0, 0)`: turns the usual OBJ
+    /// convention (Y up, front facing +Z) into the camera convention (Y down,
+    /// camera looking along +Z, the front facing the camera), without mirroring.
+    pub rotation_deg: [f64; 3],
+    /// Distance from the camera centre to the bounding-box centre, in units of
+    /// the model's largest bounding-box side. Must exceed `sqrt(3)/2` so the
+    /// whole model lies in front of the camera. Default 2.0.
+    pub distance: f64,
+    /// Fraction of the image, in each direction, that the projected object may
+    /// fill, in (0, 1]; sets the focal length. Default 0.9.
+    pub fill: f64,
+    /// Value of the brightest pixel, in (0, 1]; the intensity scale `s` is
+    /// chosen to reach it. Default 0.9.
+    pub brightest: f64,
+}
+
+impl Default for Placement {
+    fn default() -> Self {
+        Self {
+            rotation_deg: [180.0, 0.0, 0.0],
+            distance: 2.0,
+            fill: 0.9,
+            brightest: 0.9,
+        }
+    }
+}
+
+impl Placement {
+    /// Checks every field; see the field docs for the ranges.
+    fn validate(&self) -> Result<(), MeshError> {
+        let invalid = |message: String| Err(MeshError::InvalidInput { message });
+        if self.rotation_deg.iter().any(|a| !a.is_finite()) {
+            return invalid(format!(
+                "rotation_deg {:?} must be finite",
+                self.rotation_deg
+            ));
+        }
+        let min_distance = 3f64.sqrt() / 2.0;
+        if !(self.distance.is_finite() && self.distance > min_distance) {
+            return invalid(format!(
+                "distance {} must be finite and greater than sqrt(3)/2",
+                self.distance
+            ));
+        }
+        if !(self.fill > 0.0 && self.fill <= 1.0) {
+            return invalid(format!("fill {} must lie in (0, 1]", self.fill));
+        }
+        if !(self.brightest > 0.0 && self.brightest <= 1.0) {
+            return invalid(format!("brightest {} must lie in (0, 1]", self.brightest));
+        }
+        Ok(())
+    }
+}
+
+/// Renders `mesh` as a synthetic scene of `width` x `height` pixels.
+///
+/// The mesh is placed as described in [`Placement`]. The focal length `f`
+/// (pixels) is the largest for which every vertex used by a triangle projects
+/// inside `fill` of the image in both directions with the default principal
+/// point `((w-1)/2, (h-1)/2)`:
+/// `f = min(fill (w-1)/2 / max|X/Z|, fill (h-1)/2 / max|Y/Z|)`.
+///
+/// A z-buffer rasteriser then finds, for every pixel centre, the nearest
+/// triangle the ray `d = (x/f, y/f, 1)` hits (exact 3-D inclusion test with
+/// signed volumes, watertight along shared edges; candidate pixels from the
+/// screen-space bounding box) and takes the exact ray-plane intersection `Z` as
+/// depth; ties go to the lower triangle index. Shading uses smooth vertex
+/// normals (sum of the unnormalised face cross products at each vertex, i.e.
+/// area-weighted) interpolated with the barycentric coordinates of the 3-D hit
+/// point, normalised and turned to face the camera; the face normal is used
+/// where the interpolated normal vanishes. The image is rendered with `s = 1`
+/// and then scaled so the brightest pixel equals `placement.brightest`; that
+/// `s` is stored as [`Scene::intensity_scale`]. Triangles with a vertex at
+/// `Z <= 0` are skipped (the placement rules them out).
+///
+/// # Errors
+/// [`MeshError::InvalidInput`] for a size below 2 x 2 or invalid placement;
+/// [`MeshError::Empty`], [`MeshError::InvalidIndex`] or
+/// [`MeshError::Degenerate`] for an unusable mesh; [`MeshError::Misses`] when no
+/// pixel centre hits the mesh and [`MeshError::Unlit`] when all hits are dark.
+pub fn render(
+    mesh: &TriangleMesh,
+    width: usize,
+    height: usize,
+    placement: &Placement,
+    name: &str,
+) -> Result<Scene, MeshError> {
+    render_lit(mesh, width, height, placement, &[], name)
+}
+
+/// [`render`] lit by `lights` (camera frame, in units of the placed model,
+/// whose largest side is 1; empty: one light at the optical centre). Cast
+/// shadows are not traced: the image is the model's local shading.
+pub fn render_lit(
+    mesh: &TriangleMesh,
+    width: usize,
+    height: usize,
+    placement: &Placement,
+    lights: &[PointLight],
+    name: &str,
+) -> Result<Scene, MeshError> {
+    for (k, light) in lights.iter().enumerate() {
+        light
+            .validated(k + 1)
+            .map_err(|message| MeshError::InvalidInput { message })?;
+    }
+    if width < 2 || height < 2 {
+        return Err(MeshError::InvalidInput {
+            message: format!("image size {width} x {height}: both sides must be at least 2 pixels"),
+        });
+    }
+    let pixel_count = width
+        .checked_mul(height)
+        .ok_or_else(|| MeshError::InvalidInput {
+            message: format!("image size {width} x {height} is too large"),
+        })?;
+    placement.validate()?;
+    let bounds = mesh.validated_bounds(name)?;
+    let camera_points = place_vertices(mesh, bounds, placement);
+    let focal_px = fit_focal_px(mesh, &camera_points, width, height, placement.fill, name)?;
+    let camera = Intrinsics::centred(focal_px, width, height);
+
+    let vertex_normals = vertex_normals(&camera_points, &mesh.triangles);
+    let triangles = prepare_triangles(mesh, &camera_points, &camera, width, height);
+    let bins = bin_by_band(&triangles, height);
+
+    // Ray directions per column and per row: d = (x/f, y/f, 1).
+    let ray_x: Vec<f64> = (0..width)
+        .map(|i| camera.image_xy(i as f64, 0.0).0 / focal_px)
+        .collect();
+    let ray_y: Vec<f64> = (0..height)
+        .map(|j| camera.image_xy(0.0, j as f64).1 / focal_px)
+        .collect();
+
+    let mut image = vec![0.0; pixel_count];
+    let mut depth = vec![f64::NAN; pixel_count];
+    let mut mask = vec![false; pixel_count];
+    let band_len = BAND_ROWS * width;
+    depth
+        .par_chunks_mut(band_len)
+        .zip(image.par_chunks_mut(band_len))
+        .zip(mask.par_chunks_mut(band_len))
+        .zip(bins.par_iter())
+        .enumerate()
+        .for_each(|(band, (((depth, image), mask), bin))| {
+            let band = Band {
+                first_row: band * BAND_ROWS,
+                width,
+                ray_x: &ray_x,
+                ray_y: &ray_y,
+            };
+            band.render(bin, &triangles, &vertex_normals, lights, depth, image, mask);
+        });
+
+    if !mask.iter().any(|&m| m) {
+        return Err(MeshError::Misses {
+            mesh: name.to_owned(),
+        });
+    }
+    let brightest_raw = image.iter().copied().fold(0.0, f64::max);
+    let intensity_scale = placement.brightest / brightest_raw;
+    if !(brightest_raw > 0.0 && intensity_scale.is_finite()) {
+        return Err(MeshError::Unlit {
+            mesh: name.to_owned(),
+        });
+    }
+    image.par_iter_mut().for_each(|v| *v *= intensity_scale);
+
+    let grid_error = || MeshError::InvalidInput {
+        message: "internal: grid size mismatch".to_owned(),
+    };
+    Ok(Scene {
+        name: name.to_owned(),
+        camera,
+        intensity_scale,
+        image: Grid::from_vec(width, height, image).ok_or_else(grid_error)?,
+        depth_gt: Grid::from_vec(width, height, depth).ok_or_else(grid_error)?,
+        object_mask: Grid::from_vec(width, height, mask).ok_or_else(grid_error)?,
+        lights: lights.to_vec(),
+    })
+}
+
+/// A triangle ready for rasterising, in camera space.
+struct PreparedTriangle {
+    /// The vertex indices `A, B, C` into the mesh's vertex list.
+    vertices: [u32; 3],
+    /// `A x B`, `B x C`, `C x A` for the vertices `A, B, C`: the signed volumes
+    /// `d . (A x B)` etc. are the unnormalised barycentrics of `C`, `A`, `B`.
+    edge_cross: [[f64; 3]; 3],
+    /// Face normal `(B - A) x (C - A)` (unnormalised).
+    normal: [f64; 3],
+    /// `normal . A`: the plane is `normal . P = plane_offset`.
+    plane_offset: f64,
+    /// Inclusive pixel column range of candidate pixel centres.
+    columns: (usize, usize),
+    /// Inclusive pixel row range of candidate pixel centres.
+    rows: (usize, usize),
+}
+
+impl PreparedTriangle {
+    /// Intersects the ray `d` with the triangle: `Some((depth, barycentrics of
+    /// A, B, C))` when the ray passes through it (edges included) in front of
+    /// the camera.
+    #[inline]
+    fn hit(&self, d: [f64; 3]) -> Option<(f64, [f64; 3])> {
+        let w_c = dot(d, self.edge_cross[0]);
+        let w_a = dot(d, self.edge_cross[1]);
+        let w_b = dot(d, self.edge_cross[2]);
+        let inside =
+            (w_a >= 0.0 && w_b >= 0.0 && w_c >= 0.0) || (w_a <= 0.0 && w_b <= 0.0 && w_c <= 0.0);
+        let sum = w_a + w_b + w_c;
+        if !inside || sum == 0.0 {
+            return None;
+        }
+        let depth = self.plane_offset / dot(self.normal, d);
+        if !(depth.is_finite() && depth > 0.0) {
+            return None;
+        }
+        Some((depth, [w_a / sum, w_b / sum, w_c / sum]))
+    }
+}
+
+/// One horizontal band of the image, rendered by one task.
+struct Band<'a> {
+    first_row: usize,
+    width: usize,
+    ray_x: &'a [f64],
+    ray_y: &'a [f64],
+}
+
+impl Band<'_> {
+    /// Z-buffers the triangles of `bin` into this band and shades it with
+    /// `s = 1`. The slices are the band's rows of the full image.
+    #[allow(clippy::too_many_arguments)]
+    fn render(
+        &self,
+        bin: &[u32],
+        triangles: &[PreparedTriangle],
+        vertex_normals: &[[f64; 3]],
+        lights: &[PointLight],
+        depth: &mut [f64],
+        image: &mut [f64],
+        mask: &mut [bool],
+    ) {
+        let rows_here = depth.len() / self.width;
+        let last_row = self.first_row + rows_here - 1;
+        let mut nearest = vec![f64::INFINITY; depth.len()];
+        let mut winner = vec![u32::MAX; depth.len()];
+        for &t in bin {
+            let tri = &triangles[t as usize];
+            let row_start = tri.rows.0.max(self.first_row);
+            let row_end = tri.rows.1.min(last_row);
+            for row in row_start..=row_end {
+                let local = (row - self.first_row) * self.width;
+                for column in tri.columns.0..=tri.columns.1 {
+                    let d = [self.ray_x[column], self.ray_y[row], 1.0];
+                    if let Some((z, _)) = tri.hit(d)
+                        && z < nearest[local + column]
+                    {
+                        nearest[local + column] = z;
+                        winner[local + column] = t;
+                    }
+                }
+            }
+        }
+        for (k, &t) in winner.iter().enumerate() {
+            let Some(tri) = triangles.get(t as usize) else {
+                continue;
+            };
+            let d = [
+                self.ray_x[k % self.width],
+                self.ray_y[self.first_row + k / self.width],
+                1.0,
+            ];
+            let Some((z, bary)) = tri.hit(d) else {
+                continue;
+            };
+            let point = scale(d, z);
+            let normal = shading_normal(tri, bary, vertex_normals);
+            // The normal turned to face the camera (N . P <= 0).
+            let facing = if dot(normal, point) > 0.0 {
+                scale(normal, -1.0)
+            } else {
+                normal
+            };
+            let intensity = crate::light::irradiance(lights, point, facing);
+            depth[k] = z;
+            mask[k] = true;
+            image[k] = if intensity.is_finite() {
+                intensity
+            } else {
+                0.0
+            };
+        }
+    }
+}
+
+/// Unit shading normal at barycentrics `bary` of `tri` (orientation not yet
+/// turned to the camera): interpolated smooth vertex normals, or the face
+/// normal where they cancel.
+fn shading_normal(tri: &PreparedTriangle, bary: [f64; 3], vertex_normals: &[[f64; 3]]) -> [f64; 3] {
+    let mut n = [0.0; 3];
+    for (&vertex, weight) in tri.vertices.iter().zip(bary) {
+        let vertex_normal = vertex_normals[vertex as usize];
+        for axis in 0..3 {
+            n[axis] += weight * vertex_normal[axis];
+        }
+    }
+    let length = norm(n);
+    if length.is_finite() && length > 0.0 {
+        scale(n, 1.0 / length)
+    } else {
+        scale(tri.normal, 1.0 / norm(tri.normal))
+    }
+}
+
+/// Centres, scales, rotates and translates the vertices into camera space.
+fn place_vertices(
+    mesh: &TriangleMesh,
+    (min, max): ([f64; 3], [f64; 3]),
+    placement: &Placement,
+) -> Vec<[f64; 3]> {
+    let centre = [0, 1, 2].map(|a| 0.5 * (min[a] + max[a]));
+    let largest_side = (0..3).map(|a| max[a] - min[a]).fold(0.0, f64::max);
+    let unit = 1.0 / largest_side;
+    let rotation = rotation_matrix(placement.rotation_deg);
+    mesh.positions
+        .iter()
+        .map(|p| {
+            let q = [0, 1, 2].map(|a| (p[a] - centre[a]) * unit);
+            let mut out = mat_vec(&rotation, q);
+            out[2] += placement.distance;
+            out
+        })
+        .collect()
+}
+
+/// `R = Rz(a_z) Ry(a_y) Rx(a_x)` for `[a_x, a_y, a_z]` in degrees.
+fn rotation_matrix(rotation_deg: [f64; 3]) -> [[f64; 3]; 3] {
+    let (cx, sx) = cos_sin_deg(rotation_deg[0]);
+    let (cy, sy) = cos_sin_deg(rotation_deg[1]);
+    let (cz, sz) = cos_sin_deg(rotation_deg[2]);
+    let rx = [[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]];
+    let ry = [[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]];
+    let rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]];
+    mat_mul(&rz, &mat_mul(&ry, &rx))
+}
+
+/// Cosine and sine of an angle in degrees, exact at multiples of 90 degrees.
+fn cos_sin_deg(angle_deg: f64) -> (f64, f64) {
+    let reduced = angle_deg.rem_euclid(360.0);
+    if reduced == 0.0 {
+        (1.0, 0.0)
+    } else if reduced == 90.0 {
+        (0.0, 1.0)
+    } else if reduced == 180.0 {
+        (-1.0, 0.0)
+    } else if reduced == 270.0 {
+        (0.0, -1.0)
+    } else {
+        let radians = reduced.to_radians();
+        (radians.cos(), radians.sin())
+    }
+}
+
+/// The focal length (pixels) that fits every used vertex into `fill` of the
+/// image with the default principal point.
+fn fit_focal_px(
+    mesh: &TriangleMesh,
+    camera_points: &[[f64; 3]],
+    width: usize,
+    height: usize,
+    fill: f64,
+    name: &str,
+) -> Result<f64, MeshError> {
+    let mut max_tan_x: f64 = 0.0;
+    let mut max_tan_y: f64 = 0.0;
+    for tri in &mesh.triangles {
+        for &v in tri {
+            let p = camera_points[v as usize];
+            if p[2] > 0.0 {
+                max_tan_x = max_tan_x.max((p[0] / p[2]).abs());
+                max_tan_y = max_tan_y.max((p[1] / p[2]).abs());
+            }
+        }
+    }
+    let half_x_px = fill * (width as f64 - 1.0) / 2.0;
+    let half_y_px = fill * (height as f64 - 1.0) / 2.0;
+    let focal_px = (half_x_px / max_tan_x).min(half_y_px / max_tan_y);
+    if focal_px.is_finite() && focal_px > 0.0 {
+        Ok(focal_px)
+    } else {
+        Err(MeshError::Degenerate {
+            mesh: name.to_owned(),
+            reason: format!("cannot frame the mesh: focal length would be {focal_px} px"),
+        })
+    }
+}
+
+/// Area-weighted vertex normals: the sum of the unnormalised face cross
+/// products `(B - A) x (C - A)` of the triangles at each vertex.
+fn vertex_normals(camera_points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let mut normals = vec![[0.0; 3]; camera_points.len()];
+    for tri in triangles {
+        let [a, b, c] = tri.map(|v| camera_points[v as usize]);
+        let n = cross(sub(b, a), sub(c, a));
+        for &v in tri {
+            let acc = &mut normals[v as usize];
+            for axis in 0..3 {
+                acc[axis] += n[axis];
+            }
+        }
+    }
+    normals
+}
+
+/// Builds the rasteriser's triangles, dropping those behind the camera,
+/// degenerate ones and those whose screen bounding box holds no pixel centre.
+fn prepare_triangles(
+    mesh: &TriangleMesh,
+    camera_points: &[[f64; 3]],
+    camera: &Intrinsics,
+    width: usize,
+    height: usize,
+) -> Vec<PreparedTriangle> {
+    let f = camera.focal_px;
+    let mut prepared = Vec::with_capacity(mesh.triangles.len());
+    for tri in &mesh.triangles {
+        let [a, b, c] = tri.map(|v| camera_points[v as usize]);
+        if a[2] <= 0.0 || b[2] <= 0.0 || c[2] <= 0.0 {
+            continue;
+        }
+        let normal = cross(sub(b, a), sub(c, a));
+        if normal == [0.0; 3] {
+            continue;
+        }
+        let us = [a, b, c].map(|p| camera.principal_x_px + f * p[0] / p[2]);
+        let vs = [a, b, c].map(|p| camera.principal_y_px + f * p[1] / p[2]);
+        let Some(columns) = pixel_range(&us, width) else {
+            continue;
+        };
+        let Some(rows) = pixel_range(&vs, height) else {
+            continue;
+        };
+        prepared.push(PreparedTriangle {
+            vertices: *tri,
+            edge_cross: [cross(a, b), cross(b, c), cross(c, a)],
+            normal,
+            plane_offset: dot(normal, a),
+            columns,
+            rows,
+        });
+    }
+    prepared
+}
+
+/// Inclusive range of integer pixel centres within `[min, max]` of `coords`
+/// (plus slack), clipped to `0..size`; `None` when empty.
+fn pixel_range(coords: &[f64; 3], size: usize) -> Option<(usize, usize)> {
+    let lo = coords.iter().copied().fold(f64::INFINITY, f64::min) - BBOX_SLACK_PX;
+    let hi = coords.iter().copied().fold(f64::NEG_INFINITY, f64::max) + BBOX_SLACK_PX;
+    let first = lo.ceil().max(0.0);
+    let last = hi.floor().min(size as f64 - 1.0);
+    (first <= last).then_some((first as usize, last as usize))
+}
+
+/// Lists, per band of [`BAND_ROWS`] rows, the prepared triangles (their
+/// positions in `triangles`, ascending) whose row range meets the band.
+fn bin_by_band(triangles: &[PreparedTriangle], height: usize) -> Vec<Vec<u32>> {
+    let band_count = height.div_ceil(BAND_ROWS);
+    let mut bins = vec![Vec::new(); band_count];
+    for (k, tri) in triangles.iter().enumerate() {
+        for bin in &mut bins[tri.rows.0 / BAND_ROWS..=tri.rows.1 / BAND_ROWS] {
+            bin.push(k as u32);
+        }
+    }
+    bins
+}
+
+#[inline]
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline]
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+fn scale(a: [f64; 3], k: f64) -> [f64; 3] {
+    [a[0] * k, a[1] * k, a[2] * k]
+}
+
+#[inline]
+fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
+    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
+}
+
+fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut out = [[0.0; 3]; 3];
+    for (i, row) in out.iter_mut().enumerate() {
+        for (j, value) in row.iter_mut().enumerate() {
+            *value = (0..3).map(|k| a[i][k] * b[k][j]).sum();
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// A fresh file path in the system temp dir.
+    fn temp_path(stem: &str) -> PathBuf {
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0);
+        let dir =
+            std::env::temp_dir().join(format!("sfs-mesh-test-{}-{nanos}-{n}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(format!("{stem}.obj"))
+    }
+
+    fn write_obj(stem: &str, text: &str) -> PathBuf {
+        let path = temp_path(stem);
+        std::fs::write(&path, text).unwrap();
+        path
+    }
+
+    /// Square with corners `(+-0.5, +-0.5, slope * x)`.
+    fn square(slope: f64) -> TriangleMesh {
+        let corners = [(-0.5, -0.5), (0.5, -0.5), (0.5, 0.5), (-0.5, 0.5)];
+        TriangleMesh {
+            positions: corners.iter().map(|&(x, y)| [x, y, slope * x]).collect(),
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+        }
+    }
+
+    fn cube() -> TriangleMesh {
+        let positions = (0..8)
+            .map(|k| [0, 1, 2].map(|bit| if k >> bit & 1 == 1 { 0.5 } else { -0.5 }))
+            .collect();
+        // Faces as quads of corner bits (x = 1, y = 2, z = 4), outward winding.
+        let quads: [[u32; 4]; 6] = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let triangles = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        TriangleMesh {
+            positions,
+            triangles,
+        }
+    }
+
+    fn uv_sphere(radius: f64, segments: usize, rings: usize) -> TriangleMesh {
+        let mut positions = vec![[0.0, 0.0, radius], [0.0, 0.0, -radius]];
+        for ring in 1..rings {
+            let theta = std::f64::consts::PI * ring as f64 / rings as f64;
+            for seg in 0..segments {
+                let phi = 2.0 * std::f64::consts::PI * seg as f64 / segments as f64;
+                positions.push([
+                    radius * theta.sin() * phi.cos(),
+                    radius * theta.sin() * phi.sin(),
+                    radius * theta.cos(),
+                ]);
+            }
+        }
+        let at = |ring: usize, seg: usize| (2 + (ring - 1) * segments + seg % segments) as u32;
+        let mut triangles = Vec::new();
+        for seg in 0..segments {
+            triangles.push([0, at(1, seg), at(1, seg + 1)]);
+            triangles.push([1, at(rings - 1, seg + 1), at(rings - 1, seg)]);
+            for ring in 1..rings - 1 {
+                triangles.push([at(ring, seg), at(ring + 1, seg), at(ring + 1, seg + 1)]);
+                triangles.push([at(ring, seg), at(ring + 1, seg + 1), at(ring, seg + 1)]);
+            }
+        }
+        TriangleMesh {
+            positions,
+            triangles,
+        }
+    }
+
+    /// Rotation about one axis (0 = X, 1 = Y, 2 = Z), right-handed, in degrees.
+    fn rotate_about(v: [f64; 3], axis: usize, angle_deg: f64) -> [f64; 3] {
+        let (s, c) = angle_deg.to_radians().sin_cos();
+        let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+        let mut out = v;
+        out[i] = c * v[i] - s * v[j];
+        out[j] = s * v[i] + c * v[j];
+        out
+    }
+
+    /// The documented placement, implemented independently for a mesh whose
+    /// bounding box is already centred with largest side 1.
+    fn placed(p: [f64; 3], placement: &Placement) -> [f64; 3] {
+        let [ax, ay, az] = placement.rotation_deg;
+        let mut q = rotate_about(rotate_about(rotate_about(p, 0, ax), 1, ay), 2, az);
+        q[2] += placement.distance;
+        q
+    }
+
+    fn ray(scene: &Scene, column: usize, row: usize) -> [f64; 3] {
+        let (x, y) = scene.camera.image_xy(column as f64, row as f64);
+        let f = scene.camera.focal_px;
+        [x / f, y / f, 1.0]
+    }
+
+    /// Moller-Trumbore: depth `Z` of the hit and the smallest barycentric.
+    fn ray_triangle(d: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> Option<(f64, f64)> {
+        let e1 = sub(b, a);
+        let e2 = sub(c, a);
+        let p = cross(d, e2);
+        let det = dot(e1, p);
+        if det.abs() < 1e-14 {
+            return None;
+        }
+        let t_vec = scale(a, -1.0);
+        let u = dot(t_vec, p) / det;
+        let q = cross(t_vec, e1);
+        let v = dot(d, q) / det;
+        let t = dot(e2, q) / det;
+        let margin = u.min(v).min(1.0 - u - v);
+        (margin >= -1e-9 && t > 0.0).then_some((t, margin))
+    }
+
+    #[test]
+    fn default_rotation_turns_y_up_into_camera_y_down() {
+        let r = rotation_matrix(Placement::default().rotation_deg);
+        assert_eq!(mat_vec(&r, [1.0, 2.0, 3.0]), [1.0, -2.0, -3.0]);
+        let angles = [20.0, -35.0, 110.0];
+        let r = rotation_matrix(angles);
+        let v = [0.3, -0.7, 0.2];
+        let expected = rotate_about(rotate_about(rotate_about(v, 0, 20.0), 1, -35.0), 2, 110.0);
+        let got = mat_vec(&r, v);
+        for axis in 0..3 {
+            assert!((got[axis] - expected[axis]).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn fronto_parallel_square_is_exact() {
+        let placement = Placement::default();
+        let scene = render(&square(0.0), 65, 65, &placement, "square").unwrap();
+        let f = scene.camera.focal_px;
+        // max |X/Z| = 0.5 / 2; fill * (65 - 1) / 2 = 28.8 px.
+        assert!((f - 28.8 / 0.25).abs() < 1e-12);
+        let s = scene.intensity_scale;
+        assert!((s - 0.9 * 4.0).abs() < 1e-12, "s = {s}");
+        assert!((scene.image.at(32, 32) - s / 4.0).abs() < 1e-12);
+        let mut covered = 0;
+        for row in 0..65 {
+            for column in 0..65 {
+                let (x, y) = scene.camera.image_xy(column as f64, row as f64);
+                let inside = x.abs() <= 28.8 && y.abs() <= 28.8;
+                assert_eq!(
+                    *scene.object_mask.at(column, row),
+                    inside,
+                    "({column}, {row})"
+                );
+                let depth = *scene.depth_gt.at(column, row);
+                let intensity = *scene.image.at(column, row);
+                if inside {
+                    covered += 1;
+                    assert!((depth - 2.0).abs() < 1e-12);
+                    // Plane facing the camera: I = s Q^3 / z^2, Q = f / |(x, y, f)|.
+                    let q = f / (x * x + y * y + f * f).sqrt();
+                    let expected = s * q.powi(3) / 4.0;
+                    assert!(
+                        (intensity - expected).abs() < 1e-12,
+                        "{intensity} vs {expected}"
+                    );
+                } else {
+                    assert!(depth.is_nan());
+                    assert_eq!(intensity, 0.0);
+                }
+            }
+        }
+        assert_eq!(covered, 57 * 57);
+    }
+
+    #[test]
+    fn tilted_plane_depth_is_the_ray_plane_intersection() {
+        // Model plane z = 0.5 x; after the default rotation Z = 2 - 0.5 X.
+        let placement = Placement::default();
+        let scene = render(&square(0.5), 81, 61, &placement, "tilted").unwrap();
+        let s = scene.intensity_scale;
+        let mut covered = 0;
+        for row in 0..61 {
+            for column in 0..81 {
+                let d = ray(&scene, column, row);
+                let t = 2.0 / (1.0 + 0.5 * d[0]);
+                let (x, y) = (d[0] * t, d[1] * t);
+                let margin = 0.5 - x.abs().max(y.abs());
+                if margin.abs() < 1e-9 {
+                    continue;
+                }
+                assert_eq!(*scene.object_mask.at(column, row), margin > 0.0);
+                if margin > 0.0 {
+                    covered += 1;
+                    let depth = *scene.depth_gt.at(column, row);
+                    assert!((depth - t).abs() < 1e-9, "{depth} vs {t}");
+                    let r = t * norm(d);
+                    let expected = s * 2.0 / (1.25f64.sqrt() * r.powi(3));
+                    let intensity = *scene.image.at(column, row);
+                    assert!((intensity - expected).abs() < 1e-9 * expected.max(1.0));
+                }
+            }
+        }
+        assert!(covered > 1000);
+    }
+
+    #[test]
+    fn rotated_plane_follows_the_euler_convention() {
+        let placement = Placement {
+            rotation_deg: [205.0, -30.0, 10.0],
+            distance: 3.0,
+            ..Placement::default()
+        };
+        let scene = render(&square(0.0), 70, 50, &placement, "rotated").unwrap();
+        let n = placed(
+            [0.0, 0.0, 1.0],
+            &Placement {
+                distance: 0.0,
+                ..placement
+            },
+        );
+        let corners: Vec<[f64; 3]> = square(0.0)
+            .positions
+            .iter()
+            .map(|&p| placed(p, &placement))
+            .collect();
+        let mut covered = 0;
+        for row in 0..50 {
+            for column in 0..70 {
+                let d = ray(&scene, column, row);
+                let t = 3.0 * n[2] / dot(n, d);
+                let hit = [
+                    [corners[0], corners[1], corners[2]],
+                    [corners[0], corners[2], corners[3]],
+                ]
+                .iter()
+                .filter_map(|&tri| ray_triangle(d, tri))
+                .map(|(_, margin)| margin)
+                .fold(f64::NEG_INFINITY, f64::max);
+                if hit.abs() < 1e-9 {
+                    continue;
+                }
+                assert_eq!(
+                    *scene.object_mask.at(column, row),
+                    hit > 0.0,
+                    "({column}, {row})"
+                );
+                if hit > 0.0 {
+                    covered += 1;
+                    assert!((scene.depth_gt.at(column, row) - t).abs() < 1e-9);
+                }
+            }
+        }
+        assert!(covered > 500);
+    }
+
+    #[test]
+    fn closed_cube_shows_its_front_surface() {
+        let placement = Placement {
+            rotation_deg: [30.0, 40.0, 15.0],
+            ..Placement::default()
+        };
+        let mesh = cube();
+        let scene = render(&mesh, 90, 70, &placement, "cube").unwrap();
+        let corners: Vec<[f64; 3]> = mesh
+            .positions
+            .iter()
+            .map(|&p| placed(p, &placement))
+            .collect();
+        let mut double_hits = 0;
+        for row in 0..70 {
+            for column in 0..90 {
+                let d = ray(&scene, column, row);
+                let hits: Vec<(f64, f64)> = mesh
+                    .triangles
+                    .iter()
+                    .filter_map(|t| ray_triangle(d, t.map(|v| corners[v as usize])))
+                    .collect();
+                let nearest = hits.iter().map(|h| h.0).fold(f64::INFINITY, f64::min);
+                let farthest = hits.iter().map(|h| h.0).fold(f64::NEG_INFINITY, f64::max);
+                let robust = hits.iter().all(|h| h.1 > 1e-9);
+                let depth = *scene.depth_gt.at(column, row);
+                if hits.is_empty() {
+                    assert!(!scene.object_mask.at(column, row));
+                    assert!(depth.is_nan());
+                } else if robust {
+                    assert!(*scene.object_mask.at(column, row));
+                    assert!((depth - nearest).abs() < 1e-9, "{depth} vs {nearest}");
+                    if farthest > nearest + 0.1 {
+                        double_hits += 1;
+                    }
+                }
+            }
+        }
+        assert!(double_hits > 500);
+    }
+
+    #[test]
+    fn sphere_depth_is_the_front_hemisphere() {
+        let placement = Placement::default();
+        let scene = render(&uv_sphere(0.5, 96, 48), 101, 101, &placement, "sphere").unwrap();
+        let mut covered = 0;
+        for row in 0..101 {
+            for column in 0..101 {
+                let depth = *scene.depth_gt.at(column, row);
+                if !scene.object_mask.at(column, row) {
+                    continue;
+                }
+                covered += 1;
+                let d = ray(&scene, column, row);
+                // |t d - (0, 0, 2)|^2 = 0.25, nearer root.
+                let (a, b, c) = (dot(d, d), -4.0, 4.0 - 0.25);
+                let disc = (b * b - 4.0 * a * c).max(0.0);
+                let t = (-b - disc.sqrt()) / (2.0 * a);
+                // The inscribed polyhedron lies inside the sphere: never nearer
+                // than it, and close to it away from the silhouette.
+                assert!(depth >= t - 1e-9 && depth < 2.0, "{depth} vs {t}");
+                let axis_distance = 2.0 * d[0].hypot(d[1]) / norm(d);
+                if axis_distance < 0.4 {
+                    assert!(depth - t < 2e-3, "{depth} vs {t}");
+                }
+                assert!(scene.image.at(column, row).is_finite());
+            }
+        }
+        assert!(covered > 5000);
+        // The brightest pixel is near the centre, where the normal faces the light.
+        assert!((scene.image.at(50, 50) - 0.9).abs() < 5e-3);
+    }
+
+    #[test]
+    fn invalid_inputs_are_errors() {
+        let mesh = square(0.0);
+        let ok = Placement::default();
+        assert!(matches!(
+            render(&mesh, 1, 10, &ok, "x"),
+            Err(MeshError::InvalidInput { .. })
+        ));
+        for bad in [
+            Placement {
+                distance: 0.8,
+                ..ok
+            },
+            Placement {
+                distance: f64::NAN,
+                ..ok
+            },
+            Placement { fill: 0.0, ..ok },
+            Placement { fill: 1.5, ..ok },
+            Placement {
+                brightest: f64::NAN,
+                ..ok
+            },
+            Placement {
+                brightest: 0.0,
+                ..ok
+            },
+            Placement {
+                rotation_deg: [f64::INFINITY, 0.0, 0.0],
+                ..ok
+            },
+        ] {
+            assert!(matches!(
+                render(&mesh, 10, 10, &bad, "x"),
+                Err(MeshError::InvalidInput { .. })
+            ));
+        }
+        let bad_index = TriangleMesh {
+            triangles: vec![[0, 1, 7]],
+            ..mesh.clone()
+        };
+        assert!(matches!(
+            render(&bad_index, 10, 10, &ok, "x"),
+            Err(MeshError::InvalidIndex { .. })
+        ));
+        let empty = TriangleMesh {
+            triangles: vec![],
+            ..mesh.clone()
+        };
+        assert!(matches!(
+            render(&empty, 10, 10, &ok, "x"),
+            Err(MeshError::Empty { .. })
+        ));
+        let point = TriangleMesh {
+            positions: vec![[1.0; 3]; 3],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert!(matches!(
+            render(&point, 10, 10, &ok, "x"),
+            Err(MeshError::Degenerate { .. })
+        ));
+        let nan = TriangleMesh {
+            positions: vec![[0.0, 0.0, f64::NAN]; 3],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert!(matches!(
+            render(&nan, 10, 10, &ok, "x"),
+            Err(MeshError::Degenerate { .. })
+        ));
+        let sliver = TriangleMesh {
+            positions: vec![[0.0, 0.0, 0.0], [1.0, 0.5, 0.0], [0.5, 0.25, 0.0]],
+            triangles: vec![[0, 1, 2]],
+        };
+        assert!(matches!(
+            render(&sliver, 10, 10, &ok, "x"),
+            Err(MeshError::Misses { .. })
+        ));
+        // Seen exactly edge-on: the plane contains the optical axis.
+        let edge_on = square(0.0);
+        let side = Placement {
+            rotation_deg: [0.0, 90.0, 0.0],
+            ..ok
+        };
+        assert!(render(&edge_on, 11, 11, &side, "x").is_err());
+    }
+
+    #[test]
+    fn loads_all_face_index_forms_and_merges_objects() {
+        let path = write_obj(
+            "forms",
+            "mtllib missing.mtl\n\
+             v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+             vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n\
+             usemtl nothing\n\
+             f 1/1/1 2/2/1 3/3/1\n\
+             f 1//1 3//1 4//1\n\
+             f 1/1 2/2 3/3\n\
+             f 1 2 3 4\n\
+             l 1 2\n\
+             o second\n\
+             v 0 0 2\nv 2 0 2\nv 0 2 2\n\
+             f 5 6 7\n\
+             g group\n\
+             f -3/-1 -2/-2 -1/-3\n",
+        );
+        let mesh = load_obj(&path).unwrap();
+        assert_eq!(mesh.triangles.len(), 7);
+        let coords = |t: usize| mesh.triangles[t].map(|v| mesh.positions[v as usize]);
+        assert_eq!(
+            coords(0),
+            [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0]]
+        );
+        assert_eq!(
+            coords(1),
+            [[0.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]]
+        );
+        let quad: Vec<[[f64; 3]; 3]> = (3..5).map(coords).collect();
+        let area: f64 = quad
+            .iter()
+            .map(|&[a, b, c]| 0.5 * norm(cross(sub(b, a), sub(c, a))))
+            .sum();
+        assert!((area - 1.0).abs() < 1e-12);
+        assert_eq!(
+            coords(5),
+            [[0.0, 0.0, 2.0], [2.0, 0.0, 2.0], [0.0, 2.0, 2.0]]
+        );
+        assert_eq!(coords(6), coords(5));
+        std::fs::remove_dir_all(path.parent().unwrap()).unwrap();
+    }
+
+    #[test]
+    fn malformed_obj_files_are_errors() {
+        let cases = [
+            ("letters", "v 1 2 x\nv 0 0 0\nv 1 1 1\nf 1 2 3\n"),
+            ("short", "v 1 2\nv 0 0 0\nv 1 1 1\nf 1 2 3\n"),
+            ("range", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"),
+            ("negative", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 -9\n"),
+            ("zero", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
+            (
+                "texcoord",
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/-5 2/-5 3/-5\n",
+            ),
+            (
+                "normal",
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//4 2//4 3//4\n",
+            ),
+            ("face", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 a\n"),
+            ("no-faces", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"),
+            ("empty", ""),
+            ("infinite", "v 0 0 0\nv 1e50 0 0\nv 0 1 0\nf 1 2 3\n"),
+            ("nan", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n"),
+            ("flat-point", "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n"),
+        ];
+        for (stem, text) in cases {
+            let path = write_obj(stem, text);
+            let result = load_obj(&path);
+            let message = match result {
+                Ok(mesh) => panic!("{stem}: loaded {mesh:?}"),
+                Err(e) => e.to_string(),
+            };
+            assert!(
+                message.contains(&path.display().to_string()),
+                "{stem}: {message}"
+            );
+            std::fs::remove_dir_all(path.parent().unwrap()).unwrap();
+        }
+    }
+
+    #[test]
+    fn missing_file_error_names_the_path() {
+        let path = std::env::temp_dir().join("sfs-mesh-test-does-not-exist/nothing.obj");
+        let error = load_obj(&path).unwrap_err();
+        assert!(matches!(error, MeshError::Load { .. }));
+        assert!(error.to_string().contains(&path.display().to_string()));
+    }
+
+    /// Renders a shared mesh if it is present (skips otherwise).
+    fn check_real_mesh(stem: &str, width: usize, height: usize) {
+        let path = PathBuf::from(format!(
+            "{}/../../../shared/meshes/{stem}.obj",
+            env!("CARGO_MANIFEST_DIR")
+        ));
+        if !path.exists() {
+            eprintln!("skipping: {} not present", path.display());
+            return;
+        }
+        let mesh = load_obj(&path).unwrap();
+        let scene = render(&mesh, width, height, &Placement::default(), stem).unwrap();
+        let brightest = scene.image.as_slice().iter().copied().fold(0.0, f64::max);
+        assert!((brightest - 0.9).abs() < 1e-9);
+        assert!(
+            scene
+                .image
+                .as_slice()
+                .iter()
+                .all(|v| v.is_finite() && *v >= 0.0)
+        );
+        let object = scene.object_mask.as_slice().iter().filter(|&&m| m).count();
+        assert!(object > 1000, "{stem}: {object} object pixels");
+        for ((&m, &z), &i) in scene
+            .object_mask
+            .as_slice()
+            .iter()
+            .zip(scene.depth_gt.as_slice())
+            .zip(scene.image.as_slice())
+        {
+            if m {
+                assert!(z.is_finite() && z > 2.0 - 0.87 && z < 2.0 + 0.87);
+            } else {
+                assert!(z.is_nan());
+                assert_eq!(i, 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn renders_stanford_bunny() {
+        check_real_mesh("stanford-bunny", 256, 256);
+    }
+
+    #[test]
+    fn renders_suzanne() {
+        check_real_mesh("suzanne", 512, 256);
+    }
+
+    #[test]
+    fn renders_dragon() {
+        check_real_mesh("dragon", 256, 256);
+    }
+}

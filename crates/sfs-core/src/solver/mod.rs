@@ -1,0 +1,69 @@
+//! The linearised coarse-to-fine Gauss-Newton solver (paper Section 3):
+//! pyramid, per-level linear systems, SOR and the driver; and, behind the
+//! same interface ([`Method`], [`solve_method`]), the two baselines the paper
+//! compares against: the explicit variational scheme of Ju et al.
+//! ([`explicit`]) and fast marching for the Prados-Faugeras model
+//! ([`fast_marching`]). It reports through [`SolveObserver`] and knows
+//! nothing of threads, files or windows.
+
+pub mod auto_alpha;
+pub mod calibrate;
+pub(crate) mod coarse_to_fine;
+pub mod driver;
+pub mod explicit;
+pub mod fast_marching;
+pub mod multigrid;
+pub mod prepare;
+pub mod preview;
+pub mod problem;
+pub mod pyramid;
+pub mod sor;
+pub mod system;
+
+pub use driver::{solve, solve_with_model};
+pub use explicit::{ExplicitParams, solve_explicit};
+pub use fast_marching::{FastMarchingParams, solve_fast_marching};
+pub use prepare::initial_depth_from_image;
+pub use problem::{
+    IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
+    SolveObserver,
+};
+
+/// A shape-from-shading scheme: the paper's method or a baseline.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Method {
+    /// The linearised coarse-to-fine Gauss-Newton scheme (the paper's).
+    Linearised,
+    /// Gradient descent on the same energy (Ju et al.), with its budget.
+    Explicit(ExplicitParams),
+    /// Fast marching for the Hamilton-Jacobi equation (Vogel et al.).
+    FastMarching(FastMarchingParams),
+}
+
+impl Method {
+    /// The name used in reports and on the command line: `linearised`,
+    /// `explicit` or `fast_marching`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Method::Linearised => "linearised",
+            Method::Explicit(_) => "explicit",
+            Method::FastMarching(_) => "fast_marching",
+        }
+    }
+}
+
+/// Solves `problem` with `method`. The variational schemes use every
+/// parameter of `params`; fast marching has no parameters of the energy and
+/// ignores them.
+pub fn solve_method(
+    problem: &Problem,
+    params: &crate::params::SolverParams,
+    method: &Method,
+    observer: &mut dyn SolveObserver,
+) -> Result<Solution, SolveError> {
+    match method {
+        Method::Linearised => solve(problem, params, observer),
+        Method::Explicit(explicit) => solve_explicit(problem, params, explicit, observer),
+        Method::FastMarching(settings) => solve_fast_marching(problem, settings, observer),
+    }
+}

@@ -1,0 +1,576 @@
+//! The preparation every variational scheme shares: the validated problem's
+//! pyramid, its scales (what relative parameters refer to), the automatic
+//! alpha, the smoothness weights in pixel units, the update crop and the
+//! initial depth (constant, a map, or fast marching on the denoised image),
+//! so that the linearised and the explicit scheme minimise the same discrete
+//! energy from the same start; and the per-level energy and result both
+//! report.
+
+use std::time::Instant;
+
+use crate::grid::{Confidence, Grid, Weights};
+use crate::model::{self, Derivatives, Energy, LevelGeometry, Reflectance};
+use crate::params::{
+    Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
+};
+
+use super::problem::{
+    LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked_polled,
+};
+use super::pyramid::{self, PyramidLevel};
+
+/// A validated problem ready for a coarse-to-fine scheme: its pyramid
+/// (coarsest first), the initial depth on the coarsest level and the
+/// smoothness weights in pixel units. Shared by every variational scheme so
+/// that they minimise the same discrete energy on the same levels.
+pub(crate) struct Prepared<'a> {
+    /// Levels, coarsest first; the last one is the full image.
+    pub levels: Vec<PyramidLevel<'a>>,
+    /// Levels already sent to the observer (a preview).
+    pub shown: usize,
+    /// Initial depth on the coarsest level.
+    pub depth: Grid<f64>,
+    /// The constant initial depth (or the warm start's mean).
+    pub initial_depth: f64,
+    /// `alpha` in pixel units.
+    pub alpha: f64,
+    /// `lambda` in pixel units.
+    pub lambda: f64,
+    /// The problem's scales (what relative units refer to).
+    pub scales: ProblemScales,
+    /// The alpha used, in the parameters' units (the chosen one for auto).
+    pub alpha_used: f64,
+    /// The per-pixel crop of the updates.
+    pub crop: Crop,
+    /// Derivatives with `h_z` in depth units.
+    pub derivatives: Derivatives,
+    /// The solve refines a full-resolution start (fast marching or a map)
+    /// on the full image alone, instead of walking the pyramid up from a
+    /// constant.
+    pub refines_warm_start: bool,
+}
+
+impl Prepared<'_> {
+    /// The initial depth, moved out (an empty grid is left behind).
+    pub fn take_depth(&mut self) -> Grid<f64> {
+        std::mem::replace(&mut self.depth, Grid::filled(0, 0, 0.0))
+    }
+}
+
+/// The per-pixel limit on one update `|dz|`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Crop {
+    /// At most this many depth units.
+    Absolute(f64),
+    /// At most this fraction of the pixel's depth.
+    Relative(f64),
+}
+
+impl Crop {
+    /// The largest step allowed at depth `z`.
+    #[inline]
+    pub(crate) fn limit(self, z: f64) -> f64 {
+        match self {
+            Crop::Absolute(limit) => limit,
+            Crop::Relative(fraction) => fraction * z.abs(),
+        }
+    }
+}
+
+/// Validates `problem` and `params` and builds the pyramid and initial depth;
+/// with `preview` (a scheme that shows its start as a level of its own),
+/// before a fast-marching start on a large image, sends the start's preview
+/// to `observer` (level 0 of 3: preview, start, refined; timed from
+/// `start`).
+pub(crate) fn prepare<'a>(
+    problem: &'a Problem,
+    params: &SolverParams,
+    preview: Option<Instant>,
+    observer: &mut dyn SolveObserver,
+) -> Result<Prepared<'a>, SolveError> {
+    params.validate()?;
+    let (domain, confidence) = problem.validate_polled(params, &|| observer.is_cancelled())?;
+    check_cancelled(observer)?;
+    let (w, h) = problem.image.size();
+    let scales = problem_scales_polled(problem, &confidence, &|| observer.is_cancelled())
+        .ok_or(SolveError::Cancelled)?;
+    let finest = PyramidLevel {
+        geometry: LevelGeometry::new(w, h, w, h, problem.camera),
+        image: std::borrow::Cow::Borrowed(&problem.image),
+        // One byte per pixel where no partial confidence is painted.
+        confidence: Confidence::from_grid_polled(confidence, &|| observer.is_cancelled())
+            .ok_or(SolveError::Cancelled)?,
+        domain,
+    };
+    let relative_noise =
+        super::auto_alpha::relative_noise_polled(&finest, &scales, &|| observer.is_cancelled())
+            .ok_or(SolveError::Cancelled)?;
+    // Fast marching knows only the centred light; with lights elsewhere the
+    // default start is the plane that best explains the image, refined
+    // through the whole pyramid (the paper's path).
+    let fast_marching_start_wanted =
+        matches!(params.initial_depth, InitialDepth::FastMarching) && problem.light_is_centred();
+    // That start takes seconds on a photograph: its preview goes out first.
+    let shown = match preview {
+        Some(start) if fast_marching_start_wanted => {
+            usize::from(super::preview::send_preview(problem, 3, start, observer)?)
+        }
+        _ => 0,
+    };
+    let cancelled = || observer.is_cancelled();
+    let fast_marching = match fast_marching_start_wanted {
+        true => Some(fast_marching_start(
+            problem,
+            &finest,
+            relative_noise * scales.intensity,
+            relative_noise > FAST_MARCHING_DENOISE_ABOVE,
+            &cancelled,
+        )?),
+        _ => None,
+    };
+    let warm = match &params.initial_depth {
+        InitialDepth::Map(map) => Some(map),
+        InitialDepth::FastMarching => fast_marching.as_ref(),
+        _ => None,
+    };
+    let sizes = if warm.is_some() {
+        vec![(w, h)]
+    } else {
+        pyramid::level_sizes(w, h, params.eta, params.min_level_side)
+    };
+    if sizes.len() > pyramid::MAX_LEVELS {
+        return Err(SolveError::Param(crate::params::ParamError {
+            name: "eta",
+            value: params.eta.to_string(),
+            reason: format!(
+                "gives {} pyramid levels at {w}x{h} (at most {}); lower eta or raise min-level-side",
+                sizes.len(),
+                pyramid::MAX_LEVELS
+            ),
+        }));
+    }
+    let mut levels = vec![finest];
+    for &(lw, lh) in &sizes[1..] {
+        if cancelled() {
+            return Err(SolveError::Cancelled);
+        }
+        let geometry = LevelGeometry::new(lw, lh, w, h, problem.camera);
+        let Some(finer) = levels.last() else { break };
+        let source = if params.anti_alias_sigma == 0.0 {
+            &levels[0]
+        } else {
+            finer
+        };
+        let next = pyramid::downsample(source, geometry, params.anti_alias_sigma);
+        if !next.domain.as_slice().iter().any(|&d| d) {
+            break; // the object vanished at this size: stop coarsening
+        }
+        levels.push(next);
+    }
+    levels.reverse(); // coarsest first
+
+    let coarsest = &levels[0];
+    let (depth, initial_depth) = match (&params.initial_depth, warm) {
+        (_, Some(map)) => fill_warm_start(map, &cancelled).ok_or(SolveError::Cancelled)?,
+        (InitialDepth::Constant(z0), None) => (
+            Grid::filled(coarsest.geometry.width, coarsest.geometry.height, *z0),
+            *z0,
+        ),
+        _ if !problem.light_is_centred() => {
+            let z0 = initial_depth_plane_fit(
+                coarsest,
+                &problem.model(),
+                scales.depth,
+                nearest_object_depth(&problem.lights),
+            );
+            (
+                Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
+                z0,
+            )
+        }
+        _ => {
+            // A coarsest level with no bright trusted pixel left (they
+            // averaged away) takes the same formula's median over the full
+            // image, which validation guarantees exists.
+            let z0 =
+                initial_depth_from_image(coarsest, problem.intensity_scale).unwrap_or(scales.depth);
+            (
+                Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
+                z0,
+            )
+        }
+    };
+    let alpha_used = match params.alpha {
+        Alpha::Value(alpha) => alpha,
+        Alpha::Auto => {
+            let relative = super::auto_alpha::choose(relative_noise);
+            match params.units {
+                Units::Relative => relative,
+                Units::Paper => scales.alpha_px(relative),
+            }
+        }
+    };
+    let (alpha, lambda, crop, derivatives) = match params.units {
+        Units::Relative => (
+            scales.alpha_px(alpha_used),
+            scales.lambda_px(params.lambda),
+            Crop::Relative(params.dz_limit),
+            match params.derivatives {
+                Derivatives::Numeric { h_z } => Derivatives::Numeric {
+                    h_z: h_z * scales.depth,
+                },
+                exact => exact,
+            },
+        ),
+        Units::Paper => (
+            alpha_used,
+            params.lambda,
+            Crop::Absolute(params.dz_limit),
+            params.derivatives,
+        ),
+    };
+    Ok(Prepared {
+        levels,
+        shown,
+        depth,
+        initial_depth,
+        alpha,
+        lambda,
+        scales,
+        alpha_used,
+        crop,
+        derivatives,
+        refines_warm_start: warm.is_some(),
+    })
+}
+
+/// The fast-marching start of [`InitialDepth::FastMarching`]: untrusted
+/// object pixels filled by diffusion from trusted ones (fast marching has no
+/// confidence), the image TV-denoised with weight `noise_sigma` when
+/// `denoise`, then fast marching on the object. NaN off the object.
+fn fast_marching_start(
+    problem: &Problem,
+    finest: &PyramidLevel,
+    noise_sigma: f64,
+    denoise: bool,
+    cancelled: &(dyn Fn() -> bool + Sync),
+) -> Result<Grid<f64>, SolveError> {
+    // Fast marching reads only the object, so only untrusted object pixels
+    // need filling; with denoising the background is filled too, so that
+    // TV does not pull the silhouette towards the (black) background. At
+    // 1920x1080 the background's diffusion cost a quarter of a second.
+    use rayon::prelude::*;
+    use std::borrow::Cow;
+    let (w, h) = problem.image.size();
+    let object = problem.object_mask.as_ref();
+    let on_object = |q: usize| object.is_none_or(|m| m.as_slice()[q]);
+    let mut known = Grid::filled(w, h, false);
+    // Polled per chunk: at 18 MP one pass is tens of milliseconds.
+    const CHUNK: usize = 8192;
+    let unknown = known
+        .as_mut_slice()
+        .par_chunks_mut(CHUNK)
+        .enumerate()
+        .map(|(k, chunk)| {
+            if cancelled() {
+                return 0;
+            }
+            let mut unknown = 0;
+            for (i, known) in chunk.iter_mut().enumerate() {
+                let q = k * CHUNK + i;
+                *known = finest.confidence.weight(q) >= 0.5 || (!denoise && !on_object(q));
+                unknown += usize::from(!*known);
+            }
+            unknown
+        })
+        .sum::<usize>();
+    if cancelled() {
+        return Err(SolveError::Cancelled);
+    }
+    // Nothing to fill and no denoising: the problem's own image (no copy).
+    let mut image = Cow::Borrowed(&problem.image);
+    if unknown > 0 {
+        image = Cow::Owned(
+            crate::denoise::fill_unknown_cancellable(&problem.image, &known, cancelled)
+                .ok_or(SolveError::Cancelled)?,
+        );
+    }
+    drop(known);
+    if denoise {
+        image = Cow::Owned(
+            crate::denoise::tv_denoise_cancellable(&image, noise_sigma, TV_ITERATIONS, cancelled)
+                .ok_or(SolveError::Cancelled)?,
+        );
+    }
+    // The problem is validated already; the start needs only the depth (no
+    // reprojection, energy or second validation: seconds at 18 megapixels).
+    let everywhere;
+    let object: &Grid<bool> = match object {
+        Some(mask) => mask,
+        None => {
+            everywhere = Grid::filled(w, h, true);
+            &everywhere
+        }
+    };
+    let settings = super::fast_marching::FastMarchingParams::default();
+    let (mut solved, _) = super::fast_marching::march(
+        &image,
+        problem.camera,
+        object,
+        problem.intensity_scale,
+        &settings,
+        &ForwardCancel(cancelled),
+    )?;
+    drop(image);
+    // NaN off the object, in place.
+    let done = crate::grid::for_rows_polled(solved.as_mut_slice(), w, cancelled, |r, depth| {
+        for (c, z) in depth.iter_mut().enumerate() {
+            if !object.at(c, r) {
+                *z = f64::NAN;
+            }
+        }
+    });
+    if !done {
+        return Err(SolveError::Cancelled);
+    }
+    Ok(solved)
+}
+
+/// An observer that only forwards cancellation.
+struct ForwardCancel<'a>(&'a (dyn Fn() -> bool + Sync));
+
+impl SolveObserver for ForwardCancel<'_> {
+    fn is_cancelled(&self) -> bool {
+        (self.0)()
+    }
+}
+
+/// Primal-dual iterations of the TV denoising before the fast-marching start.
+const TV_ITERATIONS: usize = 200;
+
+/// The scales of [`ProblemScales`]: the median over trusted object pixels
+/// (confidence > 0, brightness > 0) of the "facing the light" depth
+/// `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already 0 off the
+/// object; `validate` guarantees a trusted pixel with brightness > 0.
+pub(crate) fn problem_scales(problem: &Problem, confidence: &Grid<f64>) -> ProblemScales {
+    problem_scales_polled(problem, confidence, NEVER)
+        .unwrap_or_else(|| unreachable!("never cancelled"))
+}
+
+/// [`problem_scales`] by rows in parallel, polling `cancelled` per row;
+/// `None` once it said true.
+pub(crate) fn problem_scales_polled(
+    problem: &Problem,
+    confidence: &Grid<f64>,
+    cancelled: Probe<'_>,
+) -> Option<ProblemScales> {
+    let w = problem.image.width();
+    let s = problem.intensity_scale;
+    let camera = problem.camera;
+    let facing = |r: usize, out: &mut Vec<f64>| {
+        for c in 0..w {
+            let v = *problem.image.at(c, r);
+            if *confidence.at(c, r) > 0.0 && v > 0.0 {
+                let q = model::PixelRay {
+                    x_px: c as f64 - camera.principal_x_px,
+                    y_px: r as f64 - camera.principal_y_px,
+                    focal_px: camera.focal_px,
+                }
+                .q();
+                out.push(q * (s / v).sqrt());
+            }
+        }
+    };
+    let median =
+        crate::selection::kth_smallest(problem.image.height(), facing, |n| n / 2, cancelled);
+    if cancelled() {
+        return None;
+    }
+    let depth = median.unwrap_or(1.0);
+    Some(ProblemScales {
+        depth,
+        intensity: s / (depth * depth),
+        focal_px: camera.focal_px,
+    })
+}
+
+/// The constant initial depth of [`InitialDepth::FromImage`] on a level: the
+/// brightest trusted domain pixel `b` is assumed to face the light,
+/// `z0 = Q_b sqrt(s / I_b)`; `None` when the level has no trusted domain
+/// pixel brighter than black.
+pub fn initial_depth_from_image(level: &PyramidLevel, intensity_scale: f64) -> Option<f64> {
+    let (w, h) = level.image.size();
+    let mut best = (0.0, 1.0);
+    for r in 0..h {
+        for c in 0..w {
+            let v = *level.image.at(c, r);
+            if *level.domain.at(c, r) && level.confidence.at(c, r) > 0.0 && v > best.0 {
+                best = (v, level.geometry.ray(c, r).q());
+            }
+        }
+    }
+    (best.0 > 0.0).then(|| best.1 * (intensity_scale / best.0).sqrt())
+}
+
+/// The constant initial depth for lights anywhere: the fronto-parallel
+/// plane `z = z0 >= nearest` whose rendering best fits the trusted domain
+/// pixels of `level` in least squares (a scan over six decades around
+/// `guess`, refined by golden sections on `log z0`).
+pub fn initial_depth_plane_fit<M: Reflectance>(
+    level: &PyramidLevel,
+    model: &M,
+    guess: f64,
+    nearest: f64,
+) -> f64 {
+    let (w, h) = level.image.size();
+    let pixels: Vec<(model::PixelRay, f64)> = (0..h)
+        .flat_map(|r| (0..w).map(move |c| (c, r)))
+        .filter(|&(c, r)| *level.domain.at(c, r) && level.confidence.at(c, r) > 0.0)
+        .map(|(c, r)| (level.geometry.ray(c, r), *level.image.at(c, r)))
+        .collect();
+    let floor = nearest.max(0.0);
+    let cost = |log_z: f64| -> f64 {
+        let z = log_z.exp();
+        if z < floor {
+            return f64::INFINITY;
+        }
+        pixels
+            .iter()
+            .map(|(ray, i)| {
+                let d = i - model.radiance(ray, z, 0.0, 0.0);
+                d * d
+            })
+            .sum()
+    };
+    if pixels.is_empty() || !(guess.is_finite() && guess > 0.0) {
+        return guess.max(1e-9);
+    }
+    let centre = guess.ln();
+    let (steps, span) = (121, 3.0 * std::f64::consts::LN_10);
+    let step = 2.0 * span / (steps - 1) as f64;
+    let best = (0..steps)
+        .map(|k| centre - span + k as f64 * step)
+        .map(|log_z| (log_z, cost(log_z)))
+        .filter(|(_, c)| c.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(centre, |(log_z, _)| log_z);
+    let (mut a, mut b) = (best - step, best + step);
+    let ratio = (5f64.sqrt() - 1.0) / 2.0;
+    for _ in 0..40 {
+        let (m1, m2) = (b - ratio * (b - a), a + ratio * (b - a));
+        if cost(m1) <= cost(m2) {
+            b = m2;
+        } else {
+            a = m1;
+        }
+    }
+    (0.5 * (a + b)).exp()
+}
+
+/// The nearest distance an object lit by `lights` is assumed to be at: every
+/// light within 45 degrees of the optical axis as seen from the object
+/// (`z >= S_z + |S_xy|`). A plane nearer than that, lit at grazing angles,
+/// can explain a smooth image as well as the true distance does; the
+/// set-ups this tool serves (a flash or LEDs beside the lens) light the
+/// object from the camera's side.
+pub fn nearest_object_depth(lights: &[crate::light::PointLight]) -> f64 {
+    lights
+        .iter()
+        .map(|l| l.position[2] + l.off_axis())
+        .fold(0.0, f64::max)
+}
+
+/// Replaces non-finite or non-positive values of a warm start by the mean.
+/// Polls `cancelled` per row (`None` once it said true).
+fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, f64)> {
+    let valid = |z: f64| z.is_finite() && z > 0.0;
+    let w = map.width().max(1);
+    // Summed in order (the mean is the same to the bit as one pass's).
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    for (r, row) in map.as_slice().chunks(w).enumerate() {
+        if r % 64 == 0 && cancelled() {
+            return None;
+        }
+        for &z in row.iter().filter(|&&z| valid(z)) {
+            sum += z;
+            count += 1;
+        }
+    }
+    let mean = sum / count.max(1) as f64;
+    let mut filled = Grid::filled(map.width(), map.height(), 0.0);
+    let done = crate::grid::for_rows_polled(filled.as_mut_slice(), w, cancelled, |r, out| {
+        for (c, out) in out.iter_mut().enumerate() {
+            let z = *map.at(c, r);
+            *out = if valid(z) { z } else { mean };
+        }
+    });
+    done.then_some((filled, mean))
+}
+
+/// A level's depth (NaN off its domain) and reprojection, as observers get them.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn level_result<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    index: usize,
+    levels: usize,
+    energy: Energy,
+    start: Instant,
+    cancelled: Probe<'_>,
+) -> LevelResult {
+    LevelResult {
+        level: index,
+        levels,
+        depth: std::sync::Arc::new(masked_polled(depth, &level.domain, cancelled)),
+        reprojection: std::sync::Arc::new(model::reproject_polled(
+            model,
+            &level.geometry,
+            &level.domain,
+            depth,
+            cancelled,
+        )),
+        geometry: level.geometry,
+        domain_pixels: {
+            use rayon::prelude::*;
+            level.domain.as_slice().par_iter().filter(|&&d| d).count()
+        },
+        energy,
+        elapsed: start.elapsed(),
+    }
+}
+
+/// Energy of a level.
+pub(crate) fn level_energy<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    alpha: f64,
+    lambda: f64,
+) -> Energy {
+    level_energy_polled(model, level, depth, alpha, lambda, NEVER)
+}
+
+/// [`level_energy`] polling `cancelled` per row (meaningless once it said
+/// true).
+pub(crate) fn level_energy_polled<M: Reflectance>(
+    model: &M,
+    level: &PyramidLevel,
+    depth: &Grid<f64>,
+    alpha: f64,
+    lambda: f64,
+    cancelled: Probe<'_>,
+) -> Energy {
+    model::energy_polled(
+        model,
+        &level.geometry,
+        &level.image,
+        &level.confidence,
+        &level.domain,
+        depth,
+        alpha,
+        lambda,
+        cancelled,
+    )
+}

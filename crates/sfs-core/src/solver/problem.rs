@@ -1,0 +1,589 @@
+//! What every scheme shares: the [`Problem`] it is asked to explain, the
+//! [`Solution`] it returns, the reports it sends to a [`SolveObserver`] and
+//! the checks of the input. The schemes (`driver`, `explicit`,
+//! `fast_marching`) depend on this module, never on each other.
+
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::camera::Intrinsics;
+use crate::grid::Grid;
+use crate::light::{LightModel, PointLight};
+use crate::model::{Energy, LevelGeometry};
+use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
+
+/// Image values at or above this are clipped (the top of a file's range,
+/// which the readers map to 1): such pixels get confidence 0.
+pub const SATURATED: f64 = 1.0;
+
+/// Smallest accepted image side.
+pub const MIN_IMAGE_SIDE: usize = 3;
+
+/// The largest depth a solve may return: above [`crate::params::DEPTH_RANGE`] (a solve may
+/// move beyond its start) and below float32's largest value (depth.npy).
+pub const MAX_SOLVED_DEPTH: f64 = 1e30;
+
+/// What the solver is asked to explain.
+#[derive(Clone, Debug)]
+pub struct Problem {
+    /// Linear image values (>= 0, finite).
+    pub image: Grid<f64>,
+    /// Camera at full resolution.
+    pub camera: Intrinsics,
+    /// Intensity scale `s`.
+    pub intensity_scale: f64,
+    /// Pixels that see the object (`None`: every pixel).
+    pub object_mask: Option<Grid<bool>>,
+    /// Confidence in [0, 1] (`None`: 1 everywhere).
+    pub confidence: Option<Grid<f64>>,
+    /// The lights switched on, camera frame, units of depth (empty: the
+    /// paper's single light at the optical centre).
+    pub lights: Vec<PointLight>,
+}
+
+/// Why a solve did not produce a depth map.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SolveError {
+    /// A parameter is out of range.
+    #[error(transparent)]
+    Param(#[from] ParamError),
+    /// The input cannot be solved; the message names the problem.
+    #[error("invalid input: {0}")]
+    Input(String),
+    /// The observer asked to stop.
+    #[error("cancelled")]
+    Cancelled,
+    /// The solve ended with depths no output can hold (infinite, not
+    /// positive, beyond [`MAX_SOLVED_DEPTH`], or none at all); nothing is
+    /// returned rather than a surface that is not one.
+    #[error("the solve diverged: {0}")]
+    Diverged(String),
+}
+
+/// Reported after every outer iteration.
+#[derive(Clone, Debug, Serialize)]
+pub struct IterationReport {
+    /// Level index, 0 = coarsest.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// Level width.
+    pub width: usize,
+    /// Level height.
+    pub height: usize,
+    /// Outer iteration within the level, from 0.
+    pub iteration: usize,
+    /// Energy after the update.
+    pub energy: Energy,
+    /// Largest `|dz|` applied (after cropping).
+    pub max_step: f64,
+    /// Time since the solve started.
+    #[serde(serialize_with = "seconds")]
+    pub elapsed: Duration,
+}
+
+/// Reported after every level: its depth and reprojection at its own size.
+/// The grids are shared, not copied, by every clone (the worker's event,
+/// the viewer's latest level and its mesh preparation hold one copy).
+#[derive(Clone, Debug)]
+pub struct LevelResult {
+    /// Level index, 0 = coarsest.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// Depth at this level's size; NaN outside the domain.
+    pub depth: std::sync::Arc<Grid<f64>>,
+    /// Reprojected image at this level's size.
+    pub reprojection: std::sync::Arc<Grid<f64>>,
+    /// This level's grid and camera: [`LevelGeometry::back_project`] turns
+    /// a level pixel and its depth into a camera-space point.
+    pub geometry: LevelGeometry,
+    /// Number of pixels in this level's domain (for energy per pixel).
+    pub domain_pixels: usize,
+    /// Energy at the end of the level.
+    pub energy: Energy,
+    /// Time since the solve started.
+    pub elapsed: Duration,
+}
+
+impl LevelResult {
+    /// The level's total energy per domain pixel: comparable across levels
+    /// (the total grows with the pixel count), so convergence reads as such.
+    pub fn energy_per_pixel(&self) -> f64 {
+        self.energy.total / self.domain_pixels.max(1) as f64
+    }
+}
+
+/// Per-level summary kept in a [`Solution`].
+#[derive(Clone, Debug, Serialize)]
+pub struct LevelReport {
+    /// Level width.
+    pub width: usize,
+    /// Level height.
+    pub height: usize,
+    /// Energies after each outer iteration.
+    pub energies: Vec<f64>,
+    /// Seconds spent on this level.
+    pub seconds: f64,
+}
+
+/// Seconds spent in each phase of a solve, and the work counted.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct PhaseTimes {
+    /// Linearising the data term and building its part of the system.
+    pub linearise_seconds: f64,
+    /// Evaluating Psi' and assembling the full system (every inner iteration).
+    pub assemble_seconds: f64,
+    /// The linear solves: SOR sweeps or V-cycles, with their residual
+    /// checks (the multigrid hierarchy's construction excluded).
+    pub linear_seconds: f64,
+    /// Building the multigrid hierarchies (Galerkin coarse operators).
+    pub hierarchy_seconds: f64,
+    /// Cropping, applying and (with backtracking) re-evaluating the update.
+    pub update_seconds: f64,
+    /// Inner iterations (linear solves) run, over all levels.
+    pub inner_iterations: usize,
+    /// SOR sweeps (linear solver `sor`) or V-cycles (`multigrid`) run.
+    pub linear_iterations: usize,
+}
+
+/// The result of a solve.
+#[derive(Clone, Debug)]
+pub struct Solution {
+    /// Full-resolution depth; NaN outside the object.
+    pub depth: Grid<f64>,
+    /// Reprojected image; 0 outside the object.
+    pub reprojection: Grid<f64>,
+    /// Energy of the initial depth at the coarsest level and of the result.
+    pub initial_energy: Energy,
+    /// Final energy at full resolution.
+    pub final_energy: Energy,
+    /// Levels, coarsest first.
+    pub levels: Vec<LevelReport>,
+    /// Where the time went.
+    pub phases: PhaseTimes,
+    /// Constant initial depth used (or the warm start's mean).
+    pub initial_depth: f64,
+    /// Wall time.
+    pub seconds: f64,
+    /// Outer iterations (linearised), gradient steps (explicit) or 1 (fast
+    /// marching).
+    pub iterations: usize,
+    /// True when a time or iteration budget stopped the scheme early.
+    pub budget_exhausted: bool,
+    /// The smoothness weight used, in the parameters' units (the chosen one
+    /// when alpha was `auto`); NaN for methods without one.
+    pub alpha: f64,
+    /// The same in pixel units.
+    pub alpha_px: f64,
+    /// Charbonnier `lambda` in pixel units.
+    pub lambda_px: f64,
+    /// The problem's scales that relative parameters refer to.
+    pub scales: ProblemScales,
+}
+
+fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_f64(d.as_secs_f64())
+}
+
+impl Solution {
+    /// The solution if its depth holds at least one value and every value
+    /// that is not NaN (NaN: off the object) is positive and at most
+    /// [`MAX_SOLVED_DEPTH`], and its reprojection is finite.
+    pub(crate) fn checked(self) -> Result<Self, SolveError> {
+        use rayon::prelude::*;
+        let z_max = MAX_SOLVED_DEPTH;
+        // No copy, in parallel: the depth can be a photograph's size.
+        let values = || {
+            self.depth
+                .as_slice()
+                .par_iter()
+                .with_min_len(8192)
+                .filter(|z| !z.is_nan())
+        };
+        let outside = |z: &&f64| !(**z > 0.0 && **z <= z_max);
+        if values().find_any(|_| true).is_none() {
+            return Err(SolveError::Diverged("no pixel has a depth".into()));
+        }
+        if let Some(example) = values().find_first(outside) {
+            return Err(SolveError::Diverged(format!(
+                "{} of {} depths are not in (0, {z_max:e}] (e.g. {example:e}); \
+                 check the intensity scale and the parameters",
+                values().filter(outside).count(),
+                values().count()
+            )));
+        }
+        if self
+            .reprojection
+            .as_slice()
+            .par_iter()
+            .with_min_len(8192)
+            .any(|v| !v.is_finite())
+        {
+            return Err(SolveError::Diverged(
+                "the reprojection is not finite".into(),
+            ));
+        }
+        Ok(self)
+    }
+}
+
+/// Receives progress from the solver; every method has a no-op default.
+///
+/// Observers are `Send`: the solve runs on a worker of rayon's pool.
+pub trait SolveObserver: Send + Sync {
+    /// After every outer iteration.
+    fn on_iteration(&mut self, _report: &IterationReport) {}
+    /// After every level.
+    fn on_level(&mut self, _result: &LevelResult) {}
+    /// Polled between SOR sweeps; returning true stops the solve with
+    /// [`SolveError::Cancelled`].
+    fn is_cancelled(&self) -> bool {
+        false
+    }
+}
+
+/// An observer that ignores everything.
+impl SolveObserver for () {}
+
+impl Problem {
+    /// The reflectance model of this problem's lights and intensity scale.
+    pub fn model(&self) -> LightModel {
+        LightModel::new(self.intensity_scale, &self.lights)
+    }
+
+    /// True when every light sits at the optical centre (the paper's model).
+    pub fn light_is_centred(&self) -> bool {
+        crate::light::is_centred(&self.lights)
+    }
+
+    /// Checks sizes and values; returns the effective domain and confidence
+    /// (0 off the object and on clipped pixels, see [`SATURATED`]).
+    pub(crate) fn validate(
+        &self,
+        params: &SolverParams,
+    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+        self.validate_polled(params, NEVER)
+    }
+
+    /// [`Self::validate`], its passes over the pixels by rows in parallel,
+    /// polling `cancelled` per row.
+    pub(crate) fn validate_polled(
+        &self,
+        params: &SolverParams,
+        cancelled: Probe<'_>,
+    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
+        use rayon::prelude::*;
+        let (w, h) = self.image.size();
+        let bad = |m: String| Err(SolveError::Input(m));
+        if w < MIN_IMAGE_SIDE || h < MIN_IMAGE_SIDE {
+            return bad(format!(
+                "image is {w}x{h}; at least {MIN_IMAGE_SIDE}x{MIN_IMAGE_SIDE} pixels are needed"
+            ));
+        }
+        let f = self.camera.focal_px;
+        if !(f.is_finite() && f > 0.0) {
+            return bad(format!("focal length must be finite and > 0 (got {f})"));
+        }
+        if !(self.camera.principal_x_px.is_finite() && self.camera.principal_y_px.is_finite()) {
+            return bad("principal point must be finite".into());
+        }
+        let s = self.intensity_scale;
+        let (s_min, s_max) = crate::params::INTENSITY_SCALE_RANGE;
+        if !(s.is_finite() && (s_min..=s_max).contains(&s)) {
+            return bad(format!(
+                "intensity scale must lie in [{s_min:e}, {s_max:e}] (got {s:e})"
+            ));
+        }
+        for (k, light) in self.lights.iter().enumerate() {
+            light.validated(k + 1).map_err(SolveError::Input)?;
+        }
+        let invalid = |v: &f64| !v.is_finite() || *v < 0.0;
+        let first_bad_row = self
+            .image
+            .as_slice()
+            .par_chunks(w)
+            .with_min_len(rows_per_task(w))
+            .position_first(|row| !cancelled() && row.iter().any(invalid));
+        if cancelled() {
+            return Err(SolveError::Cancelled);
+        }
+        if let Some(bad_value) = first_bad_row.and_then(|r| {
+            self.image.as_slice()[r * w..(r + 1) * w]
+                .iter()
+                .find(|v| invalid(v))
+        }) {
+            return bad(format!(
+                "image contains an invalid value {bad_value} (values must be finite and >= 0)"
+            ));
+        }
+        let object = match &self.object_mask {
+            Some(m) if m.size() != (w, h) => {
+                return bad(format!(
+                    "object mask is {}x{} but the image is {w}x{h}",
+                    m.width(),
+                    m.height()
+                ));
+            }
+            Some(m) => m.clone(),
+            None => Grid::filled(w, h, true),
+        };
+        let given = match &self.confidence {
+            Some(c) if c.size() != (w, h) => {
+                return bad(format!(
+                    "confidence is {}x{} but the image is {w}x{h}",
+                    c.width(),
+                    c.height()
+                ));
+            }
+            Some(c) => {
+                if c.as_slice().iter().any(|v| !(0.0..=1.0).contains(v)) {
+                    return bad("confidence values must lie in [0, 1]".into());
+                }
+                Some(c)
+            }
+            None => None,
+        };
+        // 0 off the object; a clipped pixel only says "at least this
+        // bright": the model cannot match it, so it is not trusted either
+        // (as if painted with confidence 0).
+        let mut confidence = Grid::filled(w, h, 0.0);
+        let image = self.image.as_slice();
+        let (objects, trusted, saturated, brightest) = confidence
+            .as_mut_slice()
+            .par_chunks_mut(w)
+            .enumerate()
+            .with_min_len(rows_per_task(w))
+            .map(|(r, row)| {
+                let mut counts = (0usize, 0usize, 0usize, 0.0f64);
+                if cancelled() {
+                    return counts;
+                }
+                for (c, out) in row.iter_mut().enumerate() {
+                    if !*object.at(c, r) {
+                        continue;
+                    }
+                    counts.0 += 1;
+                    let trust = given.map_or(1.0, |g| *g.at(c, r));
+                    if trust > 0.0 {
+                        let v = image[r * w + c];
+                        counts.1 += 1;
+                        counts.3 = counts.3.max(v);
+                        if v >= SATURATED {
+                            counts.2 += 1;
+                            continue;
+                        }
+                    }
+                    *out = trust;
+                }
+                counts
+            })
+            .reduce(
+                || (0, 0, 0, 0.0),
+                |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3.max(b.3)),
+            );
+        if cancelled() {
+            return Err(SolveError::Cancelled);
+        }
+        if objects == 0 {
+            return bad("the object mask is empty".into());
+        }
+        if trusted == 0 {
+            return bad("no pixel is both on the object and trusted (confidence > 0)".into());
+        }
+        if brightest <= 0.0 {
+            return bad(
+                "the image is black on every trusted object pixel: there is no shading to explain"
+                    .into(),
+            );
+        }
+        if saturated * 2 > trusted {
+            return bad(format!(
+                "the image is saturated: {saturated} of {trusted} trusted object pixels are at the maximum value; \
+                 lower the exposure or mask the saturated region (confidence 0)"
+            ));
+        }
+        if let InitialDepth::Map(map) = &params.initial_depth
+            && map.size() != (w, h)
+        {
+            return bad(format!(
+                "initial depth map is {}x{} but the image is {w}x{h}",
+                map.width(),
+                map.height()
+            ));
+        }
+        let domain = match params.domain {
+            DomainMode::Object => object,
+            DomainMode::Paper => Grid::filled(w, h, true),
+        };
+        Ok((domain, confidence))
+    }
+}
+
+/// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
+/// the long single passes over an image (each about a second at 18
+/// megapixels).
+pub(crate) use crate::grid::rows_per_task;
+
+/// A cancellation probe that long parallel passes call per block of rows
+/// (`true`: stop; the pass's result is then garbage and its caller returns
+/// [`SolveError::Cancelled`]).
+pub type Probe<'a> = &'a (dyn Fn() -> bool + Sync);
+
+/// A probe that never cancels.
+pub const NEVER: Probe<'static> = &|| false;
+
+pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveError> {
+    if observer.is_cancelled() {
+        Err(SolveError::Cancelled)
+    } else {
+        Ok(())
+    }
+}
+
+/// How long [`free_on_pool`] leaves its job to other workers before it runs
+/// it itself.
+const FREE_HANDOVER: std::time::Duration = std::time::Duration::from_millis(10);
+
+/// Frees `value` on rayon's pool (tens of milliseconds for a level's linear
+/// system at 18 megapixels) and waits until it is gone, polling `observer`'s
+/// cancellation meanwhile (`Err` once cancelled; the value is then freed
+/// later). The memory is back before the caller allocates more, so the
+/// solve's peak does not depend on how soon another thread gets to it.
+/// An idle worker frees it while this one polls (run here, the job would be
+/// tens of milliseconds without a poll). Where no other worker takes it
+/// within [`FREE_HANDOVER`] (a pool of one thread, or every worker busy,
+/// perhaps waiting likewise in other solves) this worker runs it itself:
+/// waiting on, they would wait on each other.
+pub(crate) fn free_on_pool<T: Send + 'static>(
+    value: T,
+    observer: &dyn SolveObserver,
+) -> Result<(), SolveError> {
+    use std::sync::mpsc::{RecvTimeoutError, TryRecvError};
+    let (done, freed) = std::sync::mpsc::channel::<()>();
+    rayon::spawn(move || {
+        drop(value);
+        drop(done);
+    });
+    let handed = std::time::Instant::now();
+    loop {
+        if freed.try_recv() != Err(TryRecvError::Empty) {
+            return Ok(());
+        }
+        check_cancelled(observer)?;
+        if handed.elapsed() >= FREE_HANDOVER && rayon::yield_now() == Some(rayon::Yield::Executed) {
+            continue;
+        }
+        if freed.recv_timeout(std::time::Duration::from_millis(2)) != Err(RecvTimeoutError::Timeout)
+        {
+            return Ok(());
+        }
+    }
+}
+
+/// The full-resolution depth (NaN) and reprojection (0) outside the
+/// problem's object mask, as a [`Solution`] holds them.
+pub(crate) fn on_object(
+    problem: &Problem,
+    mut depth: Grid<f64>,
+    mut reprojection: Grid<f64>,
+) -> (Grid<f64>, Grid<f64>) {
+    use rayon::prelude::*;
+    // In place, by pixels in parallel: no copies at a photograph's size.
+    if let Some(object) = &problem.object_mask {
+        depth
+            .as_mut_slice()
+            .par_iter_mut()
+            .zip(reprojection.as_mut_slice().par_iter_mut())
+            .zip(object.as_slice().par_iter())
+            .with_min_len(8192)
+            .for_each(|((z, value), &inside)| {
+                if !inside {
+                    *z = f64::NAN;
+                    *value = 0.0;
+                }
+            });
+    }
+    (depth, reprojection)
+}
+
+/// The depth with NaN outside `domain`.
+pub fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
+    masked_polled(depth, domain, NEVER)
+}
+
+/// [`masked`], rows in parallel (the copy's pages are first touched there
+/// too), polling `cancelled` per row (the rest is left 0 once it said true:
+/// the caller stops).
+pub(crate) fn masked_polled(
+    depth: &Grid<f64>,
+    domain: &Grid<bool>,
+    cancelled: Probe<'_>,
+) -> Grid<f64> {
+    let (w, h) = depth.size();
+    let mut out = Grid::filled(w, h, 0.0);
+    crate::grid::for_rows_polled(out.as_mut_slice(), w, cancelled, |r, out| {
+        for (c, out) in out.iter_mut().enumerate() {
+            *out = if *domain.at(c, r) {
+                *depth.at(c, r)
+            } else {
+                f64::NAN
+            };
+        }
+    });
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every worker of the pool waiting in `free_on_pool` at once (solves in
+    /// parallel) must not wait on each other, nor a pool of one thread on
+    /// itself; a cancelled observer stops the wait.
+    #[test]
+    fn freeing_on_the_pool_ends_when_every_worker_waits() {
+        // On its own thread, so that a wait that never ends fails the test
+        // (after a generous minute) instead of hanging it.
+        let (done, ended) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            every_worker_waits();
+            let _ = done.send(());
+        });
+        ended
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("free_on_pool returns");
+    }
+
+    fn every_worker_waits() {
+        let pair = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a pool of two threads");
+        let (a, b) = pair.install(|| {
+            rayon::join(
+                || free_on_pool(vec![1u8; 1 << 22], &()),
+                || free_on_pool(vec![2u8; 1 << 22], &()),
+            )
+        });
+        assert!(a.is_ok() && b.is_ok());
+        let single = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("a pool of one thread");
+        assert!(
+            single
+                .install(|| free_on_pool(vec![3u8; 1 << 22], &()))
+                .is_ok()
+        );
+        struct Cancelled;
+        impl SolveObserver for Cancelled {
+            fn is_cancelled(&self) -> bool {
+                true
+            }
+        }
+        let stopped = single.install(|| free_on_pool(vec![4u8; 1 << 22], &Cancelled));
+        assert!(matches!(stopped, Err(SolveError::Cancelled)));
+    }
+}

@@ -1,0 +1,1164 @@
+//! The viewer's panels: menu, status line, controls (camera, parameters,
+//! mask tools, progress, export), the 2-D image panels and the 3-D view.
+
+use std::path::PathBuf;
+
+use eframe::egui;
+
+use super::document::{CameraSource, Document};
+use super::images;
+use super::level_prep::BuiltMesh;
+use super::session::{Export, Session};
+use super::settings::{InitialChoice, Settings, SurfaceColour, Tool};
+use super::view3d::SurfaceView;
+use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
+use sfs_core::grid::Grid;
+use sfs_core::params::{PARAMS, ParamKind, ParamValue, SolverParams};
+
+/// Which 2-D panel is shown.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Panel2d {
+    /// The input with the mask overlay (paint here).
+    Input,
+    /// The reprojected image of the latest level.
+    Reprojection,
+    /// `|input - reprojection|`.
+    Difference,
+    /// Depth with a colour map.
+    Depth,
+    /// `|depth - ground truth|` (with ground truth).
+    DepthError,
+}
+
+/// What the panels ask the app to do after the frame (what needs more
+/// than the document being edited: files, the worker, the window).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    /// Open an image.
+    Open(PathBuf),
+    /// Apply a camera file.
+    LoadCamera(PathBuf),
+    /// Load a mask PNG into a layer.
+    LoadMask(Layer, PathBuf),
+    /// Save a mask layer as PNG.
+    SaveMask(Layer, PathBuf),
+    /// Export the finished result.
+    Export(PathBuf, Export),
+    /// Save a screenshot of the window.
+    Screenshot(PathBuf),
+    /// Cancel the running solve.
+    CancelSolve,
+    /// Solve now.
+    SolveNow,
+    /// Parameters or the camera changed: solve after the debounce.
+    RequestSolve,
+    /// Show a message on the status line.
+    Notice(String),
+    /// Clear the status line's message.
+    DismissNotice,
+    /// Lower the confidence where the model cannot hold (one undo step).
+    SuggestConfidence,
+}
+
+/// What the panels read and edit in one frame, and where they put what the
+/// app must do.
+pub struct UiContext<'a> {
+    /// The document and its solve (masks and camera are edited in place).
+    pub session: &'a mut Session,
+    /// Persisted settings (edited in place).
+    pub settings: &'a mut Settings,
+    /// The status line's message.
+    pub notice: Option<&'a str>,
+    /// Actions for the app, run after the frame.
+    pub actions: &'a mut Vec<Action>,
+}
+
+/// A drag in the image panel in progress.
+enum Gesture {
+    Stroke,
+    Rectangle(ImagePoint),
+    Lasso(Vec<ImagePoint>),
+}
+
+/// Textures of the 2-D panels.
+#[derive(Default)]
+struct Textures {
+    input: Option<egui::TextureHandle>,
+    overlay: Option<(u64, egui::TextureHandle)>,
+    reprojection: Option<egui::TextureHandle>,
+    difference: Option<(egui::TextureHandle, [f64; 2])>,
+    depth: Option<(egui::TextureHandle, [f64; 2])>,
+    depth_error: Option<(egui::TextureHandle, [f64; 2])>,
+}
+
+/// The panels' own state: which 2-D panel, its zoom and pan, the mask
+/// gesture in progress, the textures, the hover text and the 3-D view.
+pub struct Panels {
+    panel: Panel2d,
+    zoom: f32,
+    pan: egui::Vec2,
+    gesture: Option<Gesture>,
+    textures: Textures,
+    hover: Option<String>,
+    surface: SurfaceView,
+}
+
+/// A file dialog (kept behind one function: headless tests never open one).
+fn pick_open(filters: &[(&str, &[&str])]) -> Option<PathBuf> {
+    let mut dialog = rfd::FileDialog::new();
+    for (name, extensions) in filters {
+        dialog = dialog.add_filter(*name, extensions);
+    }
+    dialog.pick_file()
+}
+
+/// A save dialog with a suggested file name.
+fn pick_save(name: &str, extension: &str) -> Option<PathBuf> {
+    rfd::FileDialog::new()
+        .set_file_name(name)
+        .add_filter(extension, &[extension])
+        .save_file()
+}
+
+const IMAGE_EXTENSIONS: &[&str] = &["png", "tif", "tiff", "jpg", "jpeg"];
+
+/// The input image's texture.
+fn input_texture(ctx: &egui::Context, image: &Grid<f64>) -> egui::TextureHandle {
+    images::load_texture(
+        ctx,
+        "input",
+        images::grey_image(image),
+        egui::TextureOptions::NEAREST,
+    )
+}
+
+impl Panels {
+    /// Panels with the 3-D view (`Err`: why it is unavailable).
+    pub fn new(surface_available: Result<(), String>) -> Self {
+        Self {
+            panel: Panel2d::Input,
+            zoom: 1.0,
+            pan: egui::Vec2::ZERO,
+            gesture: None,
+            textures: Textures::default(),
+            hover: None,
+            surface: SurfaceView::new(surface_available),
+        }
+    }
+
+    /// Selects a 2-D panel.
+    pub fn show_panel(&mut self, panel: Panel2d) {
+        self.panel = panel;
+    }
+
+    /// A mask gesture (stroke, rectangle, lasso) is in progress.
+    pub fn gesture_in_progress(&self) -> bool {
+        self.gesture.is_some()
+    }
+
+    /// Generation of the level shown in the 3-D view.
+    pub fn level_generation(&self) -> Option<u64> {
+        self.surface.generation()
+    }
+
+    /// A new document: forget the old one's textures and surface, show its
+    /// input.
+    pub fn document_opened(&mut self, ctx: &egui::Context, doc: &Document) {
+        self.textures = Textures::default();
+        self.surface.clear();
+        self.zoom = 1.0;
+        self.pan = egui::Vec2::ZERO;
+        self.textures.input = Some(input_texture(ctx, &doc.image));
+    }
+
+    /// Shows a prepared level: its mesh and its panel images.
+    pub fn show_level(&mut self, ctx: &egui::Context, built: BuiltMesh) {
+        let Some(panels) = self.surface.set_mesh(built) else {
+            return;
+        };
+        let options = egui::TextureOptions::NEAREST;
+        self.textures.reprojection = Some(images::load_texture(
+            ctx,
+            "reprojection",
+            panels.reprojection,
+            options,
+        ));
+        let (difference, range) = panels.difference;
+        self.textures.difference = Some((
+            images::load_texture(ctx, "difference", difference, options),
+            range,
+        ));
+        let (depth, range) = panels.depth;
+        self.textures.depth = Some((images::load_texture(ctx, "depth", depth, options), range));
+        self.textures.depth_error = panels.depth_error.map(|(image, range)| {
+            (
+                images::load_texture(ctx, "depth-error", image, options),
+                range,
+            )
+        });
+    }
+
+    fn error_range(&self) -> f32 {
+        self.textures
+            .difference
+            .as_ref()
+            .map_or(1.0, |(_, r)| r[1] as f32)
+    }
+
+    /// The whole window: menu, status line, controls, the 3-D view and the
+    /// 2-D image panel.
+    pub fn ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        egui::Panel::top("menu").show(ui, |ui| self.menu_ui(ui, cx));
+        egui::Panel::bottom("status").show(ui, |ui| self.status_ui(ui, cx));
+        egui::Panel::left("controls")
+            .default_size(300.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls_ui(ui, cx));
+            });
+        egui::Panel::right("view3d")
+            .default_size(480.0)
+            .resizable(true)
+            .show(ui, |ui| self.view3d_ui(ui, cx));
+        egui::CentralPanel::default().show(ui, |ui| self.image_panel_ui(ui, cx));
+    }
+
+    pub(super) fn menu_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui.button("Open image…").clicked()
+                    && let Some(path) = pick_open(&[("images", IMAGE_EXTENSIONS)])
+                {
+                    cx.actions.push(Action::Open(path));
+                }
+                if ui.button("Open built-in sample").clicked()
+                    && let Some(path) = super::sample_image_path()
+                {
+                    cx.actions.push(Action::Open(path));
+                }
+                if ui.button("Load camera file…").clicked()
+                    && let Some(path) = pick_open(&[("camera JSON", &["json"])])
+                {
+                    cx.actions.push(Action::LoadCamera(path));
+                }
+                ui.menu_button("Recent files", |ui| {
+                    let recent = cx.settings.recent_files.clone();
+                    if recent.is_empty() {
+                        ui.label("none yet");
+                    }
+                    for path in recent {
+                        if ui.button(path.display().to_string()).clicked() {
+                            cx.actions.push(Action::Open(path));
+                        }
+                    }
+                });
+                ui.separator();
+                self.export_menu_ui(ui, cx);
+                ui.separator();
+                if ui.button("Quit").clicked() {
+                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let (can_undo, can_redo) = cx
+                    .session
+                    .document
+                    .as_ref()
+                    .map_or((false, false), |d| (d.masks.can_undo(), d.masks.can_redo()));
+                if ui
+                    .add_enabled(can_undo, egui::Button::new("Undo mask edit (Ctrl+Z)"))
+                    .clicked()
+                    && let Some(doc) = &mut cx.session.document
+                {
+                    doc.masks.undo();
+                }
+                if ui
+                    .add_enabled(can_redo, egui::Button::new("Redo (Ctrl+Shift+Z)"))
+                    .clicked()
+                    && let Some(doc) = &mut cx.session.document
+                {
+                    doc.masks.redo();
+                }
+            });
+        });
+    }
+
+    fn export_menu_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let has_result = cx.session.solve.finished.is_some();
+        let name = cx
+            .session
+            .document
+            .as_ref()
+            .and_then(|d| d.path.file_stem())
+            .map(|s| s.to_string_lossy().to_string())
+            .unwrap_or_else(|| "result".into());
+        ui.add_enabled_ui(has_result, |ui| {
+            if ui.button("Export depth (.npy)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-depth.npy"), "npy")
+            {
+                cx.actions.push(Action::Export(path, Export::DepthNpy));
+            }
+            if ui.button("Export depth (16-bit PNG)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-depth16.png"), "png")
+            {
+                cx.actions.push(Action::Export(path, Export::DepthPng));
+            }
+            if ui.button("Export mesh (.ply)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}.ply"), "ply")
+            {
+                cx.actions.push(Action::Export(path, Export::MeshPly));
+            }
+            if ui.button("Export mesh (.obj)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}.obj"), "obj")
+            {
+                cx.actions.push(Action::Export(path, Export::MeshObj));
+            }
+            if ui.button("Export reprojection (16-bit PNG)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-reprojection.png"), "png")
+            {
+                cx.actions.push(Action::Export(path, Export::Reprojection));
+            }
+        });
+        if ui.button("Save window screenshot…").clicked()
+            && let Some(path) = pick_save(&format!("{name}-screenshot.png"), "png")
+        {
+            cx.actions.push(Action::Screenshot(path));
+        }
+        let has_doc = cx.session.document.is_some();
+        ui.add_enabled_ui(has_doc, |ui| {
+            for (label, layer, file) in [
+                ("Save confidence mask…", Layer::Confidence, "confidence.png"),
+                ("Save object mask…", Layer::Object, "mask.png"),
+            ] {
+                if ui.button(label).clicked()
+                    && let Some(path) = pick_save(file, "png")
+                {
+                    cx.actions.push(Action::SaveMask(layer, path));
+                }
+            }
+            for (label, layer) in [
+                ("Load confidence mask…", Layer::Confidence),
+                ("Load object mask…", Layer::Object),
+            ] {
+                if ui.button(label).clicked()
+                    && let Some(path) = pick_open(&[("mask PNG", &["png"])])
+                {
+                    cx.actions.push(Action::LoadMask(layer, path));
+                }
+            }
+        });
+    }
+
+    pub(super) fn status_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        ui.horizontal(|ui| {
+            if let Some(doc) = &cx.session.document {
+                let (w, h) = doc.size();
+                ui.label(format!("{} ({w}x{h})", doc.path.display()));
+                ui.separator();
+            }
+            if let Some(hover) = &self.hover {
+                ui.monospace(hover);
+                ui.separator();
+            }
+            if let Some(notice) = cx.notice.map(str::to_string) {
+                ui.colored_label(ui.visuals().warn_fg_color, notice);
+                if ui.small_button("x").on_hover_text("dismiss").clicked() {
+                    cx.actions.push(Action::DismissNotice);
+                }
+            }
+        });
+    }
+
+    pub(super) fn controls_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        self.progress_ui(ui, cx);
+        ui.separator();
+        egui::CollapsingHeader::new("Parameters")
+            .default_open(true)
+            .show(ui, |ui| self.params_ui(ui, cx));
+        egui::CollapsingHeader::new("Mask")
+            .default_open(true)
+            .show(ui, |ui| self.mask_ui(ui, cx));
+        egui::CollapsingHeader::new("Camera")
+            .default_open(true)
+            .show(ui, |ui| self.camera_ui(ui, cx));
+        egui::CollapsingHeader::new("3-D view")
+            .default_open(true)
+            .show(ui, |ui| self.view_settings_ui(ui, cx));
+    }
+
+    fn progress_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let s = &cx.session.solve;
+        let running = s.running;
+        ui.horizontal(|ui| {
+            if s.running {
+                ui.spinner();
+                let p = &s.progress;
+                ui.label(format!(
+                    "level {} of {} ({}x{}), iteration {}",
+                    p.level + 1,
+                    p.levels.max(1),
+                    p.size.0,
+                    p.size.1,
+                    p.iteration + 1
+                ));
+            } else if let Some(done) = &s.finished {
+                ui.label(format!("done in {:.2} s", done.seconds));
+            } else if s.failure.is_some() {
+                ui.colored_label(ui.visuals().error_fg_color, "solve failed");
+            } else {
+                ui.label("idle");
+            }
+        });
+        if s.running {
+            ui.label(format!(
+                "energy per pixel {:.4e}, {:.2} s",
+                s.progress.energy_per_pixel,
+                s.progress.elapsed.as_secs_f64()
+            ));
+        }
+        if let Some((rse, rie)) = s.errors {
+            ui.label(format!("against ground truth: RSE {rse:.5}, RIE {rie:.5}"));
+        }
+        if let Some(fit) = &s.fit {
+            ui.label(format!(
+                "model fit: RIE {:.3} on trusted pixels, {:.0} % badly explained, {:.0} % \
+                 near-black, {:.1} % saturated",
+                fit.rie_trusted,
+                100.0 * fit.poor_share,
+                100.0 * fit.near_black_share,
+                100.0 * fit.saturated_share
+            ))
+            .on_hover_text(
+                "RIE: relative image error of the reprojection over trusted object pixels; \
+                 badly explained: residual above 15 %. See the residual panel.",
+            );
+            for warning in &fit.warnings {
+                ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
+            }
+        }
+        if let Some(s_used) = s.intensity_scale_used {
+            ui.weak(format!("intensity scale used: {s_used:.4e}"));
+        }
+        if let Some(failure) = &s.failure {
+            ui.colored_label(ui.visuals().error_fg_color, failure.clone());
+        }
+        ui.horizontal(|ui| {
+            if ui
+                .add_enabled(running, egui::Button::new("Cancel"))
+                .clicked()
+            {
+                cx.actions.push(Action::CancelSolve);
+            }
+            if ui.button("Solve again").clicked() {
+                cx.actions.push(Action::SolveNow);
+            }
+        });
+        energy_plot(ui, &cx.session.solve.energies);
+    }
+
+    fn params_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let defaults = SolverParams::default();
+        let mut p = cx.settings.params.to_params();
+        let chosen_alpha = cx.session.solve.finished.as_ref().map(|s| s.alpha);
+        let mut changed = false;
+        for spec in PARAMS {
+            let Some((low, high)) = spec.slider else {
+                continue;
+            };
+            let tooltip = format!("{} Default: {}.", spec.help, (spec.get)(&defaults));
+            let value = (spec.get)(&p);
+            match (spec.kind, value) {
+                (ParamKind::Real { log, auto, .. }, value) => {
+                    let mut number = match value {
+                        ParamValue::Real(v) => v,
+                        // Auto shows the value the last solve chose.
+                        _ => chosen_alpha.filter(|a| a.is_finite()).unwrap_or(low),
+                    };
+                    ui.horizontal(|ui| {
+                        if auto {
+                            let mut is_auto = value == ParamValue::Auto;
+                            if ui
+                                .checkbox(&mut is_auto, "auto")
+                                .on_hover_text("Let the solver choose from the image's noise level; the slider shows its choice")
+                                .changed()
+                            {
+                                let new = if is_auto {
+                                    ParamValue::Auto
+                                } else {
+                                    ParamValue::Real(number)
+                                };
+                                (spec.set)(&mut p, new);
+                                changed = true;
+                            }
+                        }
+                        if ui
+                            .add(
+                                egui::Slider::new(&mut number, low..=high)
+                                    .logarithmic(log)
+                                    .custom_formatter(|v, _| slider_number(v))
+                                    .text(spec.label),
+                            )
+                            .on_hover_text(tooltip.as_str())
+                            .changed()
+                        {
+                            (spec.set)(&mut p, ParamValue::Real(number));
+                            changed = true;
+                        }
+                    });
+                }
+                (ParamKind::Count { .. }, ParamValue::Count(mut count)) => {
+                    let range = (low as usize)..=(high as usize);
+                    if ui
+                        .add(egui::Slider::new(&mut count, range).text(spec.label))
+                        .on_hover_text(tooltip.as_str())
+                        .changed()
+                    {
+                        (spec.set)(&mut p, ParamValue::Count(count));
+                        changed = true;
+                    }
+                }
+                _ => {}
+            }
+        }
+        let initial = &mut cx.settings.params.initial_depth;
+        let before = *initial;
+        ui.horizontal(|ui| {
+            ui.label("start")
+                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver");
+            ui.selectable_value(initial, InitialChoice::FastMarching, "fast marching");
+            ui.selectable_value(initial, InitialChoice::FromImage, "from image");
+            if ui
+                .selectable_label(matches!(initial, InitialChoice::Constant(_)), "constant")
+                .clicked()
+                && !matches!(initial, InitialChoice::Constant(_))
+            {
+                *initial = InitialChoice::Constant(1.0);
+            }
+            if let InitialChoice::Constant(z) = initial {
+                ui.add(egui::DragValue::new(z).range(1e-3..=1e6).speed(0.01));
+            }
+        });
+        if *initial != before {
+            p.initial_depth = cx.settings.params.to_params().initial_depth;
+            changed = true;
+        }
+        if ui
+            .button("defaults")
+            .on_hover_text("Restore every parameter to its default (alpha auto)")
+            .clicked()
+        {
+            p = SolverParams::default();
+            changed = true;
+        }
+        if changed {
+            cx.settings.params = super::ParamSettings::from_params(&p);
+            cx.actions.push(Action::RequestSolve);
+        }
+    }
+
+    fn mask_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let b = &mut cx.settings.brush;
+        ui.horizontal(|ui| {
+            ui.label("paint into");
+            ui.selectable_value(&mut b.layer, Layer::Confidence, "confidence")
+                .on_hover_text("c = 0 where painted: the data term is not trusted there");
+            ui.selectable_value(&mut b.layer, Layer::Object, "object")
+                .on_hover_text("painted pixels are background: no surface there");
+        });
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut b.mode, Mode::Paint, "paint");
+            ui.selectable_value(&mut b.mode, Mode::Erase, "erase");
+        });
+        ui.horizontal(|ui| {
+            for (tool, name) in [
+                (Tool::Brush, "brush"),
+                (Tool::Rectangle, "rectangle"),
+                (Tool::Lasso, "lasso"),
+                (Tool::FloodFill, "flood fill"),
+            ] {
+                ui.selectable_value(&mut b.tool, tool, name);
+            }
+        });
+        ui.add(
+            egui::Slider::new(&mut b.radius_px, 0.5..=200.0)
+                .logarithmic(true)
+                .text("brush size (px)"),
+        );
+        ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"));
+        ui.add(egui::Slider::new(&mut b.flood_tolerance, 0.0..=0.5).text("flood tolerance"));
+        ui.add(egui::Slider::new(&mut b.overlay_opacity, 0.0..=1.0).text("overlay opacity"));
+        let layer = b.layer;
+        let threshold = &mut b.threshold;
+        let Some(doc) = &mut cx.session.document else {
+            return;
+        };
+        ui.horizontal(|ui| {
+            if ui.button("clear").clicked() {
+                doc.masks.clear(layer);
+            }
+            if ui.button("invert").clicked() {
+                doc.masks.invert(layer);
+            }
+            if ui
+                .add_enabled(doc.masks.can_undo(), egui::Button::new("undo"))
+                .clicked()
+            {
+                doc.masks.undo();
+            }
+            if ui
+                .add_enabled(doc.masks.can_redo(), egui::Button::new("redo"))
+                .clicked()
+            {
+                doc.masks.redo();
+            }
+        });
+        if ui
+            .button("suggest confidence")
+            .on_hover_text(
+                "Lower the confidence where the model cannot hold: saturated highlights, \
+                 near-black pixels, cast shadows (darker than half the model's prediction \
+                 after a solve, else than their surroundings) and the silhouette band. \
+                 One undo step: undo to reject, erase or paint over to edit.",
+            )
+            .clicked()
+        {
+            cx.actions.push(Action::SuggestConfidence);
+        }
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::Slider::new(threshold, 0.0..=0.5)
+                    .logarithmic(true)
+                    .text("threshold"),
+            );
+            if ui
+                .button("object = brighter")
+                .on_hover_text(
+                    "Set the object mask: pixels darker than the threshold are background",
+                )
+                .clicked()
+                && let Err(e) = doc.masks.threshold(&doc.image, *threshold)
+            {
+                cx.actions.push(Action::Notice(e.to_string()));
+            }
+        });
+    }
+
+    fn camera_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let Some(doc) = &mut cx.session.document else {
+            ui.label("no image");
+            return;
+        };
+        let (w, _) = doc.size();
+        let c = &mut doc.camera;
+        let mut changed = false;
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut c.focal_px, 1.0..=20000.0)
+                    .logarithmic(true)
+                    .text("focal (px)"),
+            )
+            .changed();
+        ui.label(format!(
+            "horizontal field of view {:.1}°",
+            c.horizontal_fov_deg(w)
+        ));
+        ui.horizontal(|ui| {
+            ui.label("principal point");
+            changed |= ui
+                .add(egui::DragValue::new(&mut c.cx_px).speed(0.5))
+                .changed();
+            changed |= ui
+                .add(egui::DragValue::new(&mut c.cy_px).speed(0.5))
+                .changed();
+        });
+        let scale_changed = ui
+            .add(
+                egui::Slider::new(&mut c.intensity_scale, 1e-3..=1e6)
+                    .logarithmic(true)
+                    .text("intensity scale"),
+            )
+            .changed();
+        if scale_changed {
+            c.scale_given = true;
+        }
+        changed |= scale_changed;
+        if c.use_lights && !c.scale_given && c.lights.iter().any(|l| !l.is_centred()) {
+            ui.weak("intensity scale: estimated at each solve (lights off the centre)");
+        }
+        if c.lights.is_empty() {
+            ui.weak("light: at the optical centre (the paper's)");
+        } else {
+            for (k, light) in c.lights.iter().enumerate() {
+                ui.weak(format!(
+                    "light {}: ({:.1}, {:.1}, {:.1}){}",
+                    k + 1,
+                    light.position[0],
+                    light.position[1],
+                    light.position[2],
+                    if light.direction.is_some() && light.mu > 0.0 {
+                        format!(", mu {}", light.mu)
+                    } else {
+                        String::new()
+                    }
+                ));
+            }
+            changed |= ui
+                .checkbox(&mut c.use_lights, "solve with the lights where they are")
+                .on_hover_text(
+                    "Off: the paper's light at the optical centre, to compare. With lights \
+                     off the centre depth is metric: set the intensity scale (solve \
+                     --intensity-scale auto estimates it).",
+                )
+                .changed();
+        }
+        if changed {
+            c.source = CameraSource::Manual;
+        }
+        ui.weak(c.source.describe());
+        let mut srgb = doc.srgb;
+        if ui
+            .checkbox(&mut srgb, "sRGB photograph (linearise)")
+            .changed()
+        {
+            match doc.set_srgb(srgb) {
+                Ok(()) => {
+                    changed = true;
+                    self.textures.input = Some(input_texture(ui.ctx(), &doc.image));
+                }
+                Err(e) => cx.actions.push(Action::Notice(format!("{e:#}"))),
+            }
+        }
+        ui.weak(&doc.srgb_reason);
+        let (w, h) = doc.size();
+        if (w, h) != doc.full_size {
+            ui.weak(format!(
+                "working at {w}x{h} of {}x{}",
+                doc.full_size.0, doc.full_size.1
+            ));
+        }
+        let path = doc.path.clone();
+        ui.horizontal(|ui| {
+            ui.add(
+                egui::DragValue::new(&mut cx.settings.max_side)
+                    .range(0..=20000)
+                    .speed(10.0)
+                    .prefix("working size "),
+            )
+            .on_hover_text(
+                "Longest side photographs are solved at (area averaging; 0 = full size). \
+                 Applies when an image is opened.",
+            );
+            if ui
+                .button("reopen")
+                .on_hover_text("Open this image again at the working size (masks start anew)")
+                .clicked()
+            {
+                cx.actions.push(Action::Open(path));
+            }
+        });
+        if changed {
+            cx.actions.push(Action::RequestSolve);
+        }
+    }
+
+    fn view_settings_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let v = &mut cx.settings.view;
+        ui.horizontal(|ui| {
+            ui.selectable_value(&mut v.colour, SurfaceColour::Shaded, "shaded");
+            ui.selectable_value(&mut v.colour, SurfaceColour::Depth, "depth");
+            ui.selectable_value(&mut v.colour, SurfaceColour::Error, "error");
+        });
+        ui.checkbox(&mut v.wireframe, "wireframe");
+        ui.checkbox(&mut v.photo_texture, "photograph as texture")
+            .on_hover_text(
+                "Show the input image on the surface instead of the shading or colour map",
+            );
+        ui.add(egui::Slider::new(&mut v.light_yaw_deg, -80.0..=80.0).text("light yaw (°)"));
+        ui.add(egui::Slider::new(&mut v.light_pitch_deg, -80.0..=80.0).text("light pitch (°)"));
+        if ui.button("reset view").clicked() {
+            self.surface.reset();
+        }
+    }
+
+    pub(super) fn view3d_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        ui.heading("3-D surface");
+        ui.weak("drag: orbit · right-drag: pan · scroll: zoom · double-click: reset");
+        let range = self.error_range();
+        let prefs = cx.settings.view.clone();
+        self.surface.ui(ui, &prefs, range);
+    }
+
+    pub(super) fn image_panel_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        ui.horizontal_wrapped(|ui| {
+            for (panel, name) in [
+                (Panel2d::Input, "input + mask"),
+                (Panel2d::Reprojection, "reprojection"),
+                (Panel2d::Difference, "residual I − R"),
+                (Panel2d::Depth, "depth"),
+                (Panel2d::DepthError, "depth error"),
+            ] {
+                let enabled = panel != Panel2d::DepthError
+                    || cx
+                        .session
+                        .document
+                        .as_ref()
+                        .is_some_and(|d| d.ground_truth.is_some());
+                ui.add_enabled_ui(enabled, |ui| {
+                    ui.selectable_value(&mut self.panel, panel, name);
+                });
+            }
+        });
+        let Some((w, h)) = cx.session.document.as_ref().map(|d| d.size()) else {
+            ui.label("Open an image (File > Open or drop a file here).");
+            return;
+        };
+        let (texture, range) = match self.panel {
+            Panel2d::Input => (self.textures.input.clone(), None),
+            Panel2d::Reprojection => (self.textures.reprojection.clone(), None),
+            Panel2d::Difference => split(&self.textures.difference),
+            Panel2d::Depth => split(&self.textures.depth),
+            Panel2d::DepthError => split(&self.textures.depth_error),
+        };
+        let bar_width = if range.is_some() { 90.0 } else { 0.0 };
+        let available = ui.available_size() - egui::vec2(bar_width, 0.0);
+        let (rect, response) = ui.allocate_exact_size(
+            available.max(egui::vec2(32.0, 32.0)),
+            egui::Sense::click_and_drag(),
+        );
+        // image -> screen: fit, then the user's zoom and pan.
+        let fit = (rect.width() / w as f32).min(rect.height() / h as f32);
+        let scale = fit * self.zoom;
+        let origin = rect.center() - egui::vec2(w as f32, h as f32) * scale / 2.0 + self.pan;
+        let to_image = |p: egui::Pos2| -> ImagePoint {
+            let q = (p - origin) / scale;
+            [q.x, q.y]
+        };
+        // Zoom about the cursor, pan with the right or middle button.
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0
+                && let Some(cursor) = response.hover_pos()
+            {
+                let factor = (scroll * 0.002).exp();
+                let before = to_image(cursor);
+                self.zoom = (self.zoom * factor).clamp(0.1, 64.0);
+                let new_scale = fit * self.zoom;
+                let new_origin = rect.center() - egui::vec2(w as f32, h as f32) * new_scale / 2.0;
+                self.pan = cursor - new_origin - egui::vec2(before[0], before[1]) * new_scale;
+            }
+        }
+        if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+        {
+            self.pan += response.drag_delta();
+        }
+        if response.double_clicked_by(egui::PointerButton::Secondary) {
+            self.zoom = 1.0;
+            self.pan = egui::Vec2::ZERO;
+        }
+        let image_rect = egui::Rect::from_min_size(origin, egui::vec2(w as f32, h as f32) * scale);
+        let painter = ui.painter_at(rect);
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        if let Some(texture) = &texture {
+            painter.image(texture.id(), image_rect, uv, egui::Color32::WHITE);
+        } else {
+            painter.text(
+                rect.center(),
+                egui::Align2::CENTER_CENTER,
+                "waiting for the first level",
+                egui::FontId::proportional(14.0),
+                ui.visuals().weak_text_color(),
+            );
+        }
+        if self.panel == Panel2d::Input {
+            self.update_overlay(ui.ctx(), cx);
+            if let Some((_, overlay)) = &self.textures.overlay {
+                painter.image(overlay.id(), image_rect, uv, egui::Color32::WHITE);
+            }
+            self.paint_input(ui, cx, &response, &to_image, scale, origin);
+        }
+        if let Some(range) = range {
+            let bar = egui::Rect::from_min_size(
+                egui::pos2(rect.right() + 8.0, rect.top() + 10.0),
+                egui::vec2(80.0, (rect.height() - 20.0).max(20.0)),
+            );
+            images::scale_bar(ui, bar, range);
+        }
+        self.hover = response.hover_pos().and_then(|p| {
+            let [x, y] = to_image(p);
+            (x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h)
+                .then(|| describe_pixel(cx.session, x as usize, y as usize))
+        });
+    }
+
+    fn update_overlay(&mut self, ctx: &egui::Context, cx: &UiContext<'_>) {
+        let Some(doc) = &cx.session.document else {
+            return;
+        };
+        let key = doc.masks.revision() ^ (cx.settings.brush.overlay_opacity.to_bits() as u64) << 32;
+        if self
+            .textures
+            .overlay
+            .as_ref()
+            .is_some_and(|(k, _)| *k == key)
+        {
+            return;
+        }
+        let style = OverlayStyle {
+            opacity: cx.settings.brush.overlay_opacity,
+            ..OverlayStyle::default()
+        };
+        let rgba = doc.masks.overlay_rgba(&style);
+        let (w, h) = doc.size();
+        let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
+        self.textures.overlay = Some((
+            key,
+            images::load_texture(ctx, "overlay", image, egui::TextureOptions::NEAREST),
+        ));
+    }
+
+    /// Mask tools on the input panel.
+    fn paint_input(
+        &mut self,
+        ui: &egui::Ui,
+        cx: &mut UiContext<'_>,
+        response: &egui::Response,
+        to_image: &dyn Fn(egui::Pos2) -> ImagePoint,
+        scale: f32,
+        origin: egui::Pos2,
+    ) {
+        let b = cx.settings.brush.clone();
+        let Some(doc) = &mut cx.session.document else {
+            return;
+        };
+        let pointer = response.interact_pointer_pos().or(response.hover_pos());
+        let primary = egui::PointerButton::Primary;
+        match b.tool {
+            Tool::Brush => {
+                if response.drag_started_by(primary)
+                    && let Some(p) = pointer
+                {
+                    let brush = Brush {
+                        radius_px: b.radius_px,
+                        hardness: b.hardness,
+                        mode: b.mode,
+                    };
+                    match doc.masks.begin_stroke(b.layer, brush, to_image(p)) {
+                        Ok(()) => self.gesture = Some(Gesture::Stroke),
+                        Err(e) => cx.actions.push(Action::Notice(e.to_string())),
+                    }
+                }
+                if response.dragged_by(primary)
+                    && matches!(self.gesture, Some(Gesture::Stroke))
+                    && let Some(p) = pointer
+                {
+                    let d = response.drag_delta();
+                    doc.masks.stroke_segment(to_image(p - d), to_image(p));
+                }
+                if response.clicked_by(primary)
+                    && let Some(p) = pointer
+                {
+                    // A click is a single dab.
+                    let brush = Brush {
+                        radius_px: b.radius_px,
+                        hardness: b.hardness,
+                        mode: b.mode,
+                    };
+                    if doc.masks.begin_stroke(b.layer, brush, to_image(p)).is_ok() {
+                        doc.masks.end_stroke();
+                    }
+                }
+                if let Some(p) = response.hover_pos() {
+                    ui.painter().circle_stroke(
+                        p,
+                        b.radius_px * scale,
+                        egui::Stroke::new(1.0, egui::Color32::YELLOW),
+                    );
+                }
+            }
+            Tool::Rectangle => {
+                if response.drag_started_by(primary)
+                    && let Some(p) = pointer
+                {
+                    self.gesture = Some(Gesture::Rectangle(to_image(p)));
+                }
+                if let (Some(Gesture::Rectangle(start)), Some(p)) = (&self.gesture, pointer) {
+                    let a = origin + egui::vec2(start[0], start[1]) * scale;
+                    ui.painter().rect_stroke(
+                        egui::Rect::from_two_pos(a, p),
+                        0.0,
+                        egui::Stroke::new(1.0, egui::Color32::YELLOW),
+                        egui::StrokeKind::Middle,
+                    );
+                }
+            }
+            Tool::Lasso => {
+                if response.drag_started_by(primary)
+                    && let Some(p) = pointer
+                {
+                    self.gesture = Some(Gesture::Lasso(vec![to_image(p)]));
+                }
+                if let (Some(Gesture::Lasso(points)), Some(p)) = (&mut self.gesture, pointer) {
+                    if response.dragged_by(primary) {
+                        points.push(to_image(p));
+                    }
+                    let screen: Vec<egui::Pos2> = points
+                        .iter()
+                        .map(|q| origin + egui::vec2(q[0], q[1]) * scale)
+                        .collect();
+                    ui.painter().add(egui::Shape::line(
+                        screen,
+                        egui::Stroke::new(1.0, egui::Color32::YELLOW),
+                    ));
+                }
+            }
+            Tool::FloodFill => {
+                if response.clicked_by(primary)
+                    && let Some(p) = pointer
+                    && let Err(e) = doc.masks.flood_fill(
+                        b.layer,
+                        b.mode,
+                        &doc.image,
+                        to_image(p),
+                        b.flood_tolerance,
+                    )
+                {
+                    cx.actions.push(Action::Notice(e.to_string()));
+                }
+            }
+        }
+        if response.drag_stopped_by(primary) {
+            match self.gesture.take() {
+                Some(Gesture::Stroke) => {
+                    doc.masks.end_stroke();
+                }
+                Some(Gesture::Rectangle(start)) => {
+                    if let Some(p) = pointer {
+                        doc.masks.fill_rect(b.layer, b.mode, start, to_image(p));
+                    }
+                }
+                Some(Gesture::Lasso(points)) => {
+                    doc.masks.fill_lasso(b.layer, b.mode, &points);
+                }
+                None => {}
+            }
+        }
+    }
+}
+
+/// Hover text: image, reprojection and depth at an image pixel.
+fn describe_pixel(session: &Session, c: usize, r: usize) -> String {
+    let mut text = format!("({c}, {r})");
+    let Some(doc) = &session.document else {
+        return text;
+    };
+    let (w, h) = doc.size();
+    text.push_str(&format!(" I {:.4}", doc.image.at(c, r)));
+    if let Some(level) = &session.solve.latest {
+        let (lw, lh) = level.depth.size();
+        let (lc, lr) = ((c * lw / w).min(lw - 1), (r * lh / h).min(lh - 1));
+        // Off the object the solver's depth is no surface (the views hide it).
+        let z = if *doc.masks.object().at(c, r) {
+            *level.depth.at(lc, lr)
+        } else {
+            f64::NAN
+        };
+        text.push_str(&format!(
+            "  R {:.4}  z {:.4}",
+            level.reprojection.at(lc, lr),
+            z
+        ));
+    }
+    if let Some(gt) = &doc.ground_truth {
+        text.push_str(&format!("  z_gt {:.4}", gt.at(c, r)));
+    }
+    text.push_str(&format!("  c {:.2}", doc.masks.confidence().at(c, r)));
+    text
+}
+
+fn split(
+    entry: &Option<(egui::TextureHandle, [f64; 2])>,
+) -> (Option<egui::TextureHandle>, Option<[f64; 2]>) {
+    match entry {
+        Some((t, r)) => (Some(t.clone()), Some(*r)),
+        None => (None, None),
+    }
+}
+
+/// log10 of the energy per pixel over all outer iterations of the job,
+/// levels coarse to fine, a faint line where a level starts.
+fn energy_plot(ui: &mut egui::Ui, energies: &[super::session::EnergyPoint]) {
+    let (rect, _) =
+        ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
+    let painter = ui.painter_at(rect);
+    painter.rect_stroke(
+        rect,
+        2.0,
+        ui.visuals().widgets.noninteractive.bg_stroke,
+        egui::StrokeKind::Inside,
+    );
+    let points: Vec<(usize, f64)> = energies
+        .iter()
+        .filter(|e| e.per_pixel.is_finite() && e.per_pixel > 0.0)
+        .map(|e| (e.level, e.per_pixel.log10()))
+        .collect();
+    let weak = ui.visuals().weak_text_color();
+    if points.len() < 2 {
+        painter.text(
+            rect.center(),
+            egui::Align2::CENTER_CENTER,
+            "energy per pixel, per iteration",
+            egui::FontId::proportional(11.0),
+            weak,
+        );
+        return;
+    }
+    let lo = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    let hi = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+    let span = (hi - lo).max(1e-12);
+    let n = points.len() - 1;
+    let x = |i: usize| egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32);
+    for i in 1..points.len() {
+        if points[i].0 != points[i - 1].0 {
+            painter.vline(
+                x(i),
+                rect.y_range(),
+                egui::Stroke::new(1.0, weak.gamma_multiply(0.5)),
+            );
+        }
+    }
+    let line: Vec<egui::Pos2> = points
+        .iter()
+        .enumerate()
+        .map(|(i, &(_, v))| {
+            egui::pos2(
+                x(i),
+                egui::lerp(
+                    rect.bottom() - 4.0..=rect.top() + 4.0,
+                    ((v - lo) / span) as f32,
+                ),
+            )
+        })
+        .collect();
+    painter.add(egui::Shape::line(
+        line,
+        egui::Stroke::new(1.5, ui.visuals().hyperlink_color),
+    ));
+    painter.text(
+        rect.left_top() + egui::vec2(4.0, 2.0),
+        egui::Align2::LEFT_TOP,
+        format!("log10 energy per pixel (total / level w·h) {hi:.2} … {lo:.2}"),
+        egui::FontId::proportional(10.0),
+        weak,
+    );
+}
+
+/// A slider's number: scientific notation where plain decimals would show
+/// only zeros or too many digits (alpha is around 1e-7 in relative units).
+fn slider_number(value: f64) -> String {
+    let magnitude = value.abs();
+    if magnitude != 0.0 && !(1e-3..1e5).contains(&magnitude) {
+        format!("{value:.3e}")
+    } else {
+        format!("{}", (value * 1e4).round() / 1e4)
+    }
+}

@@ -1,0 +1,532 @@
+//! The document session: the open image with its camera and masks, the
+//! autosave of the masks, and the solve of that document (the worker, the
+//! debounced re-solve, the state of the job on screen). No drawing; uses
+//! `document`, `worker`, `solver`, `metrics`, `mask_edit`, `io`.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use crate::mask_edit::{self, Layer, Masks};
+use crate::worker::{Event, JobId, SolveRequest, Worker};
+use sfs_core::grid::Grid;
+use sfs_core::io;
+use sfs_core::metrics;
+use sfs_core::params::SolverParams;
+use sfs_core::solver::{LevelResult, Problem, Solution};
+
+use super::document::Document;
+use super::level_prep::LevelInputs;
+
+/// While a slider is dragged, solve after it rests this long.
+const DEBOUNCE: Duration = Duration::from_millis(200);
+/// Write the mask autosave this long after the last edit.
+const AUTOSAVE_DELAY: Duration = Duration::from_secs(1);
+/// Time per frame for draining worker events.
+const EVENT_BUDGET: Duration = Duration::from_millis(6);
+
+/// One level as received.
+pub struct LevelView {
+    /// Level index (0 = coarsest).
+    pub level: usize,
+    /// Levels in the job.
+    pub levels: usize,
+    /// Depth at the level's size (shared with the level's mesh preparation).
+    pub depth: Arc<Grid<f64>>,
+    /// Reprojection at the level's size (shared likewise).
+    pub reprojection: Arc<Grid<f64>>,
+}
+
+/// Progress of the running job.
+#[derive(Clone, Debug, Default)]
+pub struct Progress {
+    /// Level index and count.
+    pub level: usize,
+    /// Number of levels.
+    pub levels: usize,
+    /// Level size.
+    pub size: (usize, usize),
+    /// Outer iteration.
+    pub iteration: usize,
+    /// Total energy divided by the level's pixel count (see [`per_pixel`]).
+    pub energy_per_pixel: f64,
+    /// Time since the job started.
+    pub elapsed: Duration,
+}
+
+/// One point of the energy plot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnergyPoint {
+    /// Level index (0 = coarsest).
+    pub level: usize,
+    /// Total energy divided by the level's pixel count ([`per_pixel`]).
+    pub per_pixel: f64,
+}
+
+/// The energy per pixel of a `(width, height)` level: the total divided by
+/// `width * height`, the same for iteration reports and level results, so
+/// that levels of different sizes compare (the total grows with the pixel
+/// count). With the default (paper) domain every pixel is in the domain, so
+/// this equals `LevelResult::energy_per_pixel`.
+pub fn per_pixel(total: f64, (width, height): (usize, usize)) -> f64 {
+    total / (width * height).max(1) as f64
+}
+
+/// State of the solve shown on screen.
+#[derive(Default)]
+pub struct SolveState {
+    /// The newest job.
+    pub job: Option<JobId>,
+    /// When it was submitted.
+    pub submitted: Option<Instant>,
+    /// Running (no terminal event yet).
+    pub running: bool,
+    /// Level sizes of the newest job as they arrived (coarse to fine).
+    pub arrived: Vec<(usize, usize)>,
+    /// Latest level.
+    pub latest: Option<LevelView>,
+    /// Energy per pixel after every outer iteration of the job (and of
+    /// every level without iterations), coarse to fine.
+    pub energies: Vec<EnergyPoint>,
+    /// Progress.
+    pub progress: Progress,
+    /// Final result.
+    pub finished: Option<Box<Solution>>,
+    /// RSE and RIE against the ground truth.
+    pub errors: Option<(f64, f64)>,
+    /// How well the final result explains the image.
+    pub fit: Option<sfs_core::model_fit::ModelFit>,
+    /// The intensity scale the final result used (estimated or given).
+    pub intensity_scale_used: Option<f64>,
+    /// Why the last job failed.
+    pub failure: Option<String>,
+    /// Jobs finished so far (any outcome).
+    pub completed_jobs: usize,
+}
+
+/// What [`Session::export`] writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Export {
+    /// Depth as float32 `.npy` (NaN = no surface).
+    DepthNpy,
+    /// Depth as 16-bit PNG (near = white).
+    DepthPng,
+    /// Triangle mesh, binary PLY with the reprojection as colour.
+    MeshPly,
+    /// Triangle mesh, Wavefront OBJ.
+    MeshObj,
+    /// Reprojected image, 16-bit linear PNG.
+    Reprojection,
+}
+
+/// A level of the job on screen, to prepare for display.
+pub struct ArrivedLevel {
+    /// The level as the solver reported it.
+    pub result: LevelResult,
+    /// The job's full-size inputs to show it against.
+    pub inputs: LevelInputs,
+    /// Whether it is the job's first level.
+    pub first_of_job: bool,
+}
+
+/// The open document and its solve.
+pub struct Session {
+    /// The open image, if any.
+    pub document: Option<Document>,
+    /// The solve on screen.
+    pub solve: SolveState,
+    worker: Option<Worker>,
+    /// Folder of the mask autosaves (`None`: no autosave).
+    data_dir: Option<PathBuf>,
+    /// Parameters, camera or masks changed at this time: solve after the
+    /// debounce.
+    dirty_since: Option<Instant>,
+    mask_revision_solved: u64,
+    autosave_due: Option<Instant>,
+    /// The inputs of the running job, for the level preparation.
+    level_inputs: Option<LevelInputs>,
+}
+
+impl Session {
+    /// A session without a document.
+    pub fn new(worker: Option<Worker>, data_dir: Option<PathBuf>) -> Self {
+        Self {
+            document: None,
+            solve: SolveState::default(),
+            worker,
+            data_dir,
+            dirty_since: None,
+            mask_revision_solved: 0,
+            autosave_due: None,
+            level_inputs: None,
+        }
+    }
+
+    /// Opens an image (masks restored from the autosave) and asks for a
+    /// solve; returns notes for the status line. On failure the previous
+    /// document stays and the error is returned.
+    pub fn open(
+        &mut self,
+        path: &Path,
+        srgb: Option<bool>,
+        max_side: Option<usize>,
+    ) -> Result<Vec<String>, String> {
+        let mut doc = Document::open(path, srgb, max_side).map_err(|e| format!("{e:#}"))?;
+        let mut notes = std::mem::take(&mut doc.notes);
+        if let Some(dir) = self.autosave_dir(&doc) {
+            match Masks::restore(&dir, doc.size()) {
+                Ok(Some(masks)) => {
+                    doc.masks = masks;
+                    notes.push("restored your painted masks from the autosave".into());
+                }
+                Ok(None) => {}
+                Err(e) => notes.push(format!("autosave not restored: {e}")),
+            }
+        }
+        self.document = Some(doc);
+        self.solve = SolveState::default();
+        self.request_solve();
+        Ok(notes)
+    }
+
+    /// Lowers the confidence layer where the model cannot hold
+    /// ([`sfs_core::model_fit::suggest_confidence`]; cast shadows from the last
+    /// result's reprojection when there is one); returns a sentence for the
+    /// status line.
+    pub fn suggest_confidence(&mut self) -> String {
+        let reprojection = self.solve.finished.as_ref().map(|s| s.reprojection.clone());
+        let Some(doc) = &mut self.document else {
+            return "no image".into();
+        };
+        let object = doc
+            .masks
+            .object_for_solver()
+            .unwrap_or_else(|| Grid::filled(doc.image.width(), doc.image.height(), true));
+        let reprojection = reprojection.filter(|r| r.size() == doc.image.size());
+        let (proposal, count) =
+            sfs_core::model_fit::suggest_confidence(&doc.image, &object, reprojection.as_ref());
+        // Off the object the confidence does not matter: keep what is there.
+        let proposal = Grid::from_fn(proposal.width(), proposal.height(), |c, r| {
+            if *object.at(c, r) {
+                *proposal.at(c, r)
+            } else {
+                f64::NAN
+            }
+        });
+        match doc.masks.lower_confidence(&proposal) {
+            Ok(true) => format!(
+                "confidence lowered: {} saturated, {} near-black, {} shadow, {} silhouette \
+                 pixels (undo to reject; erase or paint to edit)",
+                count.saturated, count.near_black, count.shadow, count.silhouette
+            ),
+            Ok(false) => "nothing to suggest: the confidence already covers it".into(),
+            Err(e) => format!("cannot suggest confidence: {e}"),
+        }
+    }
+
+    /// The autosave folder of a document: one per image and working size
+    /// (masks painted at one working size are never overwritten by those of
+    /// another; the full size keeps the plain folder).
+    fn autosave_dir(&self, doc: &Document) -> Option<PathBuf> {
+        self.data_dir.as_ref().map(|d| {
+            let dir = mask_edit::autosave_dir(&doc.path, d);
+            let (w, h) = doc.size();
+            if (w, h) == doc.full_size {
+                dir
+            } else {
+                let mut name = dir.file_name().unwrap_or_default().to_os_string();
+                name.push(format!("-{w}x{h}"));
+                dir.with_file_name(name)
+            }
+        })
+    }
+
+    /// Applies a camera file to the open image and asks for a solve.
+    pub fn load_camera(&mut self, path: &Path) -> Result<(), String> {
+        let Some(doc) = &mut self.document else {
+            return Ok(());
+        };
+        doc.load_camera(path).map_err(|e| format!("{e:#}"))?;
+        self.request_solve();
+        Ok(())
+    }
+
+    /// Loads a mask PNG into `layer` (undoable); a wrong size is refused.
+    pub fn load_mask(&mut self, layer: Layer, path: &Path) -> Result<(), String> {
+        let Some(doc) = &mut self.document else {
+            return Ok(());
+        };
+        doc.masks
+            .load_png(layer, path)
+            .map(|_| ())
+            .map_err(|e| e.to_string())
+    }
+
+    /// Writes a mask layer as PNG.
+    pub fn save_mask(&self, layer: Layer, path: &Path) -> Result<(), String> {
+        let Some(doc) = &self.document else {
+            return Ok(());
+        };
+        doc.masks.save_png(layer, path).map_err(|e| e.to_string())
+    }
+
+    /// Marks parameters or masks as changed: a new solve starts after the
+    /// debounce.
+    pub fn request_solve(&mut self) {
+        self.dirty_since = Some(Instant::now());
+    }
+
+    /// Whether a solve is waiting for the debounce.
+    pub fn solve_pending(&self) -> bool {
+        self.dirty_since.is_some()
+    }
+
+    /// Cancels the running solve.
+    pub fn cancel_solve(&mut self) {
+        if let (Some(worker), Some(job)) = (&self.worker, self.solve.job) {
+            worker.cancel(job);
+        }
+    }
+
+    /// Submits a solve of the open document with `params` and the masks now.
+    pub fn start_solve(&mut self, params: SolverParams) {
+        self.dirty_since = None;
+        let (Some(doc), Some(worker)) = (&self.document, &mut self.worker) else {
+            return;
+        };
+        let object = doc.masks.object_for_solver();
+        if let Some(reason) = sfs_core::model_fit::too_dark_to_solve(&doc.image, object.as_ref()) {
+            // The running job (of other masks) is stale: no result of it
+            // may appear beside this failure.
+            if let Some(job) = self.solve.job.take() {
+                worker.cancel(job);
+            }
+            self.solve.finished = None;
+            self.solve.failure = Some(reason);
+            self.solve.running = false;
+            self.solve.completed_jobs += 1;
+            return;
+        }
+        let problem = Problem {
+            image: doc.image.clone(),
+            camera: doc.camera.intrinsics(),
+            intensity_scale: doc.camera.intensity_scale,
+            object_mask: object,
+            confidence: doc.masks.confidence_for_solver(),
+            lights: doc.camera.solve_lights(),
+        };
+        self.level_inputs = Some(LevelInputs {
+            image: Arc::new(doc.image.clone()),
+            ground_truth: doc.ground_truth.clone().map(Arc::new),
+            object: problem.object_mask.clone().map(Arc::new),
+        });
+        self.mask_revision_solved = doc.masks.revision();
+        let estimate_scale = !doc.camera.scale_given;
+        let job = worker.submit(SolveRequest {
+            problem,
+            params,
+            estimate_scale,
+        });
+        let solve = &mut self.solve;
+        solve.job = Some(job);
+        solve.submitted = Some(Instant::now());
+        solve.running = true;
+        solve.arrived.clear();
+        solve.energies.clear();
+        solve.failure = None;
+        solve.finished = None;
+        solve.errors = None;
+    }
+
+    /// Drains the worker's events (a few milliseconds at most) into the
+    /// solve state; returns the levels that arrived, for the level
+    /// preparation.
+    pub fn drain_events(&mut self) -> Vec<ArrivedLevel> {
+        let Some(worker) = &mut self.worker else {
+            return Vec::new();
+        };
+        let latest = worker.latest_job();
+        let events: Vec<Event> = worker.drain(EVENT_BUDGET).collect();
+        let mut levels = Vec::new();
+        for event in events {
+            if Some(event.job()) != latest || Some(event.job()) != self.solve.job {
+                continue; // a superseded job
+            }
+            match event {
+                Event::Started { .. } => {}
+                Event::Progress { report, .. } => {
+                    let size = (report.width, report.height);
+                    let energy_per_pixel = per_pixel(report.energy.total, size);
+                    self.solve.energies.push(EnergyPoint {
+                        level: report.level,
+                        per_pixel: energy_per_pixel,
+                    });
+                    self.solve.progress = Progress {
+                        level: report.level,
+                        levels: report.levels,
+                        size,
+                        iteration: report.iteration,
+                        energy_per_pixel,
+                        elapsed: report.elapsed,
+                    };
+                }
+                Event::Level { result, .. } => {
+                    let arrived = self
+                        .level_inputs
+                        .clone()
+                        .map(|inputs| (result.clone(), inputs));
+                    self.receive_level(result);
+                    if let Some((result, inputs)) = arrived {
+                        levels.push(ArrivedLevel {
+                            result,
+                            inputs,
+                            first_of_job: self.solve.arrived.len() == 1,
+                        });
+                    }
+                }
+                Event::Finished { solution, .. } => {
+                    // s = I_ref Z^2 (the problem's scales), the estimated one
+                    // when the worker estimated it.
+                    let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
+                    self.solve.intensity_scale_used = s_used.is_finite().then_some(s_used);
+                    self.solve.errors = self.document.as_ref().and_then(|doc| {
+                        let gt = doc.ground_truth.as_ref()?;
+                        let model =
+                            sfs_core::light::LightModel::new(s_used, &doc.camera.solve_lights());
+                        metrics::errors_with_model(
+                            &solution.depth,
+                            gt,
+                            &doc.image,
+                            doc.camera.intrinsics(),
+                            &model,
+                        )
+                        .ok()
+                        .map(|e| (e.rse, e.rie))
+                    });
+                    self.solve.fit = self.document.as_ref().and_then(|doc| {
+                        (solution.reprojection.size() == doc.image.size()).then(|| {
+                            let domain = solution.depth.map(|z| z.is_finite());
+                            sfs_core::model_fit::measure(
+                                &doc.image,
+                                &solution.reprojection,
+                                &domain,
+                                doc.masks.confidence_for_solver().as_ref(),
+                                solution.scales.intensity,
+                            )
+                        })
+                    });
+                    self.solve.finished = Some(solution);
+                    self.solve.running = false;
+                    self.solve.completed_jobs += 1;
+                }
+                Event::Failed { error, .. } => {
+                    self.solve.failure = Some(error);
+                    self.solve.running = false;
+                    self.solve.completed_jobs += 1;
+                }
+                Event::Cancelled { .. } => {
+                    self.solve.running = false;
+                    self.solve.completed_jobs += 1;
+                }
+            }
+        }
+        levels
+    }
+
+    fn receive_level(&mut self, result: LevelResult) {
+        let size = result.depth.size();
+        self.solve.arrived.push(size);
+        // A level without outer iterations (a fast-marching start) is a
+        // point of its own in the energy plot.
+        if self.solve.energies.last().map(|e| e.level) != Some(result.level) {
+            self.solve.energies.push(EnergyPoint {
+                level: result.level,
+                per_pixel: per_pixel(result.energy.total, size),
+            });
+        }
+        self.solve.latest = Some(LevelView {
+            level: result.level,
+            levels: result.levels,
+            depth: result.depth,
+            reprojection: result.reprojection,
+        });
+    }
+
+    /// The timers: a mask edit (once no `gesture` is in progress) asks for
+    /// a solve and an autosave; a pending solve starts with `params` when
+    /// the pointer is up or after the debounce; a due autosave is written.
+    /// Returns an autosave error; `repaint_after` is told when to look
+    /// again.
+    pub fn tick(
+        &mut self,
+        gesture: bool,
+        pointer_down: bool,
+        params: impl FnOnce() -> SolverParams,
+        repaint_after: impl Fn(Duration),
+    ) -> Option<String> {
+        if let Some(doc) = &self.document {
+            let revision = doc.masks.revision();
+            if revision != self.mask_revision_solved && !gesture {
+                if self.dirty_since.is_none() {
+                    self.dirty_since = Some(Instant::now());
+                }
+                if self.autosave_due.is_none() {
+                    self.autosave_due = Some(Instant::now() + AUTOSAVE_DELAY);
+                }
+                self.mask_revision_solved = revision;
+            }
+        }
+        if let Some(since) = self.dirty_since {
+            let waited = since.elapsed();
+            // A released slider, a typed value or a button starts at once;
+            // while a slider is dragged, a pause of DEBOUNCE starts a solve.
+            let dragging = pointer_down && !gesture;
+            if !dragging || waited >= DEBOUNCE {
+                self.start_solve(params());
+            } else {
+                repaint_after(DEBOUNCE.saturating_sub(waited));
+            }
+        }
+        if let Some(due) = self.autosave_due {
+            if Instant::now() >= due {
+                self.autosave_due = None;
+                return self.autosave().err();
+            }
+            repaint_after(due - Instant::now());
+        }
+        None
+    }
+
+    /// Writes the masks' autosave now.
+    pub fn autosave(&self) -> Result<(), String> {
+        let Some(doc) = &self.document else {
+            return Ok(());
+        };
+        let Some(dir) = self.autosave_dir(doc) else {
+            return Ok(());
+        };
+        doc.masks
+            .autosave(&dir, &doc.path)
+            .map_err(|e| format!("mask autosave failed: {e}"))
+    }
+
+    /// Writes the finished result; returns what to say on the status line.
+    pub fn export(&self, path: &Path, what: Export) -> Result<String, String> {
+        let (Some(solution), Some(doc)) = (&self.solve.finished, &self.document) else {
+            return Err("nothing to export yet: the solve has not finished".into());
+        };
+        let camera = doc.camera.intrinsics();
+        let result = match what {
+            Export::DepthNpy => io::write_npy_f32(path, &solution.depth),
+            Export::DepthPng => io::write_depth_png16(path, &solution.depth).map(|_| ()),
+            Export::MeshPly => {
+                io::write_depth_ply(path, &solution.depth, &camera, Some(&solution.reprojection))
+            }
+            Export::MeshObj => io::write_depth_obj(path, &solution.depth, &camera),
+            Export::Reprojection => io::write_png16(path, &solution.reprojection),
+        };
+        result
+            .map(|()| format!("wrote {}", path.display()))
+            .map_err(|e| e.to_string())
+    }
+}

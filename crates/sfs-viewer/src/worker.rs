@@ -1,0 +1,879 @@
+//! The viewer's background solver thread: a named thread that owns solver
+//! runs, takes commands and reports typed [`Event`]s over bounded
+//! crossbeam channels, and calls a waker (the app passes
+//! `ctx.request_repaint()`) after every event it sends, so it needs no egui.
+//!
+//! Protocol:
+//! - [`Worker::submit`] hands out increasing [`JobId`]s. A newer job
+//!   supersedes every older one: a running solve stops at its next SOR sweep,
+//!   and of the jobs queued while the worker was busy only the newest starts;
+//!   the older ones get [`Event::Cancelled`] without [`Event::Started`].
+//! - A job that starts sends `Started`, then `Progress` and `Level` events,
+//!   then exactly one of `Finished`, `Failed` or `Cancelled`. A solver error
+//!   or panic becomes `Failed` and the worker serves the next job.
+//! - `Progress` is dropped when the event channel is full. Other events wait
+//!   for room, except that an event of a job that is already stale
+//!   (superseded or cancelled) is dropped when the channel is full: the UI
+//!   discards stale events anyway, and waiting for it could deadlock a UI
+//!   that is itself waiting in [`Worker::submit`].
+//! - Dropping the [`Worker`] requests shutdown, cancels the running solve and
+//!   joins the thread. If the UI side is gone the thread ends.
+
+use std::any::Any;
+use std::fmt;
+use std::io;
+use std::panic::{self, AssertUnwindSafe};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{
+    Receiver, RecvTimeoutError, SendTimeoutError, Sender, TryRecvError, TrySendError, bounded,
+};
+
+use sfs_core::params::{InitialDepth, SolverParams};
+use sfs_core::solver::pyramid;
+use sfs_core::solver::{
+    IterationReport, LevelResult, Problem, Solution, SolveError, SolveObserver,
+};
+
+/// Commands queued while the worker is busy (submits beyond this wait).
+const COMMAND_CAPACITY: usize = 64;
+/// Events not yet drained by the UI.
+const EVENT_CAPACITY: usize = 256;
+/// How often a blocked event send re-checks shutdown and staleness.
+const SEND_POLL: Duration = Duration::from_millis(20);
+/// The error of a job whose thread has gone.
+const THREAD_STOPPED: &str = "the solver thread has stopped";
+
+/// Identifies one submitted solve; ids increase with every submit, from 1.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct JobId(u64);
+
+impl fmt::Display for JobId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "job {}", self.0)
+    }
+}
+
+/// One solve to run: the problem and the parameters.
+#[derive(Clone, Debug)]
+pub struct SolveRequest {
+    /// Image, camera, masks.
+    pub problem: Problem,
+    /// Solver parameters (validated by the solver: bad ones end in `Failed`).
+    pub params: SolverParams,
+    /// Estimate the intensity scale first (lights off the centre and no
+    /// scale given; see [`sfs_core::solver::calibrate`]).
+    pub estimate_scale: bool,
+}
+
+/// The function a worker runs for each job ([`Worker::spawn`] uses
+/// [`sfs_core::solver::solve`]; tests inject failures through it).
+pub type SolveFn = Arc<
+    dyn Fn(&Problem, &SolverParams, &mut dyn SolveObserver) -> Result<Solution, SolveError>
+        + Send
+        + Sync,
+>;
+
+/// Called on the worker's threads after every event sent (the app passes
+/// `ctx.request_repaint()`).
+pub type Waker = Box<dyn Fn() + Send + Sync>;
+
+/// What the worker reports to the UI.
+#[derive(Debug)]
+pub enum Event {
+    /// The job began.
+    Started {
+        /// The job.
+        job: JobId,
+        /// Planned pyramid level sizes `(width, height)`, coarse to fine
+        /// (one level for a warm start, empty if the parameters are
+        /// invalid). The solver stops coarsening early where the object
+        /// vanishes, dropping the coarsest planned sizes; the reports'
+        /// `levels` count is then smaller, and `LevelResult::level` indexes
+        /// the last `levels` entries of this list.
+        level_sizes: Vec<(usize, usize)>,
+    },
+    /// After each outer iteration; dropped when the UI lags behind.
+    Progress {
+        /// The job.
+        job: JobId,
+        /// The solver's report.
+        report: IterationReport,
+    },
+    /// After each pyramid level, coarse to fine.
+    Level {
+        /// The job.
+        job: JobId,
+        /// Depth and reprojection at the level's size.
+        result: LevelResult,
+    },
+    /// The solve completed.
+    Finished {
+        /// The job.
+        job: JobId,
+        /// The full-resolution result.
+        solution: Box<Solution>,
+    },
+    /// The solver rejected the input or parameters, or panicked.
+    Failed {
+        /// The job.
+        job: JobId,
+        /// Human-readable reason (the solver's error or panic message).
+        error: String,
+    },
+    /// The job was cancelled, superseded by a newer one, or never started.
+    Cancelled {
+        /// The job.
+        job: JobId,
+    },
+}
+
+impl Event {
+    /// The job the event belongs to.
+    pub fn job(&self) -> JobId {
+        match self {
+            Event::Started { job, .. }
+            | Event::Progress { job, .. }
+            | Event::Level { job, .. }
+            | Event::Finished { job, .. }
+            | Event::Failed { job, .. }
+            | Event::Cancelled { job } => *job,
+        }
+    }
+
+    /// Whether this is the last event of its job (`Finished`, `Failed` or
+    /// `Cancelled`).
+    pub fn is_terminal(&self) -> bool {
+        matches!(
+            self,
+            Event::Finished { .. } | Event::Failed { .. } | Event::Cancelled { .. }
+        )
+    }
+}
+
+/// What the UI asks of the thread. Cancellation travels through [`Shared`]
+/// instead: the thread is inside `solve()` and reads no commands then, and
+/// it checks the same atomics before starting a queued job.
+enum Command {
+    Solve(JobId, Box<SolveRequest>),
+    Shutdown,
+}
+
+/// State both sides read while a solve runs.
+#[derive(Debug, Default)]
+struct Shared {
+    /// Newest submitted job id (0: none); older jobs are superseded.
+    latest: AtomicU64,
+    /// Every job id up to this one is cancelled.
+    cancelled_up_to: AtomicU64,
+    /// The worker is being dropped.
+    shutdown: AtomicBool,
+}
+
+impl Shared {
+    /// Whether `job` should stop: superseded, cancelled or shutting down.
+    fn is_stale(&self, job: JobId) -> bool {
+        self.shutdown.load(Ordering::SeqCst)
+            || job.0 < self.latest.load(Ordering::SeqCst)
+            || job.0 <= self.cancelled_up_to.load(Ordering::SeqCst)
+    }
+}
+
+/// The thread must end: the UI side is gone or shutdown was requested.
+struct Stop;
+
+/// The sending side of the event channel, with the waker.
+struct Outbox {
+    events: Sender<Event>,
+    waker: Waker,
+    shared: Arc<Shared>,
+}
+
+impl Outbox {
+    /// Sends an event that may be dropped when the channel is full.
+    fn offer(&self, event: Event) -> Result<(), Stop> {
+        match self.events.try_send(event) {
+            Ok(()) => {
+                (self.waker)();
+                Ok(())
+            }
+            Err(TrySendError::Full(_)) => Ok(()), // the UI lags: skip this one
+            Err(TrySendError::Disconnected(_)) => Err(Stop),
+        }
+    }
+
+    /// Sends an event, waiting for room unless its job is stale.
+    fn deliver(&self, event: Event) -> Result<(), Stop> {
+        let job = event.job();
+        let mut event = match self.events.try_send(event) {
+            Ok(()) => {
+                (self.waker)();
+                return Ok(());
+            }
+            Err(TrySendError::Full(event)) => event,
+            Err(TrySendError::Disconnected(_)) => return Err(Stop),
+        };
+        loop {
+            if self.shared.shutdown.load(Ordering::SeqCst) {
+                return Err(Stop);
+            }
+            if self.shared.is_stale(job) {
+                return Ok(()); // the UI discards it anyway (module docs)
+            }
+            match self.events.send_timeout(event, SEND_POLL) {
+                Ok(()) => {
+                    (self.waker)();
+                    return Ok(());
+                }
+                Err(SendTimeoutError::Timeout(back)) => event = back,
+                Err(SendTimeoutError::Disconnected(_)) => return Err(Stop),
+            }
+        }
+    }
+}
+
+/// Forwards one job's progress to the UI; runs on a rayon worker.
+struct ChannelObserver<'a> {
+    job: JobId,
+    outbox: &'a Outbox,
+    /// Set when the thread must end: stops the solve too.
+    stopped: bool,
+}
+
+impl SolveObserver for ChannelObserver<'_> {
+    fn on_iteration(&mut self, report: &IterationReport) {
+        let event = Event::Progress {
+            job: self.job,
+            report: report.clone(),
+        };
+        if !self.stopped && self.outbox.offer(event).is_err() {
+            self.stopped = true;
+        }
+    }
+
+    fn on_level(&mut self, result: &LevelResult) {
+        let event = Event::Level {
+            job: self.job,
+            result: result.clone(),
+        };
+        if !self.stopped && self.outbox.deliver(event).is_err() {
+            self.stopped = true;
+        }
+    }
+
+    fn is_cancelled(&self) -> bool {
+        self.stopped || self.outbox.shared.is_stale(self.job)
+    }
+}
+
+/// The thread's side.
+struct Runner {
+    commands: Receiver<Command>,
+    outbox: Outbox,
+    solve_fn: SolveFn,
+}
+
+impl Runner {
+    fn run(self) {
+        loop {
+            let (job, request) = match self.commands.recv() {
+                Ok(Command::Solve(job, request)) => (job, request),
+                Ok(Command::Shutdown) | Err(_) => return,
+            };
+            let outcome = self
+                .newest(job, request)
+                .and_then(|(job, request)| self.serve(job, &request));
+            if let Err(Stop) = outcome {
+                return;
+            }
+        }
+    }
+
+    /// Drains queued commands, keeping the newest job; older ones are
+    /// reported `Cancelled`.
+    fn newest(
+        &self,
+        mut job: JobId,
+        mut request: Box<SolveRequest>,
+    ) -> Result<(JobId, Box<SolveRequest>), Stop> {
+        loop {
+            match self.commands.try_recv() {
+                Ok(Command::Solve(next, next_request)) => {
+                    self.outbox.deliver(Event::Cancelled { job })?;
+                    (job, request) = (next, next_request);
+                }
+                Ok(Command::Shutdown) | Err(TryRecvError::Disconnected) => return Err(Stop),
+                Err(TryRecvError::Empty) => return Ok((job, request)),
+            }
+        }
+    }
+
+    /// Runs one job and reports its end.
+    fn serve(&self, job: JobId, request: &SolveRequest) -> Result<(), Stop> {
+        let shared = &self.outbox.shared;
+        if shared.shutdown.load(Ordering::SeqCst) {
+            return Err(Stop);
+        }
+        if shared.is_stale(job) {
+            return self.outbox.deliver(Event::Cancelled { job });
+        }
+        let level_sizes = planned_level_sizes(&request.problem, &request.params);
+        self.outbox.deliver(Event::Started { job, level_sizes })?;
+        let mut observer = ChannelObserver {
+            job,
+            outbox: &self.outbox,
+            stopped: false,
+        };
+        let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
+            if request.estimate_scale && !request.problem.light_is_centred() {
+                let estimate = sfs_core::solver::calibrate::estimate_intensity_scale(
+                    &request.problem,
+                    &request.params,
+                    &mut observer,
+                )?;
+                let problem = Problem {
+                    intensity_scale: estimate.intensity_scale,
+                    ..request.problem.clone()
+                };
+                return (self.solve_fn)(&problem, &request.params, &mut observer);
+            }
+            (self.solve_fn)(&request.problem, &request.params, &mut observer)
+        }));
+        if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
+            return Err(Stop);
+        }
+        let event = match outcome {
+            Ok(Ok(solution)) => Event::Finished {
+                job,
+                solution: Box::new(solution),
+            },
+            Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
+            Ok(Err(error)) => Event::Failed {
+                job,
+                error: error.to_string(),
+            },
+            Err(payload) => Event::Failed {
+                job,
+                error: format!("the solver panicked: {}", panic_message(&*payload)),
+            },
+        };
+        self.outbox.deliver(event)
+    }
+}
+
+/// The level sizes the solver will plan, coarse to fine (see
+/// [`Event::Started`]); empty for invalid parameters, on which the pyramid
+/// code would not terminate (e.g. `eta >= 1`).
+fn planned_level_sizes(problem: &Problem, params: &SolverParams) -> Vec<(usize, usize)> {
+    if params.validate().is_err() {
+        return Vec::new();
+    }
+    let (width, height) = problem.image.size();
+    match params.initial_depth {
+        InitialDepth::Map(_) => return vec![(width, height)],
+        // The fast-marching start arrives as a level of its own.
+        InitialDepth::FastMarching => return vec![(width, height); 2],
+        _ => {}
+    }
+    let mut sizes = pyramid::level_sizes(width, height, params.eta, params.min_level_side);
+    sizes.reverse();
+    sizes
+}
+
+/// The message of a panic payload (`panic!` gives `&str` or `String`).
+fn panic_message(payload: &(dyn Any + Send)) -> &str {
+    if let Some(message) = payload.downcast_ref::<&str>() {
+        message
+    } else if let Some(message) = payload.downcast_ref::<String>() {
+        message
+    } else {
+        "(no message)"
+    }
+}
+
+/// The UI's handle on the solver thread. Dropping it stops and joins the
+/// thread.
+pub struct Worker {
+    commands: Sender<Command>,
+    events: Receiver<Event>,
+    shared: Arc<Shared>,
+    /// The newest job id handed out (0: none).
+    last_id: u64,
+    /// The newest job, until its terminal event has been received here.
+    unfinished: Option<JobId>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Worker {
+    /// Starts the thread `sfs-solver` running [`sfs_core::solver::solve`].
+    pub fn spawn(waker: Waker) -> io::Result<Self> {
+        Self::spawn_with(waker, Arc::new(sfs_core::solver::solve))
+    }
+
+    /// Starts the thread with another solve function (a different
+    /// reflectance model, or fault injection in tests).
+    pub fn spawn_with(waker: Waker, solve_fn: SolveFn) -> io::Result<Self> {
+        let (command_sender, command_receiver) = bounded(COMMAND_CAPACITY);
+        let (event_sender, event_receiver) = bounded(EVENT_CAPACITY);
+        let shared = Arc::new(Shared::default());
+        let runner = Runner {
+            commands: command_receiver,
+            outbox: Outbox {
+                events: event_sender,
+                waker,
+                shared: Arc::clone(&shared),
+            },
+            solve_fn,
+        };
+        let thread = thread::Builder::new()
+            .name("sfs-solver".into())
+            .spawn(move || runner.run())?;
+        Ok(Self {
+            commands: command_sender,
+            events: event_receiver,
+            shared,
+            last_id: 0,
+            unfinished: None,
+            thread: Some(thread),
+        })
+    }
+
+    /// Queues a solve and returns its id; supersedes every older job (the
+    /// running one stops at its next SOR sweep). Blocks only while 64
+    /// commands are queued, until the thread (which drops stale work
+    /// promptly) takes them. If the thread has stopped, draining reports
+    /// `Failed` for the job.
+    pub fn submit(&mut self, request: SolveRequest) -> JobId {
+        self.last_id += 1;
+        let job = JobId(self.last_id);
+        self.shared.latest.store(job.0, Ordering::SeqCst);
+        self.unfinished = Some(job);
+        if self
+            .commands
+            .send(Command::Solve(job, Box::new(request)))
+            .is_err()
+        {
+            // The thread has ended; `thread_stopped` turns the closed event
+            // channel into `Failed` for `unfinished`, which is this job.
+        }
+        job
+    }
+
+    /// Cancels `job` (and every older one) if it has not ended: it reports
+    /// `Cancelled`, or still `Finished`/`Failed` if it ended first. Ids not
+    /// handed out yet are ignored.
+    pub fn cancel(&self, job: JobId) {
+        if job.0 <= self.last_id {
+            self.shared
+                .cancelled_up_to
+                .fetch_max(job.0, Ordering::SeqCst);
+        }
+    }
+
+    /// The newest submitted job (`None` before the first submit). Events of
+    /// other jobs are stale.
+    pub fn latest_job(&self) -> Option<JobId> {
+        (self.last_id > 0).then_some(JobId(self.last_id))
+    }
+
+    /// Whether the newest job's terminal event has not been received yet.
+    pub fn is_busy(&self) -> bool {
+        self.unfinished.is_some()
+    }
+
+    /// Receives pending events, in order, until none is pending or `budget`
+    /// has passed since this call (time spent by the caller between items
+    /// counts). The first pending event is always yielded.
+    pub fn drain(&mut self, budget: Duration) -> Drain<'_> {
+        Drain {
+            worker: self,
+            started: Instant::now(),
+            budget,
+            yielded: false,
+        }
+    }
+
+    /// Waits up to `timeout` for the next event (for headless use and tests;
+    /// `Duration::ZERO` only takes a pending one).
+    pub fn recv_timeout(&mut self, timeout: Duration) -> Option<Event> {
+        let event = match self.events.recv_timeout(timeout) {
+            Ok(event) => event,
+            Err(RecvTimeoutError::Timeout) => return None,
+            Err(RecvTimeoutError::Disconnected) => self.thread_stopped()?,
+        };
+        if event.is_terminal() && Some(event.job()) == self.unfinished {
+            self.unfinished = None;
+        }
+        Some(event)
+    }
+
+    /// The event channel closed while this handle lives (only a bug ends the
+    /// thread early): `Failed` for the newest job, once.
+    fn thread_stopped(&self) -> Option<Event> {
+        self.unfinished.map(|job| Event::Failed {
+            job,
+            error: THREAD_STOPPED.into(),
+        })
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.shared.shutdown.store(true, Ordering::SeqCst);
+        match self.commands.try_send(Command::Shutdown) {
+            // Full: the thread is busy and sees the flag at its next poll.
+            // Disconnected: it has already ended.
+            Ok(()) | Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {}
+        }
+        if let Some(thread) = self.thread.take() {
+            join_within(thread, SHUTDOWN_WAIT);
+        }
+    }
+}
+
+/// How long dropping a [`Worker`] waits for its thread: the solver polls
+/// cancellation every few milliseconds, so this is only reached when the
+/// thread is stuck in work that cannot poll (a very large allocation).
+pub const SHUTDOWN_WAIT: Duration = Duration::from_secs(2);
+
+/// Joins `thread` if it ends within `wait`; otherwise leaves it running
+/// detached, so a closing window never waits for it (the process ends
+/// with `main`). A panic inside the thread has been reported by the hook.
+pub fn join_within(thread: std::thread::JoinHandle<()>, wait: Duration) {
+    let deadline = Instant::now() + wait;
+    while !thread.is_finished() && Instant::now() < deadline {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    if thread.is_finished() {
+        let _ = thread.join();
+    }
+}
+
+/// Iterator returned by [`Worker::drain`].
+pub struct Drain<'a> {
+    worker: &'a mut Worker,
+    started: Instant,
+    budget: Duration,
+    yielded: bool,
+}
+
+impl Iterator for Drain<'_> {
+    type Item = Event;
+
+    fn next(&mut self) -> Option<Event> {
+        if self.yielded && self.started.elapsed() >= self.budget {
+            return None;
+        }
+        let event = self.worker.recv_timeout(Duration::ZERO)?;
+        self.yielded = true;
+        Some(event)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+
+    #[test]
+    fn join_within_leaves_a_stuck_thread_behind() {
+        let (release, stuck_on) = crossbeam_channel::bounded::<()>(0);
+        let stuck = std::thread::spawn(move || {
+            let _ = stuck_on.recv();
+        });
+        // Would never return if it joined: the thread waits for `release`.
+        join_within(stuck, Duration::from_millis(20));
+        drop(release);
+        let quick = std::thread::spawn(|| {});
+        join_within(quick, SHUTDOWN_WAIT);
+    }
+    use std::sync::atomic::AtomicUsize;
+
+    use sfs_core::camera::Intrinsics;
+    use sfs_core::grid::Grid;
+    use sfs_core::scene::sombrero::sombrero;
+
+    use super::*;
+
+    /// Generous: a wait that fails means a lost event, not a slow machine.
+    const PATIENCE: Duration = Duration::from_secs(60);
+
+    fn sombrero_request(side: usize) -> SolveRequest {
+        let scene = sombrero(side, side);
+        let problem = Problem {
+            image: scene.image,
+            camera: scene.camera,
+            intensity_scale: scene.intensity_scale,
+            object_mask: Some(scene.object_mask),
+            confidence: None,
+            lights: Vec::new(),
+        };
+        // The paper's constant start: the whole pyramid, many levels.
+        let params = SolverParams {
+            initial_depth: InitialDepth::FromImage,
+            ..SolverParams::default()
+        };
+        SolveRequest {
+            problem,
+            params,
+            estimate_scale: false,
+        }
+    }
+
+    /// A 1x1 image: the solver rejects it.
+    fn tiny_request() -> SolveRequest {
+        let mut request = sombrero_request(3);
+        request.problem.image = Grid::filled(1, 1, 0.5);
+        request.problem.camera = Intrinsics::centred(1.0, 1, 1);
+        request.problem.object_mask = None;
+        request
+    }
+
+    fn spawn_counting() -> (Worker, Arc<AtomicUsize>) {
+        let wakes = Arc::new(AtomicUsize::new(0));
+        let counter = Arc::clone(&wakes);
+        let waker = Box::new(move || {
+            counter.fetch_add(1, Ordering::SeqCst);
+        });
+        (Worker::spawn(waker).expect("spawn"), wakes)
+    }
+
+    fn next_event(worker: &mut Worker) -> Event {
+        match worker.recv_timeout(PATIENCE) {
+            Some(event) => event,
+            None => panic!("no event within {PATIENCE:?}"),
+        }
+    }
+
+    /// Events until the terminal event of `job` (inclusive).
+    fn events_until_end(worker: &mut Worker, job: JobId) -> Vec<Event> {
+        let mut events = vec![next_event(worker)];
+        while !events
+            .last()
+            .is_some_and(|e| e.is_terminal() && e.job() == job)
+        {
+            events.push(next_event(worker));
+        }
+        events
+    }
+
+    fn wait_for_progress(worker: &mut Worker, job: JobId) {
+        loop {
+            let event = next_event(worker);
+            assert!(
+                event.job() == job && !event.is_terminal(),
+                "{}",
+                kind(Some(&event))
+            );
+            if let Event::Progress { .. } = event {
+                return;
+            }
+        }
+    }
+
+    /// The variant and job, for messages (events hold whole depth maps).
+    fn kind(event: Option<&Event>) -> String {
+        let Some(event) = event else {
+            return "nothing".into();
+        };
+        let name = match event {
+            Event::Started { .. } => "Started",
+            Event::Progress { .. } => "Progress",
+            Event::Level { .. } => "Level",
+            Event::Finished { .. } => "Finished",
+            Event::Failed { .. } => "Failed",
+            Event::Cancelled { .. } => "Cancelled",
+        };
+        format!("{name} of {}", event.job())
+    }
+
+    fn failure(event: Option<&Event>) -> &str {
+        match event {
+            Some(Event::Failed { error, .. }) => error,
+            other => panic!("expected Failed, got {}", kind(other)),
+        }
+    }
+
+    fn finished(event: Option<&Event>) -> bool {
+        matches!(event, Some(Event::Finished { .. }))
+    }
+
+    #[test]
+    fn small_solve_reports_levels_coarse_to_fine_and_finishes() {
+        let (mut worker, wakes) = spawn_counting();
+        assert!(worker.latest_job().is_none() && !worker.is_busy());
+        let job = worker.submit(sombrero_request(32));
+        assert!(worker.latest_job() == Some(job) && worker.is_busy());
+        let mut events = Vec::new();
+        let deadline = Instant::now() + PATIENCE;
+        while worker.is_busy() {
+            assert!(Instant::now() < deadline, "no Finished within {PATIENCE:?}");
+            events.extend(worker.drain(Duration::from_millis(5)));
+            thread::sleep(Duration::from_millis(1));
+        }
+        assert!(events.iter().all(|e| e.job() == job));
+        let Some(Event::Started { level_sizes, .. }) = events.first() else {
+            panic!("first event is {}", kind(events.first()));
+        };
+        assert!(level_sizes.len() > 1 && level_sizes.last() == Some(&(32, 32)));
+        assert!(
+            level_sizes
+                .windows(2)
+                .all(|p| p[0].0 < p[1].0 && p[0].1 < p[1].1)
+        );
+        let levels: Vec<&LevelResult> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Level { result, .. } => Some(result),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(levels.len(), level_sizes.len());
+        for (index, (result, size)) in levels.iter().zip(level_sizes).enumerate() {
+            assert_eq!((result.level, result.levels), (index, level_sizes.len()));
+            assert_eq!(result.depth.size(), *size);
+        }
+        assert!(events.iter().any(|e| matches!(e, Event::Progress { .. })));
+        let Some(Event::Finished { solution, .. }) = events.last() else {
+            panic!("last event is {}", kind(events.last()));
+        };
+        assert_eq!(solution.depth.size(), (32, 32));
+        assert_eq!(solution.levels.len(), level_sizes.len());
+        assert_eq!(events.iter().filter(|e| e.is_terminal()).count(), 1);
+        // The waker runs just after each send: let it catch up.
+        while wakes.load(Ordering::SeqCst) < events.len() {
+            assert!(Instant::now() < deadline, "waker called too rarely");
+            thread::sleep(Duration::from_millis(1));
+        }
+        assert!(worker.drain(Duration::from_secs(1)).next().is_none());
+    }
+
+    #[test]
+    fn cancel_stops_a_running_solve() {
+        let (mut worker, _) = spawn_counting();
+        let job = worker.submit(sombrero_request(192));
+        wait_for_progress(&mut worker, job);
+        worker.cancel(job);
+        let events = events_until_end(&mut worker, job);
+        assert!(matches!(events.last(), Some(Event::Cancelled { .. })));
+        assert!(events.iter().all(|e| e.job() == job && !finished(Some(e))));
+        assert!(!worker.is_busy());
+    }
+
+    #[test]
+    fn a_newer_job_supersedes_an_older_one() {
+        let (mut worker, _) = spawn_counting();
+        let old = worker.submit(sombrero_request(192));
+        let new = worker.submit(sombrero_request(32));
+        assert!(new > old && worker.latest_job() == Some(new));
+        let events = events_until_end(&mut worker, new);
+        assert!(finished(events.last()));
+        // The old job may or may not have started before the new one came.
+        let of_old: Vec<&Event> = events.iter().filter(|e| e.job() == old).collect();
+        assert!(matches!(of_old.last(), Some(Event::Cancelled { .. })));
+        assert_eq!(of_old.iter().filter(|e| e.is_terminal()).count(), 1);
+        let new_started = events
+            .iter()
+            .position(|e| e.job() == new && matches!(e, Event::Started { .. }))
+            .expect("new job started");
+        assert!(events[new_started..].iter().all(|e| e.job() == new));
+    }
+
+    struct PanicOnIteration;
+
+    impl SolveObserver for PanicOnIteration {
+        fn on_iteration(&mut self, report: &IterationReport) {
+            panic!("injected fault at level {}", report.level);
+        }
+    }
+
+    #[test]
+    fn errors_and_panics_fail_the_job_and_the_worker_lives_on() {
+        let calls = Arc::new(AtomicUsize::new(0));
+        let counter = Arc::clone(&calls);
+        let solve_fn: SolveFn = Arc::new(
+            move |problem: &Problem, params: &SolverParams, observer: &mut dyn SolveObserver| {
+                if counter.fetch_add(1, Ordering::SeqCst) == 0 {
+                    // Panics inside the solve, on a rayon worker.
+                    sfs_core::solver::solve(problem, params, &mut PanicOnIteration)
+                } else {
+                    sfs_core::solver::solve(problem, params, observer)
+                }
+            },
+        );
+        let mut worker = Worker::spawn_with(Box::new(|| {}), solve_fn).expect("spawn");
+        let job = worker.submit(sombrero_request(32));
+        let error = failure(events_until_end(&mut worker, job).last()).to_owned();
+        assert!(error.contains("injected fault at level 0"), "{error}");
+        let job = worker.submit(tiny_request());
+        let error = failure(events_until_end(&mut worker, job).last()).to_owned();
+        assert!(error.contains("1x1"), "{error}");
+        // Invalid parameters: no level sizes (the pyramid would not end).
+        let mut request = sombrero_request(32);
+        request.params.eta = 1.0;
+        let job = worker.submit(request);
+        let events = events_until_end(&mut worker, job);
+        let Event::Started { level_sizes, .. } = &events[0] else {
+            panic!("first event is {}", kind(Some(&events[0])));
+        };
+        assert!(level_sizes.is_empty());
+        assert!(failure(events.last()).contains("eta"));
+        let job = worker.submit(sombrero_request(32));
+        assert!(finished(events_until_end(&mut worker, job).last()));
+        assert_eq!(calls.load(Ordering::SeqCst), 4);
+    }
+
+    #[test]
+    fn dropping_the_worker_during_a_solve_joins_the_thread() {
+        let (mut worker, _) = spawn_counting();
+        let job = worker.submit(sombrero_request(192));
+        wait_for_progress(&mut worker, job);
+        let (done_sender, done) = bounded(1);
+        thread::spawn(move || {
+            drop(worker);
+            done_sender.send(()).expect("test receiver alive");
+        });
+        assert!(done.recv_timeout(PATIENCE).is_ok(), "drop hung");
+    }
+
+    #[test]
+    fn a_ui_that_does_not_drain_cannot_block_submit_forever() {
+        let (worker, _) = spawn_counting();
+        // Far more jobs than both channels hold, submitted without draining:
+        // the thread drops stale events instead of waiting for the UI.
+        let (back_sender, back) = bounded(1);
+        thread::spawn(move || {
+            let mut worker = worker;
+            let mut last = None;
+            for _ in 0..4 * (COMMAND_CAPACITY + EVENT_CAPACITY) {
+                last = Some(worker.submit(tiny_request()));
+            }
+            back_sender
+                .send((worker, last))
+                .expect("test receiver alive");
+        });
+        let Ok((mut worker, Some(last))) = back.recv_timeout(PATIENCE) else {
+            panic!("submit blocked for {PATIENCE:?}");
+        };
+        failure(events_until_end(&mut worker, last).last());
+        assert!(!worker.is_busy());
+    }
+
+    #[test]
+    fn drain_yields_at_least_one_event_and_stops_at_the_budget() {
+        let (mut worker, _) = spawn_counting();
+        let job = worker.submit(tiny_request());
+        let deadline = Instant::now() + PATIENCE;
+        while worker.events.len() < 2 {
+            assert!(Instant::now() < deadline, "Started and Failed did not come");
+            thread::sleep(Duration::from_millis(1));
+        }
+        let first: Vec<Event> = worker.drain(Duration::ZERO).collect();
+        assert!(matches!(first[..], [Event::Started { .. }]) && worker.is_busy());
+        let rest: Vec<Event> = worker.drain(Duration::from_secs(1)).collect();
+        assert!(rest.len() == 1 && rest[0].job() == job);
+        failure(rest.first());
+        assert!(!worker.is_busy());
+    }
+}

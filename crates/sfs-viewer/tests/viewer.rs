@@ -1,0 +1,286 @@
+//! The real viewer under egui_kittest (wgpu on the CPU, no display): open the
+//! sample by path, set alpha through its slider, paint and undo, solve to
+//! completion with levels coarse to fine, bad input.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use eframe::egui;
+use eframe::egui::accesskit::Role;
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use sfs_viewer::app::{Export, ViewerApp, ViewerOptions, sample_image_path};
+
+fn options(data_dir: &std::path::Path) -> ViewerOptions {
+    ViewerOptions {
+        image: sample_image_path(),
+        data_dir: Some(data_dir.to_path_buf()),
+        fresh_settings: true,
+        ..ViewerOptions::default()
+    }
+}
+
+fn harness(options: ViewerOptions) -> Harness<'static, ViewerApp> {
+    Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .wgpu()
+        .build_eframe(move |cc| ViewerApp::new(cc, options))
+}
+
+/// Steps the harness (real time passes between steps, so the worker runs)
+/// until `done` or the deadline; a hang check, not a speed assertion.
+fn step_until(harness: &mut Harness<'_, ViewerApp>, done: impl Fn(&ViewerApp) -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(120);
+    while !done(harness.state()) {
+        assert!(
+            Instant::now() < deadline,
+            "the viewer did not get there in 120 s"
+        );
+        harness.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+#[test]
+fn solves_the_sample_and_streams_its_levels_and_reports_errors() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    let app = harness.state();
+    // The default: the fast-marching start, then the refined surface.
+    let sizes = &app.solve_state().arrived;
+    assert_eq!(sizes, &vec![(256, 256); 2], "levels: {sizes:?}");
+    let (rse, rie) = app
+        .solve_state()
+        .errors
+        .expect("the sample has ground truth");
+    assert!(rse < 0.02 && rie < 0.03, "rse {rse} rie {rie}");
+    // Every export writes a readable file.
+    let app = harness.state_mut();
+    for (name, what) in [
+        ("depth.npy", Export::DepthNpy),
+        ("depth16.png", Export::DepthPng),
+        ("mesh.ply", Export::MeshPly),
+        ("mesh.obj", Export::MeshObj),
+        ("reprojection.png", Export::Reprojection),
+    ] {
+        let path = dir.path().join(name);
+        app.export(&path, what);
+        let size = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+        assert!(
+            size > 1000,
+            "{name}: {size} bytes, notice {:?}",
+            app.notice()
+        );
+    }
+    let depth = sfs_core::io::read_npy(&dir.path().join("depth.npy")).expect("npy");
+    assert_eq!(depth.size(), (256, 256));
+    let obj = std::fs::read_to_string(dir.path().join("mesh.obj")).expect("obj");
+    assert_eq!(
+        obj.lines().filter(|l| l.starts_with("v ")).count(),
+        256 * 256
+    );
+}
+
+#[test]
+fn alpha_slider_changes_the_parameter_and_starts_a_new_solve() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let first_job = harness.state().solve_state().job;
+    assert!(first_job.is_some());
+    harness
+        .get_by_role_and_label(Role::Slider, "alpha")
+        .set_value_accesskit(2.5e-7);
+    harness.step();
+    assert_eq!(
+        harness.state().params().to_params().alpha,
+        sfs_core::params::Alpha::Value(2.5e-7)
+    );
+    // After the debounce a new job replaces the first one.
+    step_until(&mut harness, |app| app.solve_state().job != first_job);
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+}
+
+/// The open document's confidence mask.
+fn confidence(harness: &Harness<'_, ViewerApp>) -> sfs_core::grid::Grid<f32> {
+    harness
+        .state()
+        .document()
+        .expect("sample open")
+        .masks
+        .confidence()
+        .clone()
+}
+
+#[test]
+fn painting_changes_the_mask_and_undo_restores_it() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let before = confidence(&harness);
+    // A stroke across the middle of the image panel.
+    let tab = harness.get_by_label("input + mask").rect();
+    let start = egui::pos2(tab.left() + 120.0, tab.bottom() + 250.0);
+    let end = start + egui::vec2(120.0, 40.0);
+    harness.hover_at(start);
+    harness.step();
+    harness.drag_at(start);
+    harness.step();
+    for k in 1..=8 {
+        harness.hover_at(start + (end - start) * (k as f32 / 8.0));
+        harness.step();
+    }
+    harness.drop_at(end);
+    harness.step();
+    harness.step();
+    let doc = harness.state().document().expect("sample open");
+    let painted = doc
+        .masks
+        .confidence()
+        .as_slice()
+        .iter()
+        .filter(|&&c| c < 1.0)
+        .count();
+    assert!(painted > 50, "the stroke painted {painted} pixels");
+    assert!(doc.masks.can_undo());
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.step();
+    let after = confidence(&harness);
+    assert_eq!(after, before);
+    // Redo brings the stroke back.
+    harness.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    harness.step();
+    assert_ne!(
+        harness.state().document().expect("open").masks.confidence(),
+        &before
+    );
+}
+
+#[test]
+fn bad_files_leave_the_open_image_and_say_why() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let bad = dir.path().join("broken.png");
+    std::fs::write(&bad, b"not a png").expect("write");
+    let wrong_mask = dir.path().join("mask-small.png");
+    image::GrayImage::new(10, 10)
+        .save(&wrong_mask)
+        .expect("write mask");
+    let camera = dir.path().join("camera.json");
+    std::fs::write(&camera, br#"{"width": 256}"#).expect("write");
+    let ctx = harness.ctx.clone();
+    let app = harness.state_mut();
+    let sample: PathBuf = app.document().expect("open").path.clone();
+    for (path, expect) in [
+        (&bad, "broken.png"),
+        (&wrong_mask, "mask-small.png"),
+        (&camera, "camera.json"),
+    ] {
+        app.drop_file(&ctx, path);
+        let notice = app.notice().unwrap_or_default().to_string();
+        assert!(notice.contains(expect), "{expect}: {notice}");
+        assert_eq!(app.document().expect("still open").path, sample);
+    }
+    harness.step();
+}
+
+#[test]
+fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    // The sample fits the model: a summary, no warning.
+    let fit = harness
+        .state()
+        .solve_state()
+        .fit
+        .clone()
+        .expect("a model-fit summary after the solve");
+    assert!(fit.rie_trusted < 0.05, "{fit:?}");
+    assert!(fit.warnings.is_empty(), "{fit:?}");
+    harness.get_by_label_contains("model fit: RIE");
+    let before = confidence(&harness);
+    harness.get_by_label("suggest confidence").click();
+    harness.step();
+    harness.step();
+    let suggested = confidence(&harness);
+    let lowered = suggested
+        .as_slice()
+        .iter()
+        .zip(before.as_slice())
+        .filter(|(a, b)| a < b)
+        .count();
+    assert!(lowered > 0, "the suggestion lowered nothing");
+    assert!(
+        suggested
+            .as_slice()
+            .iter()
+            .zip(before.as_slice())
+            .all(|(a, b)| a <= b),
+        "a suggestion only lowers the confidence"
+    );
+    harness.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    harness.step();
+    assert_eq!(confidence(&harness), before, "undo rejects the suggestion");
+}
+
+#[test]
+fn a_screenshot_run_records_why_it_failed() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // Not an image: nothing opens, the run must fail with the reason.
+    let text = dir.path().join("text.png");
+    std::fs::write(&text, "hello").expect("write");
+    let failure = sfs_viewer::app::ExitReport::default();
+    let mut first = harness(ViewerOptions {
+        image: Some(text),
+        screenshot: Some(dir.path().join("shot.png")),
+        failure: failure.clone(),
+        ..options(dir.path())
+    });
+    for _ in 0..10 {
+        first.step();
+    }
+    let message = failure.get().expect("a failure is recorded");
+    assert!(message.contains("text.png"), "{message}");
+
+    // A black image opens but cannot be solved: the reason is recorded.
+    let black = dir.path().join("black.png");
+    sfs_core::io::write_png8(&black, &sfs_core::grid::Grid::filled(16, 16, 0.0))
+        .expect("write");
+    let failure = sfs_viewer::app::ExitReport::default();
+    let mut harness = harness(ViewerOptions {
+        image: Some(black),
+        screenshot: Some(dir.path().join("shot2.png")),
+        failure: failure.clone(),
+        ..options(dir.path())
+    });
+    step_until(&mut harness, |app| app.solve_state().failure.is_some());
+    harness.step();
+    let message = failure.get().expect("a failure is recorded");
+    assert!(message.contains("black"), "{message}");
+}
+
+#[test]
+fn an_image_wider_than_the_texture_limit_opens() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let wide = dir.path().join("wide.png");
+    let image =
+        sfs_core::grid::Grid::from_fn(9000, 6, |c, r| 0.2 + 0.5 * ((c + r) % 7) as f64 / 7.0);
+    sfs_core::io::write_png8(&wide, &image).expect("write");
+    let mut harness = harness(ViewerOptions {
+        image: Some(wide),
+        max_side: Some(0),
+        ..options(dir.path())
+    });
+    step_until(&mut harness, |app| app.solve_state().completed_jobs > 0);
+    harness.step();
+    assert_eq!(
+        harness.state().document().map(|d| d.size()),
+        Some((9000, 6))
+    );
+}
