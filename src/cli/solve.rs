@@ -6,20 +6,20 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
+use serde::Serialize;
 use serde_json::json;
 
 use crate::output::OutputStage;
-use sfs_core::camera::Intrinsics;
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
-use sfs_core::light::PointLight;
 use sfs_core::memory;
 use sfs_core::metrics;
 use sfs_core::model_fit;
 use sfs_core::params::{self as parameters, InitialDepth, SolverParams};
-use sfs_core::photo::{self, PhotoSetup, Vignetting};
-use sfs_core::resample::{resize_area, scale_intrinsics};
-use sfs_core::solver::{self, IterationReport, Problem, SolveObserver};
+use sfs_core::photo::{
+    self, CameraSpec, LightSpec, PhotoInput, PhotoReport, ScaleSpec, Vignetting,
+};
+use sfs_core::solver::{self, IterationReport, SolveObserver};
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
 #[derive(Debug, Args)]
@@ -258,146 +258,6 @@ impl SolveObserver for Progress {
     }
 }
 
-/// Reads a mask image and checks its size.
-fn read_sized_mask(path: &Path, what: &str, size: (usize, usize)) -> Result<Grid<f64>> {
-    let mask = io::read_mask(path)?;
-    if mask.size() != size {
-        bail!(
-            "{what} {} is {}x{} but the image is {}x{}",
-            path.display(),
-            mask.width(),
-            mask.height(),
-            size.0,
-            size.1
-        );
-    }
-    Ok(mask)
-}
-
-/// The camera, lights and scale a solve starts from, and what was decided.
-struct Setup {
-    /// Intrinsics of the photograph at its full size.
-    camera: Intrinsics,
-    lights: Vec<PointLight>,
-    /// `Some(s)` when given (option or camera file); `None`: auto.
-    intensity_scale: Option<f64>,
-    /// The unit of depth, when the camera file says it.
-    units: Option<String>,
-    /// Sentences for the summary and the report.
-    notes: Vec<String>,
-}
-
-fn camera_setup(args: &SolveArgs, full_size: (usize, usize)) -> Result<Setup> {
-    let mut notes = Vec::new();
-    let file = match &args.camera {
-        Some(path) => Some((path, sfs_core::camera_file::read_camera(path)?)),
-        None => None,
-    };
-    let camera = match (&file, args.focal) {
-        (Some((path, file)), _) => {
-            let camera = file.intrinsics_for(path, full_size)?;
-            if (file.width, file.height) != full_size {
-                notes.push(format!(
-                    "intrinsics of {} ({}x{}) scaled to the {}x{} photograph: f = {:.2} px, \
-                     c = ({:.2}, {:.2})",
-                    path.display(),
-                    file.width,
-                    file.height,
-                    full_size.0,
-                    full_size.1,
-                    camera.focal_px,
-                    camera.principal_x_px,
-                    camera.principal_y_px
-                ));
-            }
-            camera
-        }
-        (None, Some(focal)) => {
-            let mut camera = Intrinsics::centred(focal, full_size.0, full_size.1);
-            if let Some(cx) = args.cx {
-                camera.principal_x_px = cx;
-            }
-            if let Some(cy) = args.cy {
-                camera.principal_y_px = cy;
-            }
-            camera
-        }
-        (None, None) => bail!("no camera: give --camera FILE or --focal F (pixels)"),
-    };
-    let lights = match (args.lights.lights()?, &file) {
-        (Some(lights), _) => {
-            if !args.lights.indices.is_empty() {
-                bail!("give either --light X,Y,Z or --light-index K (a camera file's lights)");
-            }
-            lights
-        }
-        (None, Some((path, file))) if !file.lights.is_empty() => {
-            let names: Vec<String> = args
-                .images
-                .iter()
-                .filter_map(|p| p.file_name().map(|n| n.to_string_lossy().into_owned()))
-                .collect();
-            let (lights, said) = if args.lights.indices.is_empty() && names.len() > 1 {
-                // Several photographs: each one's own light, summed.
-                let mut picks = Vec::new();
-                for name in &names {
-                    let (one, _) = file.lights_for(path, &[], Some(name))?;
-                    let number = file
-                        .lights
-                        .iter()
-                        .enumerate()
-                        .find(|(_, e)| e.image.as_deref() == Some(name.as_str()))
-                        .map(|(k, e)| e.led.unwrap_or(k as u32 + 1));
-                    match (one.len(), number) {
-                        (1, Some(n)) => picks.push(n),
-                        _ => bail!(
-                            "{}: cannot tell which light took {name}; give --light-index K \
-                             for each light that was on",
-                            path.display()
-                        ),
-                    }
-                }
-                file.lights_for(path, &picks, None)?
-            } else {
-                file.lights_for(
-                    path,
-                    &args.lights.indices,
-                    names.first().map(String::as_str),
-                )?
-            };
-            notes.push(format!("lights: {said}"));
-            lights
-        }
-        (None, _) => {
-            if !args.lights.indices.is_empty() {
-                bail!("--light-index needs a camera file that lists lights (--camera)");
-            }
-            Vec::new()
-        }
-    };
-    let given = match args.intensity_scale.as_deref() {
-        Some(text) if text.eq_ignore_ascii_case("auto") => None,
-        Some(text) => {
-            let s: f64 = text
-                .parse()
-                .map_err(|_| anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`"))?;
-            let (s_min, s_max) = sfs_core::params::INTENSITY_SCALE_RANGE;
-            if !(s.is_finite() && (s_min..=s_max).contains(&s)) {
-                bail!("--intensity-scale {text}: must be a number in [{s_min:e}, {s_max:e}]");
-            }
-            Some(s)
-        }
-        None => file.as_ref().and_then(|(_, f)| f.intensity_scale),
-    };
-    Ok(Setup {
-        camera,
-        lights,
-        intensity_scale: given,
-        units: file.and_then(|(_, f)| f.units),
-        notes,
-    })
-}
-
 /// Every file `solve` can write into `--out`: those a run does not write are
 /// removed when it commits, so the folder holds one run's output.
 const SOLVE_OUTPUTS: &[&str] = &[
@@ -411,124 +271,138 @@ const SOLVE_OUTPUTS: &[&str] = &[
     "report.json",
 ];
 
-/// Refuses a solve that would not fit the free memory, before reading the
-/// image, with the working size that would.
-fn check_memory(
-    full: (usize, usize),
-    max_side: Option<usize>,
-    images: usize,
-    params: &SolverParams,
-) -> Result<()> {
-    let working = sfs_core::resample::working_size(full.0, full.1, max_side);
-    let factor = sfs_core::solver::pyramid::pyramid_factor(
-        working.0,
-        working.1,
-        params.eta,
-        params.min_level_side,
-    );
-    let what = if working == full {
-        format!("solving {}x{} pixels", full.0, full.1)
-    } else {
-        format!(
-            "solving {}x{} pixels (working size of {}x{})",
-            working.0, working.1, full.0, full.1
-        )
-    };
-    memory::check_solve(&memory::SolvePlan {
-        what,
-        full,
-        working,
-        images,
-        pyramid_factor: factor,
-        smaller: &|side| format!("solve at a smaller working size with --max-side {side} or less"),
-        otherwise: "use a smaller image",
-    })?;
-    Ok(())
+impl SolveArgs {
+    /// The photo pipeline's input these arguments describe.
+    pub fn photo_input(&self) -> Result<PhotoInput> {
+        let camera = match (&self.camera, self.focal) {
+            (Some(path), _) => CameraSpec::File(path.clone()),
+            (None, Some(focal_px)) => CameraSpec::Focal {
+                focal_px,
+                cx_px: self.cx,
+                cy_px: self.cy,
+            },
+            (None, None) => CameraSpec::Exif { guess: false },
+        };
+        let lights = match self.lights.lights()? {
+            Some(lights) => {
+                if !self.lights.indices.is_empty() {
+                    bail!("give either --light X,Y,Z or --light-index K (a camera file's lights)");
+                }
+                LightSpec::Given(lights)
+            }
+            None => LightSpec::CameraFile {
+                picks: self.lights.indices.clone(),
+            },
+        };
+        let intensity_scale = match self.intensity_scale.as_deref() {
+            None => ScaleSpec::FromCamera,
+            Some(text) if text.eq_ignore_ascii_case("auto") => ScaleSpec::Auto,
+            Some(text) => ScaleSpec::Given(text.parse().map_err(|_| {
+                anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`")
+            })?),
+        };
+        let vignetting = Vignetting::from_option(self.vignetting.as_deref());
+        // The table's parameters (eta, min-level-side) size the pyramid.
+        let table_params = self.params.to_params()?;
+        let max_side = (self.max_side > 0).then_some(self.max_side);
+        let pyramid_factor = |(w, h): (usize, usize)| {
+            sfs_core::solver::pyramid::pyramid_factor(
+                w,
+                h,
+                table_params.eta,
+                table_params.min_level_side,
+            )
+        };
+        let first = self.images.first().map(PathBuf::as_path);
+        let full = first.and_then(|p| io::image_size(p).ok());
+        Ok(PhotoInput {
+            images: self.images.clone(),
+            srgb: self.srgb.mode(),
+            camera,
+            lights,
+            intensity_scale,
+            object_mask: self.mask.clone(),
+            confidence: self.confidence.clone(),
+            auto_confidence: self.auto_confidence,
+            ambient: self.ambient.clone(),
+            vignetting,
+            albedo: self.albedo.clone(),
+            max_side,
+            pyramid_factor: full.map_or(memory::DEFAULT_PYRAMID_FACTOR, |(w, h)| {
+                pyramid_factor(sfs_core::resample::working_size(w, h, max_side))
+            }),
+            max_side_setting: "--max-side".into(),
+        })
+    }
+}
+
+/// The depth picture's range, for the report.
+#[derive(Debug, Serialize)]
+struct DepthRange {
+    /// Depth shown white.
+    near_white: f64,
+    /// Depth shown black.
+    far_black: f64,
+}
+
+/// The input as solved: the photo pipeline's report (with the intensity
+/// scale the solve ended with) and the known distance.
+#[derive(Debug, Serialize)]
+struct SolveInput {
+    #[serde(flatten)]
+    photo: PhotoReport,
+    /// `--known-depth` as given.
+    known_depth: Option<[f64; 3]>,
+}
+
+/// `report.json`: everything a solve decided and measured.
+#[derive(Debug, Serialize)]
+struct SolveReport<'a> {
+    input: SolveInput,
+    intensity_scale_search: Option<solver::calibrate::ScaleEstimate>,
+    notes: &'a [String],
+    parameters: serde_json::Value,
+    alpha_used: f64,
+    alpha_px: f64,
+    lambda_px: f64,
+    scales: &'a sfs_core::params::ProblemScales,
+    initial_depth: f64,
+    levels: &'a [solver::LevelReport],
+    phases: &'a solver::PhaseTimes,
+    final_energy: &'a sfs_core::model::Energy,
+    seconds: f64,
+    model_fit: &'a model_fit::ModelFit,
+    warnings: &'a [String],
+    depth16_png_range: Option<DepthRange>,
+    rse: Option<f64>,
+    rie: Option<f64>,
 }
 
 /// Runs `solve`.
 pub fn run(args: &SolveArgs) -> Result<()> {
-    let vignetting = match args.vignetting.as_deref() {
-        None | Some("none") => Vignetting::None,
-        Some("cos4") => Vignetting::Cos4,
-        Some(file) => Vignetting::FlatField(PathBuf::from(file)),
-    };
-    let max_side = (args.max_side > 0).then_some(args.max_side);
-    let photo_setup = PhotoSetup {
-        images: args.images.clone(),
-        srgb: args.srgb.mode(),
-        ambient: args.ambient.clone(),
-        vignetting,
-        albedo: args.albedo.clone(),
-        max_side,
-    };
-    let full_size = photo::full_size(&photo_setup)?;
-    let mut setup = camera_setup(args, full_size)?;
-    // The table's parameters (eta, min-level-side) size the pyramid.
-    let table_params = args.params.to_params()?;
-    check_memory(full_size, max_side, args.images.len(), &table_params)?;
-    // The destination is locked and checked writable before any work.
+    let input = args.photo_input()?;
+    // A solve that would not fit the memory is refused before any pixel is
+    // decoded (in the pipeline); the destination is locked and checked
+    // writable before the solve.
+    let prepared = photo::prepare(&input)?;
     let mut stage = OutputStage::new(&args.out, SOLVE_OUTPUTS)?;
-    let named: Vec<PathBuf> = [
-        &args.camera,
-        &args.mask,
-        &args.confidence,
-        &args.ambient,
-        &args.albedo,
-    ]
-    .into_iter()
-    .flatten()
-    .cloned()
-    .chain(args.vignetting.iter().map(PathBuf::from))
-    .chain(args.init_depth.iter().map(PathBuf::from))
-    .collect();
-    stage.keep_inputs(args.images.iter().chain(&named).map(PathBuf::as_path));
-    let photo = photo::load(&photo_setup, Some(setup.camera))?;
-    let size = photo.size();
-    let camera = scale_intrinsics(setup.camera, full_size, size);
-    if size != full_size {
-        setup.notes.push(format!(
-            "solved at {}x{} (area-averaged from {}x{}; --max-side 0 for the full size)",
-            size.0, size.1, full_size.0, full_size.1
-        ));
-    }
-    let object_mask = match &args.mask {
-        Some(path) => Some(
-            resize_area(&read_sized_mask(path, "mask", full_size)?, size.0, size.1)
-                .map(|&v| v >= 0.5),
-        ),
-        None => None,
-    };
-    let mut confidence = match &args.confidence {
-        Some(path) => Some(resize_area(
-            &read_sized_mask(path, "confidence", full_size)?,
-            size.0,
-            size.1,
-        )),
-        None => None,
-    };
-    if let Some(lost) = &photo.lost {
-        confidence = Some(match confidence {
-            Some(c) => c.zip_map(lost, |a, b| a.min(*b)),
-            None => lost.clone(),
-        });
-    }
-    let mut suggestion = None;
-    if args.auto_confidence {
-        let object = object_mask
-            .clone()
-            .unwrap_or_else(|| Grid::filled(size.0, size.1, true));
-        let (suggested, counts) = model_fit::suggest_confidence(&photo.image, &object, None);
-        confidence = Some(match confidence {
-            Some(c) => c.zip_map(&suggested, |a, b| a.min(*b)),
-            None => suggested,
-        });
-        suggestion = Some(counts);
-    }
-    if let Some(reason) = model_fit::too_dark_to_solve(&photo.image, object_mask.as_ref()) {
+    let named: Vec<PathBuf> = args.init_depth.iter().map(PathBuf::from).collect();
+    stage.keep_inputs(
+        input
+            .files()
+            .into_iter()
+            .chain(named.iter().map(PathBuf::as_path)),
+    );
+    let size = prepared.size();
+    let full_size = prepared.full_size();
+    let camera = prepared.problem.camera;
+    let mut notes = prepared.report.notes.clone();
+    let object_mask = prepared.problem.object_mask.clone();
+    let image = &prepared.problem.image;
+    if let Some(reason) = model_fit::too_dark_to_solve(image, object_mask.as_ref()) {
         bail!("cannot solve {}: {reason}", args.images[0].display());
     }
-    let dark = model_fit::darkness_warning(&photo.image, object_mask.as_ref());
+    let dark = model_fit::darkness_warning(image, object_mask.as_ref());
     if let Some(warning) = &dark
         && !args.quiet
     {
@@ -552,14 +426,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         None => None,
     };
     let params = args.params(size)?;
-    let mut problem = Problem {
-        image: photo.image.clone(),
-        camera,
-        intensity_scale: setup.intensity_scale.unwrap_or(1.0),
-        object_mask,
-        confidence,
-        lights: setup.lights.clone(),
-    };
+    let intensity_scale_given = prepared.intensity_scale_given;
+    let units = prepared.report.camera.units.clone();
+    let mut photo_report = prepared.report.clone();
+    let confidence_derived = prepared.confidence_derived;
+    let mut problem = prepared.problem;
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(1);
         bar.set_style(
@@ -597,18 +468,18 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     }
     let mut scale_estimate = None;
     let centred = problem.light_is_centred();
-    if setup.intensity_scale.is_none() && !centred && known_pixel.is_none() {
+    if !intensity_scale_given && !centred && known_pixel.is_none() {
         let estimate =
             solver::calibrate::estimate_intensity_scale(&problem, &params, &mut progress)
                 .with_context(
                     || "cannot estimate the intensity scale (give --intensity-scale S)",
                 )?;
         problem.intensity_scale = estimate.intensity_scale;
-        setup.notes.push(format!(
+        notes.push(format!(
             "intensity scale estimated: s = {:.4e} (object about {:.1} {} away){}",
             estimate.intensity_scale,
             estimate.depth,
-            setup.units.as_deref().unwrap_or("depth units"),
+            units.as_deref().unwrap_or("depth units"),
             if estimate.well_determined {
                 ""
             } else {
@@ -655,7 +526,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             }
             solution = Ok(current);
         }
-        setup.notes.push(format!(
+        notes.push(format!(
             "depth scale from --known-depth: s = {:.4e}",
             problem.intensity_scale
         ));
@@ -701,7 +572,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         &residual.map(|v| if v.is_finite() { 0.5 + v } else { 0.5 }),
     )?;
     if let Some(c) = &problem.confidence
-        && (args.auto_confidence || photo.lost.is_some())
+        && confidence_derived
     {
         io::write_png8(&stage.path("confidence_used.png"), c)?;
     }
@@ -718,51 +589,34 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     {
         warnings.insert(0, d);
     }
-    let report = json!({
-        "input": {
-            "images": args.images,
-            "full_width": full_size.0,
-            "full_height": full_size.1,
-            "width": size.0,
-            "height": size.1,
-            "srgb": photo.srgb.0,
-            "srgb_reason": photo.srgb.1,
-            "ambient": args.ambient,
-            "ambient_clamped_share": photo.ambient_clamped,
-            "vignetting": args.vignetting,
-            "albedo": args.albedo,
-            "mask": args.mask,
-            "confidence": args.confidence,
-            "auto_confidence": suggestion,
-            "camera": {
-                "focal": camera.focal_px,
-                "cx": camera.principal_x_px,
-                "cy": camera.principal_y_px,
-                "intensity_scale": problem.intensity_scale,
-                "intensity_scale_given": setup.intensity_scale.is_some(),
-                "units": setup.units,
-            },
-            "lights": problem.lights,
-            "known_depth": args.known_depth,
+    photo_report.camera.intensity_scale = problem.intensity_scale;
+    photo_report.lights = problem.lights.clone();
+    let report = SolveReport {
+        input: SolveInput {
+            photo: photo_report,
+            known_depth: args.known_depth,
         },
-        "intensity_scale_search": scale_estimate,
-        "notes": setup.notes,
-        "parameters": params_json(&params, args),
-        "alpha_used": solution.alpha,
-        "alpha_px": solution.alpha_px,
-        "lambda_px": solution.lambda_px,
-        "scales": solution.scales,
-        "initial_depth": solution.initial_depth,
-        "levels": solution.levels,
-        "phases": solution.phases,
-        "final_energy": solution.final_energy,
-        "seconds": solution.seconds,
-        "model_fit": model_fit,
-        "warnings": warnings,
-        "depth16_png_range": depth_range.map(|(near, far)| json!({"near_white": near, "far_black": far})),
-        "rse": errors.map(|e| e.rse),
-        "rie": errors.map(|e| e.rie),
-    });
+        intensity_scale_search: scale_estimate,
+        notes: &notes,
+        parameters: params_json(&params, args),
+        alpha_used: solution.alpha,
+        alpha_px: solution.alpha_px,
+        lambda_px: solution.lambda_px,
+        scales: &solution.scales,
+        initial_depth: solution.initial_depth,
+        levels: &solution.levels,
+        phases: &solution.phases,
+        final_energy: &solution.final_energy,
+        seconds: solution.seconds,
+        model_fit: &model_fit,
+        warnings: &warnings,
+        depth16_png_range: depth_range.map(|(near_white, far_black)| DepthRange {
+            near_white,
+            far_black,
+        }),
+        rse: errors.map(|e| e.rse),
+        rie: errors.map(|e| e.rie),
+    };
     io::write_json(&stage.path("report.json"), &report)?;
     stage
         .commit()
@@ -797,7 +651,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         summary.push_str(&format!("  rse {:.5} rie {:.5}", e.rse, e.rie));
     }
     if !args.quiet {
-        for note in &setup.notes {
+        for note in &notes {
             eprintln!("{note}");
         }
         eprintln!("{summary}");

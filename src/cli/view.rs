@@ -5,6 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Result, anyhow};
 use clap::Args;
 
+use sfs_core::photo::Vignetting;
 use sfs_viewer::app::ViewerOptions;
 
 /// Options of `sfs-studio view`.
@@ -26,6 +27,18 @@ pub struct ViewArgs {
     /// alone means on.
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on")]
     pub srgb: super::solve::SrgbArg,
+    /// A frame with every light off (same camera settings), subtracted from
+    /// the image.
+    #[arg(long, value_name = "FILE", value_parser = super::parse_path)]
+    pub ambient: Option<PathBuf>,
+    /// Vignetting correction: `cos4` (the pinhole's natural fall-off) or a
+    /// flat-field image (a uniform white target) [default: none].
+    #[arg(long, value_name = "cos4|FILE")]
+    pub vignetting: Option<String>,
+    /// A known albedo map (linear, relative), divided out; pixels with
+    /// albedo below 0.02 are not trusted.
+    #[arg(long, value_name = "FILE", value_parser = super::parse_path)]
+    pub albedo: Option<PathBuf>,
     /// Smoothness weight alpha in relative units, or `auto` (else the
     /// remembered value; default auto).
     #[arg(long)]
@@ -70,6 +83,9 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         image: Some(args.image.clone()),
         camera: args.camera.clone(),
         mask: args.mask.clone(),
+        ambient: args.ambient.clone(),
+        vignetting: Vignetting::from_option(args.vignetting.as_deref()),
+        albedo: args.albedo.clone(),
         srgb: match args.srgb {
             super::solve::SrgbArg::On => Some(true),
             super::solve::SrgbArg::Off => Some(false),
@@ -98,4 +114,132 @@ pub fn run_sample(screenshot: Option<PathBuf>) -> Result<()> {
 
 fn launch(options: ViewerOptions, window: (usize, usize)) -> Result<()> {
     sfs_viewer::app::run_window(options, window)
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::{Path, PathBuf};
+
+    use clap::Parser;
+    use sfs_core::grid::Grid;
+    use sfs_core::photo::{self, Vignetting};
+    use sfs_core::solver::Problem;
+    use sfs_viewer::app::{Document, OpenOptions};
+
+    use crate::cli::{Cli, Command};
+
+    /// The problem `solve ARGS` builds.
+    fn cli_problem(args: &[&str]) -> Problem {
+        let cli = Cli::try_parse_from(["sfs-studio", "solve"].iter().chain(args))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let Some(Command::Solve(args)) = cli.command else {
+            panic!("not a solve")
+        };
+        let input = args.photo_input().unwrap_or_else(|e| panic!("{e:#}"));
+        photo::prepare(&input)
+            .unwrap_or_else(|e| panic!("{e:#}"))
+            .problem
+    }
+
+    /// `a` and `b` are the same problem, bit for bit; a mask or confidence
+    /// that trusts every pixel is the same as none (the viewer's masks say
+    /// "none" then).
+    fn assert_same(a: &Problem, b: &Problem) {
+        assert_eq!(a.image, b.image, "image");
+        assert_eq!(a.camera, b.camera, "camera");
+        assert_eq!(a.intensity_scale, b.intensity_scale, "intensity scale");
+        assert_eq!(a.lights, b.lights, "lights");
+        let (w, h) = a.image.size();
+        let object = |p: &Problem| p.object_mask.clone().unwrap_or(Grid::filled(w, h, true));
+        assert_eq!(object(a), object(b), "object mask");
+        let trust = |p: &Problem| p.confidence.clone().unwrap_or(Grid::filled(w, h, 1.0));
+        assert_eq!(trust(a), trust(b), "confidence");
+    }
+
+    fn viewer_problem(image: &Path, options: &OpenOptions) -> Problem {
+        Document::open(image, options)
+            .unwrap_or_else(|e| panic!("{e:#}"))
+            .problem()
+    }
+
+    fn text(path: &Path) -> &str {
+        path.to_str()
+            .unwrap_or_else(|| panic!("{} is not UTF-8", path.display()))
+    }
+
+    #[test]
+    fn the_viewer_and_solve_build_the_same_problem_from_the_same_files() {
+        let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/sombrero");
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let ambient = dir.path().join("ambient.png");
+        sfs_core::io::write_png16(&ambient, &Grid::filled(256, 256, 0.02))
+            .unwrap_or_else(|e| panic!("{e}"));
+        let image = sample.join("image16.png");
+        let out = dir.path().join("out");
+        let cli = cli_problem(&[
+            text(&image),
+            "--camera",
+            text(&sample.join("scene.json")),
+            "--mask",
+            text(&sample.join("mask.png")),
+            "--ambient",
+            text(&ambient),
+            "--vignetting",
+            "cos4",
+            "--max-side",
+            "200",
+            "--out",
+            text(&out),
+        ]);
+        // The viewer finds scene.json and mask.png beside the image.
+        let viewer = viewer_problem(
+            &image,
+            &OpenOptions {
+                max_side: Some(200),
+                ambient: Some(ambient.clone()),
+                vignetting: Vignetting::Cos4,
+                ..OpenOptions::default()
+            },
+        );
+        assert_eq!(cli.image.size(), (200, 200));
+        assert!(cli.object_mask.is_some());
+        assert_same(&cli, &viewer);
+    }
+
+    #[test]
+    fn the_viewer_and_solve_build_the_same_problem_from_a_real_photograph() {
+        let face = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/real/near_ps_human1");
+        assert!(
+            face.is_dir(),
+            "the shared photographs are missing: {}",
+            face.display()
+        );
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let out = dir.path().join("out");
+        let image = face.join("led4.png");
+        let ambient = face.join("ambient.png");
+        let cli = cli_problem(&[
+            text(&image),
+            "--camera",
+            text(&face.join("calibration.json")),
+            "--mask",
+            text(&face.join("mask.png")),
+            "--ambient",
+            text(&ambient),
+            "--max-side",
+            "300",
+            "--out",
+            text(&out),
+        ]);
+        let viewer = viewer_problem(
+            &image,
+            &OpenOptions {
+                max_side: Some(300),
+                ambient: Some(ambient),
+                ..OpenOptions::default()
+            },
+        );
+        assert_eq!(cli.lights.len(), 1, "LED 4 alone");
+        assert_same(&cli, &viewer);
+    }
 }

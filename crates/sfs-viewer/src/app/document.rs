@@ -1,17 +1,24 @@
-//! The open image and everything that belongs to it: camera (and where it
-//! came from), masks, ground truth. Loading is all-or-nothing: a failure
-//! leaves the previous document untouched and returns a message naming the
-//! file.
+//! The open image and everything that belongs to it: what it was read with
+//! (the core's [`PhotoInput`]: camera file, masks, ambient frame,
+//! vignetting, albedo, sRGB, working size), camera (and where it came from),
+//! masks, ground truth. Every read goes through the core's photo pipeline
+//! ([`photo::prepare`]), the command line's too. Loading is all-or-nothing:
+//! a failure leaves the previous document untouched and returns a message
+//! naming the file.
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 
 use crate::mask_edit::Masks;
 use sfs_core::camera::Intrinsics;
 use sfs_core::grid::Grid;
-use sfs_core::io;
+use sfs_core::io::{self, SrgbMode};
 use sfs_core::light::PointLight;
+use sfs_core::photo::{
+    self, CameraSpec, LightSpec, PhotoInput, PhotoReport, PreparedPhoto, ScaleSpec, Vignetting,
+};
+use sfs_core::solver::Problem;
 
 /// Where the camera values came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -43,6 +50,19 @@ impl CameraSource {
     }
 }
 
+impl From<&photo::CameraSource> for CameraSource {
+    fn from(source: &photo::CameraSource) -> Self {
+        match source {
+            photo::CameraSource::File { path } => CameraSource::File(path.clone()),
+            photo::CameraSource::Exif { focal_35mm } => CameraSource::Exif {
+                focal_35mm: *focal_35mm,
+            },
+            photo::CameraSource::Guess => CameraSource::Guess,
+            photo::CameraSource::Given => CameraSource::Manual,
+        }
+    }
+}
+
 /// Camera intrinsics and intensity scale as the panel edits them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CameraState {
@@ -68,6 +88,23 @@ pub struct CameraState {
 }
 
 impl CameraState {
+    /// The camera the photo pipeline decided (intrinsics at the working
+    /// size).
+    fn from_prepared(prepared: &PreparedPhoto) -> Self {
+        let camera = prepared.problem.camera;
+        let lights = prepared.problem.lights.clone();
+        Self {
+            focal_px: camera.focal_px,
+            cx_px: camera.principal_x_px,
+            cy_px: camera.principal_y_px,
+            intensity_scale: prepared.problem.intensity_scale,
+            scale_given: prepared.intensity_scale_given,
+            use_lights: !lights.is_empty(),
+            lights,
+            source: CameraSource::from(&prepared.report.camera.source),
+        }
+    }
+
     /// The lights the solve uses.
     pub fn solve_lights(&self) -> Vec<PointLight> {
         if self.use_lights {
@@ -92,11 +129,35 @@ impl CameraState {
     }
 }
 
+/// How to open an image: the files and corrections beside the photograph
+/// itself (`None`: found beside the image, or none).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct OpenOptions {
+    /// Read as sRGB (`None`: decide from the file).
+    pub srgb: Option<bool>,
+    /// Longest side of the working size (`None`: full size).
+    pub max_side: Option<usize>,
+    /// A camera file (`None`: a `scene.json` or `calibration.json` beside
+    /// the image, else EXIF, else a guess).
+    pub camera: Option<PathBuf>,
+    /// An object mask (`None`: a `mask.png` beside the image, if any).
+    pub mask: Option<PathBuf>,
+    /// A frame with every light off, subtracted.
+    pub ambient: Option<PathBuf>,
+    /// Vignetting correction.
+    pub vignetting: Vignetting,
+    /// A known albedo map, divided out.
+    pub albedo: Option<PathBuf>,
+}
+
 /// An open image with its camera, masks and optional ground truth.
 pub struct Document {
     /// The image file.
     pub path: PathBuf,
-    /// Linear image values.
+    /// What the image was read with; changing a correction reads it again
+    /// through the same pipeline ([`Document::reread`]).
+    pub input: PhotoInput,
+    /// Linear image values at the working size, corrected.
     pub image: Grid<f64>,
     /// Whether the file was read as sRGB and linearised.
     pub srgb: bool,
@@ -110,90 +171,131 @@ pub struct Document {
     pub masks: Masks,
     /// Ground-truth depth (a `synth` folder's `depth_gt.npy`).
     pub ground_truth: Option<Grid<f64>>,
+    /// What the photo pipeline decided, and why.
+    pub report: PhotoReport,
     /// Messages about what was found beside the image (for the status line).
     pub notes: Vec<String>,
 }
 
-impl Document {
-    /// Opens `path`; a `scene.json`, `mask.png` and `depth_gt.npy` beside it
-    /// (a `synth` folder) are picked up; EXIF gives the focal length of a
-    /// photograph without a camera file.
-    ///
-    /// `srgb`: `None` decides from the file (`--srgb auto`); a photograph
-    /// whose longest side exceeds `max_side` is area-averaged down to it, the
-    /// camera and the mask beside it scaled alike.
-    pub fn open(path: &Path, srgb: Option<bool>, max_side: Option<usize>) -> Result<Self> {
-        let mode = match srgb {
-            None => io::SrgbMode::Auto,
-            Some(true) => io::SrgbMode::On,
-            Some(false) => io::SrgbMode::Off,
+/// The photo pipeline's input for opening `path` in the viewer, with the
+/// files found beside it (a `synth` folder's `scene.json` and `mask.png`, a
+/// near_ps `calibration.json`) where `options` names none; also the camera
+/// file found beside it and whether the object mask was found beside it.
+pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<PathBuf>, bool) {
+    let folder = path.parent().unwrap_or(Path::new("."));
+    let camera_beside = ["scene.json", "calibration.json"]
+        .iter()
+        .map(|name| folder.join(name))
+        .find(|p| p.is_file());
+    let mask_beside = Some(folder.join("mask.png")).filter(|m| m.is_file() && m != path);
+    let camera = match (&options.camera, &camera_beside) {
+        (Some(file), _) | (None, Some(file)) => CameraSpec::File(file.clone()),
+        (None, None) => CameraSpec::Exif { guess: true },
+    };
+    let input = PhotoInput {
+        images: vec![path.to_path_buf()],
+        srgb: match options.srgb {
+            None => SrgbMode::Auto,
+            Some(true) => SrgbMode::On,
+            Some(false) => SrgbMode::Off,
+        },
+        camera,
+        lights: LightSpec::CameraFileOrCentred,
+        intensity_scale: ScaleSpec::FromCamera,
+        object_mask: options.mask.clone().or_else(|| mask_beside.clone()),
+        confidence: None,
+        auto_confidence: false,
+        ambient: options.ambient.clone(),
+        vignetting: options.vignetting.clone(),
+        albedo: options.albedo.clone(),
+        max_side: options.max_side,
+        pyramid_factor: sfs_core::memory::DEFAULT_PYRAMID_FACTOR,
+        max_side_setting: "the working size (Camera panel) set to".into(),
+    };
+    let found_mask = options.mask.is_none() && mask_beside.is_some();
+    (input, camera_beside, found_mask)
+}
+
+/// Runs the photo pipeline; a camera file, mask, ambient frame, flat field
+/// or albedo that breaks it (the error names it) is left out with a note
+/// and the image opens without it. Only the photograph itself failing is an
+/// error. A camera file left out gives way to `camera_beside` (once), else
+/// to EXIF or a guess.
+fn prepare_lenient(
+    mut input: PhotoInput,
+    mut camera_beside: Option<PathBuf>,
+    notes: &mut Vec<String>,
+) -> Result<(PhotoInput, PreparedPhoto)> {
+    loop {
+        let error = match photo::prepare(&input) {
+            Ok(prepared) => return Ok((input, prepared)),
+            Err(e) => e.to_string(),
         };
-        // Refused before decoding when it would not fit the free memory (a
-        // header that cannot be read is reported by the decoder below).
-        if let Ok(full) = io::image_size(path) {
-            let working = sfs_core::resample::working_size(full.0, full.1, max_side);
-            sfs_core::memory::check_solve(&sfs_core::memory::SolvePlan {
-                what: format!(
-                    "opening {} ({}x{}, solved at {}x{})",
-                    path.display(),
-                    full.0,
-                    full.1,
-                    working.0,
-                    working.1
-                ),
-                full,
-                working,
-                images: 1,
-                pyramid_factor: sfs_core::memory::DEFAULT_PYRAMID_FACTOR,
-                smaller: &|side| {
-                    format!("set the working size (Camera panel) to {side} px or less")
-                },
-                otherwise: "open a smaller image",
-            })?;
+        let names = |path: &Path| error.contains(&path.display().to_string());
+        let mut ignored = |path: &Path| notes.push(format!("ignored {}: {error}", path.display()));
+        if let CameraSpec::File(file) = &input.camera
+            && names(file)
+        {
+            ignored(file);
+            input.camera = match camera_beside.take().filter(|beside| beside != file) {
+                Some(beside) => CameraSpec::File(beside),
+                None => CameraSpec::Exif { guess: true },
+            };
+        } else if let Some(mask) = input.object_mask.take_if(|m| names(m)) {
+            ignored(&mask);
+        } else if let Some(ambient) = input.ambient.take_if(|a| names(a)) {
+            ignored(&ambient);
+        } else if let Vignetting::FlatField(flat) = &input.vignetting
+            && names(flat)
+        {
+            ignored(flat);
+            input.vignetting = Vignetting::None;
+        } else if let Some(albedo) = input.albedo.take_if(|a| names(a)) {
+            ignored(&albedo);
+        } else {
+            return Err(anyhow::anyhow!(error))
+                .with_context(|| format!("cannot open image {}", input.images[0].display()));
         }
-        let (full, srgb, srgb_reason) = io::read_photo(path, mode)
-            .with_context(|| format!("cannot open image {}", path.display()))?;
-        let full_size = full.size();
-        let (w, h) = sfs_core::resample::working_size(full_size.0, full_size.1, max_side);
-        let image = sfs_core::resample::resize_area(&full, w, h);
-        drop(full);
+    }
+}
+
+/// The masks the pipeline read (object mask; confidence from a lost albedo),
+/// as editable layers.
+fn masks_of(prepared: &PreparedPhoto) -> Result<Masks> {
+    let (w, h) = prepared.size();
+    let object = prepared
+        .problem
+        .object_mask
+        .clone()
+        .unwrap_or_else(|| Grid::filled(w, h, true));
+    let confidence = prepared
+        .problem
+        .confidence
+        .as_ref()
+        .map_or_else(|| Grid::filled(w, h, 1.0f32), |c| c.map(|&v| v as f32));
+    Ok(Masks::from_layers(confidence, object)?)
+}
+
+impl Document {
+    /// Opens `path` through the photo pipeline with `options` (a file of
+    /// `options` that cannot be used is left out with a note); a
+    /// `scene.json` or `calibration.json`, a `mask.png` and a `depth_gt.npy`
+    /// beside it (a `synth` folder, a near_ps folder) are picked up where
+    /// `options` names none; EXIF gives the focal length of a photograph
+    /// without a camera file, else it is guessed.
+    pub fn open(path: &Path, options: &OpenOptions) -> Result<Self> {
+        let (input, camera_beside, found_mask) = viewer_input(path, options);
         let mut notes = Vec::new();
-        if (w, h) != full_size {
-            notes.push(format!(
-                "working at {w}x{h} (area-averaged from {}x{}; the working size is in the \
-                 Camera panel)",
-                full_size.0, full_size.1
-            ));
+        let (input, prepared) = prepare_lenient(input, camera_beside, &mut notes)?;
+        let (w, h) = prepared.size();
+        let full_size = prepared.full_size();
+        notes.extend(prepared.report.notes.iter().cloned());
+        if let Some(mask) = &input.object_mask
+            && found_mask
+        {
+            notes.push(format!("object mask from {}", mask.display()));
         }
         let folder = path.parent().unwrap_or(Path::new("."));
-        // A synth folder's scene.json, or a near_ps calibration.json.
-        let beside = ["scene.json", "calibration.json"]
-            .iter()
-            .map(|name| folder.join(name))
-            .find(|p| p.is_file())
-            .unwrap_or_else(|| folder.join("scene.json"));
-        let camera = if beside.is_file() {
-            match read_camera_for(&beside, (w, h), path) {
-                Ok(c) => c,
-                Err(e) => {
-                    notes.push(format!("ignored {}: {e:#}", beside.display()));
-                    camera_from_exif_or_guess(path, w, h)
-                }
-            }
-        } else {
-            camera_from_exif_or_guess(path, w, h)
-        };
-        let mut masks = Masks::new(w, h);
-        let mask_beside = folder.join("mask.png");
-        if mask_beside.is_file() && mask_beside != path {
-            match load_object_mask(&mask_beside, full_size, (w, h)) {
-                Ok(loaded) => {
-                    masks = loaded;
-                    notes.push(format!("object mask from {}", mask_beside.display()));
-                }
-                Err(e) => notes.push(format!("ignored {}: {e:#}", mask_beside.display())),
-            }
-        }
         let gt_path = folder.join("depth_gt.npy");
         let ground_truth = if gt_path.is_file() {
             match io::read_npy(&gt_path) {
@@ -218,14 +320,17 @@ impl Document {
         } else {
             None
         };
+        let masks = masks_of(&prepared)?;
         Ok(Self {
             path: path.to_path_buf(),
-            image,
-            srgb,
-            srgb_reason,
-            full_size,
-            camera,
+            camera: CameraState::from_prepared(&prepared),
             masks,
+            srgb: prepared.report.srgb,
+            srgb_reason: prepared.report.srgb_reason.clone(),
+            full_size,
+            report: prepared.report,
+            image: prepared.problem.image,
+            input,
             ground_truth,
             notes,
         })
@@ -236,24 +341,69 @@ impl Document {
         self.image.size()
     }
 
-    /// Replaces the camera from a JSON file (keys of `scene.json`); the
-    /// intrinsics must match the image size.
-    pub fn load_camera(&mut self, path: &Path) -> Result<()> {
-        self.camera = read_camera_for(path, self.size(), &self.path)?;
+    /// The problem a solve of the document as it is now gets: the image,
+    /// the camera as edited, the painted masks.
+    pub fn problem(&self) -> Problem {
+        Problem {
+            image: self.image.clone(),
+            camera: self.camera.intrinsics(),
+            intensity_scale: self.camera.intensity_scale,
+            object_mask: self.masks.object_for_solver(),
+            confidence: self.masks.confidence_for_solver(),
+            lights: self.camera.solve_lights(),
+        }
+    }
+
+    /// Reads the image again through the photo pipeline with `change` made
+    /// to its input (sRGB, ambient frame, vignetting, albedo, camera file).
+    /// The painted masks stay (where a new albedo cannot be trusted, the
+    /// confidence is lowered, one undo step); the camera is the new one
+    /// when `change` set a camera file, else the edited one stays. On
+    /// failure nothing changes.
+    pub fn reread(&mut self, change: impl FnOnce(&mut PhotoInput)) -> Result<()> {
+        let mut input = self.input.clone();
+        change(&mut input);
+        let camera_changed = input.camera != self.input.camera;
+        let prepared = photo::prepare(&input)
+            .with_context(|| format!("cannot re-read {}", self.path.display()))?;
+        if prepared.size() != self.size() {
+            anyhow::bail!(
+                "{} changed size on disk ({}x{} now); open it again",
+                self.path.display(),
+                prepared.full_size().0,
+                prepared.full_size().1
+            );
+        }
+        if input.albedo.is_some()
+            && input.albedo != self.input.albedo
+            && let Some(confidence) = &prepared.problem.confidence
+        {
+            self.masks.lower_confidence(confidence)?;
+        }
+        if camera_changed {
+            self.camera = CameraState::from_prepared(&prepared);
+        }
+        self.srgb = prepared.report.srgb;
+        self.srgb_reason = prepared.report.srgb_reason.clone();
+        self.report = prepared.report;
+        self.image = prepared.problem.image;
+        self.input = input;
         Ok(())
+    }
+
+    /// Replaces the camera from a JSON file (keys of `scene.json`), read
+    /// through the photo pipeline; intrinsics for another size of the image
+    /// are scaled.
+    pub fn load_camera(&mut self, path: &Path) -> Result<()> {
+        self.reread(|input| input.camera = CameraSpec::File(path.to_path_buf()))
     }
 
     /// Re-reads the image with or without sRGB linearisation; on failure
     /// nothing changes.
     pub fn set_srgb(&mut self, srgb: bool) -> Result<()> {
-        let image = io::read_image(&self.path, srgb)
-            .with_context(|| format!("cannot re-read {}", self.path.display()))?;
-        if image.size() != self.full_size {
-            bail!("{} changed size on disk", self.path.display());
-        }
-        let (w, h) = self.image.size();
-        self.image = sfs_core::resample::resize_area(&image, w, h);
-        self.srgb = srgb;
+        self.reread(|input| {
+            input.srgb = if srgb { SrgbMode::On } else { SrgbMode::Off };
+        })?;
         self.srgb_reason = if srgb {
             "sRGB decoding on (set in the Camera panel)".into()
         } else {
@@ -261,84 +411,6 @@ impl Document {
         };
         Ok(())
     }
-}
-
-/// The object mask at `path` (of the photograph's `full` size) at the
-/// working size `working` (area-averaged, then `>= 0.5`).
-fn load_object_mask(path: &Path, full: (usize, usize), working: (usize, usize)) -> Result<Masks> {
-    let values = io::read_mask(path)?;
-    if values.size() != full {
-        bail!(
-            "{}x{} but the photograph is {}x{}",
-            values.width(),
-            values.height(),
-            full.0,
-            full.1
-        );
-    }
-    let object = sfs_core::resample::resize_area(&values, working.0, working.1).map(|&v| v >= 0.5);
-    Ok(Masks::from_layers(
-        Grid::filled(working.0, working.1, 1.0f32),
-        object,
-    )?)
-}
-
-/// Reads a camera file for the image at `image` (intrinsics scaled to
-/// `size`); its light is the camera file's light whose `image` is its file
-/// name (or the file's only light, or all of a synthetic set-up's).
-pub fn read_camera_for(path: &Path, size: (usize, usize), image: &Path) -> Result<CameraState> {
-    let file = sfs_core::camera_file::read_camera(path)?;
-    let name = image.file_name().map(|n| n.to_string_lossy().into_owned());
-    let lights = match file.lights_for(path, &[], name.as_deref()) {
-        Ok((lights, _)) => lights,
-        Err(_) if !file.lights.is_empty() => Vec::new(),
-        Err(e) => return Err(e.into()),
-    };
-    // Intrinsics calibrated for another size of the same image are scaled.
-    let camera = file.intrinsics_for(path, size)?;
-    Ok(CameraState {
-        focal_px: camera.focal_px,
-        cx_px: camera.principal_x_px,
-        cy_px: camera.principal_y_px,
-        intensity_scale: file.intensity_scale.unwrap_or(1.0),
-        scale_given: file.intensity_scale.is_some(),
-        use_lights: !lights.is_empty(),
-        lights,
-        source: CameraSource::File(path.to_path_buf()),
-    })
-}
-
-/// Focal length from EXIF's 35 mm equivalent (36 mm across the long side),
-/// or a 50 mm-equivalent guess; principal point at the centre; `s = 1`.
-fn camera_from_exif_or_guess(path: &Path, width: usize, height: usize) -> CameraState {
-    let long_side = width.max(height) as f64;
-    let (focal_px, source) = match exif_focal_35mm(path) {
-        Some(f35) => (
-            f35 / 36.0 * long_side,
-            CameraSource::Exif { focal_35mm: f35 },
-        ),
-        None => (50.0 / 36.0 * long_side, CameraSource::Guess),
-    };
-    CameraState {
-        focal_px,
-        cx_px: (width as f64 - 1.0) / 2.0,
-        cy_px: (height as f64 - 1.0) / 2.0,
-        intensity_scale: 1.0,
-        scale_given: false,
-        lights: Vec::new(),
-        use_lights: false,
-        source,
-    }
-}
-
-/// `FocalLengthIn35mmFilm` from the file's EXIF, if any.
-pub fn exif_focal_35mm(path: &Path) -> Option<f64> {
-    let file = std::fs::File::open(path).ok()?;
-    let mut reader = std::io::BufReader::new(file);
-    let exif = exif::Reader::new().read_from_container(&mut reader).ok()?;
-    let field = exif.get_field(exif::Tag::FocalLengthIn35mmFilm, exif::In::PRIMARY)?;
-    let value = field.value.get_uint(0)? as f64;
-    (value > 0.0).then_some(value)
 }
 
 /// The built-in sample (the Sombrero with its camera file and ground truth):
@@ -360,18 +432,27 @@ pub fn sample_image_path() -> Option<PathBuf> {
 mod tests {
     use super::*;
 
+    fn sample() -> PathBuf {
+        sample_image_path().unwrap_or_else(|| panic!("assets/sombrero/image16.png is missing"))
+    }
+
+    fn open(path: &Path, options: &OpenOptions) -> Document {
+        Document::open(path, options).unwrap_or_else(|e| panic!("{e:#}"))
+    }
+
     #[test]
     fn sample_opens_with_camera_and_ground_truth() {
-        let Some(path) = sample_image_path() else {
-            panic!("assets/sombrero/image16.png is missing");
-        };
-        let doc = match Document::open(&path, Some(false), None) {
-            Ok(d) => d,
-            Err(e) => panic!("{e:#}"),
-        };
+        let doc = open(
+            &sample(),
+            &OpenOptions {
+                srgb: Some(false),
+                ..OpenOptions::default()
+            },
+        );
         assert!(matches!(doc.camera.source, CameraSource::File(_)));
         assert!(doc.ground_truth.is_some());
         assert_eq!(doc.size(), (256, 256));
+        assert!(doc.input.object_mask.is_some(), "mask.png beside");
     }
 
     #[test]
@@ -379,18 +460,12 @@ mod tests {
         let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
         let bad = dir.path().join("not-an-image.png");
         std::fs::write(&bad, b"hello").unwrap_or_else(|e| panic!("{e}"));
-        let err = match Document::open(&bad, Some(false), None) {
+        let err = match Document::open(&bad, &OpenOptions::default()) {
             Ok(_) => panic!("opened a non-image"),
             Err(e) => format!("{e:#}"),
         };
         assert!(err.contains("not-an-image.png"), "{err}");
-        let Some(sample) = sample_image_path() else {
-            panic!("sample missing")
-        };
-        let mut doc = match Document::open(&sample, Some(false), None) {
-            Ok(d) => d,
-            Err(e) => panic!("{e:#}"),
-        };
+        let mut doc = open(&sample(), &OpenOptions::default());
         let camera = dir.path().join("cam.json");
         std::fs::write(&camera, br#"{"width": 256, "height": 256, "focal": 100}"#)
             .unwrap_or_else(|e| panic!("{e}"));
@@ -401,5 +476,58 @@ mod tests {
         };
         assert!(err.contains("cam.json"), "{err}");
         assert_eq!(doc.camera, before);
+        // Asked for at opening, the same file is left out with a note and
+        // the image opens.
+        let doc = open(
+            &sample(),
+            &OpenOptions {
+                camera: Some(camera.clone()),
+                ambient: Some(bad.clone()),
+                ..OpenOptions::default()
+            },
+        );
+        assert!(
+            doc.notes
+                .iter()
+                .any(|n| n.contains("ignored") && n.contains("cam.json"))
+        );
+        assert!(doc.notes.iter().any(|n| n.contains("not-an-image.png")));
+        assert_eq!(doc.input.ambient, None);
+        assert!(
+            matches!(doc.input.camera, CameraSpec::File(_)),
+            "the scene.json beside"
+        );
+    }
+
+    #[test]
+    fn corrections_reread_the_image_and_keep_the_painted_masks() {
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        let mut doc = open(&sample(), &OpenOptions::default());
+        let (w, h) = doc.size();
+        let before = doc.image.clone();
+        doc.masks.clear(crate::mask_edit::Layer::Object);
+        let painted = doc.masks.object().clone();
+        let ambient = dir.path().join("ambient.png");
+        io::write_png16(&ambient, &Grid::filled(w, h, 0.01)).unwrap_or_else(|e| panic!("{e}"));
+        doc.reread(|input| input.ambient = Some(ambient.clone()))
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        assert_eq!(doc.report.ambient.as_deref(), Some(ambient.as_path()));
+        let expected = before.map(|&v| (v - 0.01).max(0.0));
+        for (a, b) in doc.image.as_slice().iter().zip(expected.as_slice()) {
+            assert!((a - b).abs() < 1e-4, "{a} vs {b}");
+        }
+        assert_eq!(doc.masks.object(), &painted, "the painted mask stays");
+        // A flat field of the wrong size changes nothing.
+        let small = dir.path().join("flat.png");
+        io::write_png16(&small, &Grid::filled(3, 3, 0.5)).unwrap_or_else(|e| panic!("{e}"));
+        let image = doc.image.clone();
+        let err = doc
+            .reread(|input| input.vignetting = Vignetting::FlatField(small.clone()))
+            .err()
+            .map(|e| format!("{e:#}"))
+            .unwrap_or_default();
+        assert!(err.contains("flat.png"), "{err}");
+        assert_eq!(doc.image, image);
+        assert_eq!(doc.input.vignetting, Vignetting::None);
     }
 }

@@ -29,7 +29,7 @@ use crate::mask_edit::Layer;
 use crate::worker::Worker;
 use sfs_core::params::Alpha;
 
-pub use document::{CameraSource, CameraState, Document, exif_focal_35mm, sample_image_path};
+pub use document::{CameraSource, CameraState, Document, OpenOptions, sample_image_path};
 pub use panels::{Action, Panel2d};
 pub use session::{EnergyPoint, Export, LevelView, Progress, SolveState, per_pixel};
 pub use settings::{InitialChoice, ParamSettings, Settings, Tool};
@@ -42,10 +42,16 @@ pub const APP_ID: &str = "sfs-studio";
 pub struct ViewerOptions {
     /// Image to open (`None`: the built-in sample).
     pub image: Option<PathBuf>,
-    /// Camera JSON to apply after opening.
+    /// Camera JSON to open the image with.
     pub camera: Option<PathBuf>,
-    /// Object mask PNG to load after opening.
+    /// Object mask PNG to open the image with.
     pub mask: Option<PathBuf>,
+    /// A frame with every light off, subtracted from the image.
+    pub ambient: Option<PathBuf>,
+    /// Vignetting correction of the image.
+    pub vignetting: sfs_core::photo::Vignetting,
+    /// A known albedo map, divided out of the image.
+    pub albedo: Option<PathBuf>,
     /// Read the image as sRGB (`None`: decide from the file).
     pub srgb: Option<bool>,
     /// Alpha override.
@@ -152,13 +158,15 @@ impl ViewerApp {
         let path = options.image.clone().or_else(sample_image_path);
         match path {
             Some(path) => {
-                app.open(&cc.egui_ctx, &path);
-                if let Some(camera) = &options.camera {
-                    app.load_camera(camera);
-                }
-                if let Some(mask) = &options.mask {
-                    app.load_mask(Layer::Object, mask);
-                }
+                let open = OpenOptions {
+                    camera: options.camera.clone(),
+                    mask: options.mask.clone(),
+                    ambient: options.ambient.clone(),
+                    vignetting: options.vignetting.clone(),
+                    albedo: options.albedo.clone(),
+                    ..app.open_options()
+                };
+                app.open_with(&cc.egui_ctx, &path, &open);
                 // Start at once, not after the debounce.
                 app.start_solve();
             }
@@ -195,11 +203,25 @@ impl ViewerApp {
         self.panels.show_panel(panel);
     }
 
+    /// How File > Open reads an image: the sRGB choice given at start and
+    /// the working size; camera file and mask found beside it.
+    fn open_options(&self) -> OpenOptions {
+        OpenOptions {
+            srgb: self.options.srgb,
+            max_side: (self.settings.max_side > 0).then_some(self.settings.max_side),
+            ..OpenOptions::default()
+        }
+    }
+
     /// Opens an image by path (File > Open and drops end here). On failure
     /// the previous document stays and the error is shown.
     pub fn open(&mut self, ctx: &egui::Context, path: &Path) {
-        let max_side = (self.settings.max_side > 0).then_some(self.settings.max_side);
-        match self.session.open(path, self.options.srgb, max_side) {
+        self.open_with(ctx, path, &self.open_options());
+    }
+
+    /// Opens an image with `options` (files, corrections, working size).
+    pub fn open_with(&mut self, ctx: &egui::Context, path: &Path, options: &OpenOptions) {
+        match self.session.open(path, options) {
             Ok(notes) => {
                 self.settings.remember(path.to_path_buf());
                 if let Some(doc) = &self.session.document {

@@ -1,7 +1,7 @@
 //! The viewer's panels: menu, status line, controls (camera, parameters,
 //! mask tools, progress, export), the 2-D image panels and the 3-D view.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use eframe::egui;
 
@@ -14,6 +14,7 @@ use super::view3d::SurfaceView;
 use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
 use sfs_core::grid::Grid;
 use sfs_core::params::{PARAMS, ParamKind, ParamValue, SolverParams};
+use sfs_core::photo::{PhotoInput, Vignetting};
 
 /// Which 2-D panel is shown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -728,6 +729,7 @@ impl Panels {
             }
         }
         ui.weak(&doc.srgb_reason);
+        changed |= self.corrections_ui(ui, doc, cx.actions);
         let (w, h) = doc.size();
         if (w, h) != doc.full_size {
             ui.weak(format!(
@@ -757,6 +759,133 @@ impl Panels {
         });
         if changed {
             cx.actions.push(Action::RequestSolve);
+        }
+    }
+
+    /// The photograph's corrections (ambient frame, vignetting, albedo):
+    /// each change reads the image again through the photo pipeline, the
+    /// masks stay. Returns whether the image changed.
+    fn corrections_ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        doc: &mut Document,
+        actions: &mut Vec<Action>,
+    ) -> bool {
+        type Change = Box<dyn FnOnce(&mut PhotoInput)>;
+        let mut change: Option<Change> = None;
+        let name = |path: &Path| {
+            path.file_name().map_or_else(
+                || path.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            )
+        };
+        let images = [("image", IMAGE_EXTENSIONS)];
+        ui.horizontal(|ui| {
+            ui.label("ambient frame");
+            match &doc.input.ambient {
+                Some(path) => {
+                    ui.weak(name(path))
+                        .on_hover_text(path.display().to_string());
+                    if ui.small_button("clear").clicked() {
+                        change = Some(Box::new(|input| input.ambient = None));
+                    }
+                }
+                None => {
+                    ui.weak("none");
+                }
+            }
+            if ui
+                .small_button("choose…")
+                .on_hover_text(
+                    "A photograph with every light off (same exposure), subtracted from the image",
+                )
+                .clicked()
+                && let Some(path) = pick_open(&images)
+            {
+                change = Some(Box::new(move |input| input.ambient = Some(path)));
+            }
+        });
+        if doc.input.ambient.is_some() && doc.report.ambient_clamped_share > 0.0 {
+            ui.weak(format!(
+                "{:.1} % of pixels darker than the ambient frame (set to 0)",
+                100.0 * doc.report.ambient_clamped_share
+            ));
+        }
+        let current = match &doc.input.vignetting {
+            Vignetting::None => "none".to_owned(),
+            Vignetting::Cos4 => "cos⁴ (pinhole fall-off)".to_owned(),
+            Vignetting::FlatField(path) => format!("flat field {}", name(path)),
+        };
+        egui::ComboBox::from_label("vignetting")
+            .selected_text(current)
+            .show_ui(ui, |ui| {
+                if ui
+                    .selectable_label(doc.input.vignetting == Vignetting::None, "none")
+                    .clicked()
+                {
+                    change = Some(Box::new(|input| input.vignetting = Vignetting::None));
+                }
+                if ui
+                    .selectable_label(
+                        doc.input.vignetting == Vignetting::Cos4,
+                        "cos⁴ (pinhole fall-off)",
+                    )
+                    .clicked()
+                {
+                    change = Some(Box::new(|input| input.vignetting = Vignetting::Cos4));
+                }
+                if ui
+                    .selectable_label(
+                        matches!(doc.input.vignetting, Vignetting::FlatField(_)),
+                        "flat field…",
+                    )
+                    .on_hover_text("A photograph of a uniform white target, divided out")
+                    .clicked()
+                    && let Some(path) = pick_open(&images)
+                {
+                    change = Some(Box::new(move |input| {
+                        input.vignetting = Vignetting::FlatField(path);
+                    }));
+                }
+            });
+        ui.horizontal(|ui| {
+            ui.label("albedo");
+            match &doc.input.albedo {
+                Some(path) => {
+                    ui.weak(name(path))
+                        .on_hover_text(path.display().to_string());
+                    if ui.small_button("clear").clicked() {
+                        change = Some(Box::new(|input| input.albedo = None));
+                    }
+                }
+                None => {
+                    ui.weak("none (uniform)");
+                }
+            }
+            if ui
+                .small_button("choose…")
+                .on_hover_text(
+                    "A known albedo map (linear, relative), divided out; pixels below 0.02 \
+                     are not trusted",
+                )
+                .clicked()
+                && let Some(path) = pick_open(&images)
+            {
+                change = Some(Box::new(move |input| input.albedo = Some(path)));
+            }
+        });
+        let Some(change) = change else {
+            return false;
+        };
+        match doc.reread(change) {
+            Ok(()) => {
+                self.textures.input = Some(input_texture(ui.ctx(), &doc.image));
+                true
+            }
+            Err(e) => {
+                actions.push(Action::Notice(format!("{e:#}")));
+                false
+            }
         }
     }
 

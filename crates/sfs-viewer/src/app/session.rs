@@ -13,9 +13,9 @@ use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
-use sfs_core::solver::{LevelResult, Problem, Solution};
+use sfs_core::solver::{LevelResult, Solution};
 
-use super::document::Document;
+use super::document::{Document, OpenOptions};
 use super::level_prep::LevelInputs;
 
 /// While a slider is dragged, solve after it rests this long.
@@ -165,13 +165,8 @@ impl Session {
     /// Opens an image (masks restored from the autosave) and asks for a
     /// solve; returns notes for the status line. On failure the previous
     /// document stays and the error is returned.
-    pub fn open(
-        &mut self,
-        path: &Path,
-        srgb: Option<bool>,
-        max_side: Option<usize>,
-    ) -> Result<Vec<String>, String> {
-        let mut doc = Document::open(path, srgb, max_side).map_err(|e| format!("{e:#}"))?;
+    pub fn open(&mut self, path: &Path, options: &OpenOptions) -> Result<Vec<String>, String> {
+        let mut doc = Document::open(path, options).map_err(|e| format!("{e:#}"))?;
         let mut notes = std::mem::take(&mut doc.notes);
         if let Some(dir) = self.autosave_dir(&doc) {
             match Masks::restore(&dir, doc.size()) {
@@ -307,14 +302,7 @@ impl Session {
             self.solve.completed_jobs += 1;
             return;
         }
-        let problem = Problem {
-            image: doc.image.clone(),
-            camera: doc.camera.intrinsics(),
-            intensity_scale: doc.camera.intensity_scale,
-            object_mask: object,
-            confidence: doc.masks.confidence_for_solver(),
-            lights: doc.camera.solve_lights(),
-        };
+        let problem = doc.problem();
         self.level_inputs = Some(LevelInputs {
             image: Arc::new(doc.image.clone()),
             ground_truth: doc.ground_truth.clone().map(Arc::new),

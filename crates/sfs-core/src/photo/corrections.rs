@@ -1,7 +1,7 @@
-//! Photographs as the solver needs them: several exposures summed in linear
-//! light, an ambient (dark) frame subtracted, vignetting (cos^4 or a
-//! flat-field image) and a known albedo divided out, and a working size by
-//! area averaging with the intrinsics and masks scaled consistently.
+//! The corrections of a photograph's values: several exposures summed in
+//! linear light, an ambient (dark) frame subtracted, vignetting (cos^4 or a
+//! flat-field image) and a known albedo divided out, then area-averaged to
+//! the working size.
 
 use std::path::{Path, PathBuf};
 
@@ -13,7 +13,7 @@ use crate::io::{self, IoError, SrgbMode};
 /// such pixels get confidence 0.
 pub const MIN_ALBEDO: f64 = 0.02;
 
-pub use crate::resample::{resize_area, scale_intrinsics, working_size};
+use crate::resample::{resize_area, working_size};
 
 /// The natural vignetting of a pinhole camera: `cos^4` of the angle between
 /// a pixel's ray and the optical axis, per pixel.
@@ -39,31 +39,40 @@ pub enum Vignetting {
     FlatField(PathBuf),
 }
 
-/// What to load and how: everything `solve` and the viewer do to a
-/// photograph before solving.
-#[derive(Clone, Debug, Default)]
-pub struct PhotoSetup {
+impl Vignetting {
+    /// The correction an option names: nothing or `none`, `cos4`, else the
+    /// path of a flat-field image.
+    pub fn from_option(text: Option<&str>) -> Self {
+        match text {
+            None | Some("none") => Vignetting::None,
+            Some("cos4") => Vignetting::Cos4,
+            Some(file) => Vignetting::FlatField(PathBuf::from(file)),
+        }
+    }
+}
+
+/// The files and corrections that make a photograph's values.
+#[derive(Clone, Debug)]
+pub(super) struct Corrections<'a> {
     /// The photographs (one, or several summed: lights on together).
-    pub images: Vec<PathBuf>,
+    pub images: &'a [PathBuf],
     /// sRGB decoding.
     pub srgb: SrgbMode,
     /// A frame with every light off, subtracted from each photograph.
-    pub ambient: Option<PathBuf>,
+    pub ambient: Option<&'a Path>,
     /// Vignetting correction.
-    pub vignetting: Vignetting,
+    pub vignetting: &'a Vignetting,
     /// A known albedo map (values in [0, 1], relative), divided out.
-    pub albedo: Option<PathBuf>,
+    pub albedo: Option<&'a Path>,
     /// Largest side of the working size (area averaging); `None`: full size.
     pub max_side: Option<usize>,
 }
 
-/// A photograph ready for the solver, at the working size.
+/// A photograph's corrected values at the working size.
 #[derive(Clone, Debug)]
-pub struct Photo {
+pub(super) struct Photo {
     /// Linear image at the working size, corrected.
     pub image: Grid<f64>,
-    /// The photograph's own size.
-    pub full_size: (usize, usize),
     /// Confidence 0 where a correction made a pixel unusable (albedo below
     /// [`MIN_ALBEDO`]), else 1; `None` when nothing was lost.
     pub lost: Option<Grid<f64>>,
@@ -72,13 +81,6 @@ pub struct Photo {
     /// Share of pixels that went below zero after the ambient subtraction
     /// (clamped to 0).
     pub ambient_clamped: f64,
-}
-
-impl Photo {
-    /// The working size.
-    pub fn size(&self) -> (usize, usize) {
-        self.image.size()
-    }
 }
 
 fn read_sized(
@@ -109,7 +111,7 @@ fn read_sized(
 /// # Errors
 /// An unreadable file, or one whose size differs from the first
 /// photograph's; the message names the file.
-pub fn load(setup: &PhotoSetup, camera: Option<Intrinsics>) -> Result<Photo, IoError> {
+pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Result<Photo, IoError> {
     let Some(first) = setup.images.first() else {
         return Err(IoError::BadImage {
             path: PathBuf::from("(none)"),
@@ -124,7 +126,7 @@ pub fn load(setup: &PhotoSetup, camera: Option<Intrinsics>) -> Result<Photo, IoE
         image = image.zip_map(&more, |a, b| a + b);
     }
     let mut ambient_clamped = 0.0;
-    if let Some(path) = &setup.ambient {
+    if let Some(path) = setup.ambient {
         let ambient = read_sized(path, "ambient frame", size, mode)?;
         let frames = setup.images.len() as f64;
         let mut clamped = 0usize;
@@ -137,7 +139,7 @@ pub fn load(setup: &PhotoSetup, camera: Option<Intrinsics>) -> Result<Photo, IoE
         });
         ambient_clamped = clamped as f64 / image.len().max(1) as f64;
     }
-    if let Vignetting::FlatField(path) = &setup.vignetting {
+    if let Vignetting::FlatField(path) = setup.vignetting {
         let flat = read_sized(path, "flat field", size, mode)?;
         let mean = flat.as_slice().iter().sum::<f64>() / flat.len().max(1) as f64;
         if mean.is_nan() || mean <= 0.0 {
@@ -148,12 +150,12 @@ pub fn load(setup: &PhotoSetup, camera: Option<Intrinsics>) -> Result<Photo, IoE
         }
         image = image.zip_map(&flat, |a, b| if *b > 0.0 { a * mean / b } else { 0.0 });
     }
-    if let (Vignetting::Cos4, Some(camera)) = (&setup.vignetting, camera) {
+    if let (Vignetting::Cos4, Some(camera)) = (setup.vignetting, camera) {
         let fall_off = cos4(camera, size.0, size.1);
         image = image.zip_map(&fall_off, |a, b| a / b);
     }
     let mut lost = None;
-    if let Some(path) = &setup.albedo {
+    if let Some(path) = setup.albedo {
         let albedo = read_sized(path, "albedo", size, SrgbMode::Off)?;
         image = image.zip_map(&albedo, |a, b| if *b >= MIN_ALBEDO { a / b } else { 0.0 });
         lost = Some(albedo.map(|&b| if b >= MIN_ALBEDO { 1.0 } else { 0.0 }));
@@ -163,21 +165,8 @@ pub fn load(setup: &PhotoSetup, camera: Option<Intrinsics>) -> Result<Photo, IoE
     let lost = lost.map(|l| resize_area(&l, w, h).map(|&v| if v >= 0.999 { 1.0 } else { 0.0 }));
     Ok(Photo {
         image,
-        full_size: size,
         lost,
         srgb: (srgb, why),
         ambient_clamped,
     })
-}
-
-/// The size of the first photograph of `setup` (decoded once, for the
-/// camera that [`load`] needs for the cos^4 correction).
-pub fn full_size(setup: &PhotoSetup) -> Result<(usize, usize), IoError> {
-    let Some(first) = setup.images.first() else {
-        return Err(IoError::BadImage {
-            path: PathBuf::from("(none)"),
-            reason: "no photograph given".into(),
-        });
-    };
-    crate::io::image_size(first)
 }

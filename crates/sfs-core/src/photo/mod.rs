@@ -1,0 +1,567 @@
+//! The one way a photograph becomes a solver [`Problem`], for the command
+//! line and the viewer alike: [`PhotoInput`] says what to read and how
+//! (photographs, camera file or focal length or EXIF, lights, masks, ambient
+//! frame, vignetting, albedo, sRGB, working size), [`prepare`] reads and
+//! corrects it and returns the problem with a [`PhotoReport`] of every
+//! decision and its reason.
+//!
+//! Order of the work: the photograph's size from its header, the camera and
+//! lights, the memory guard (before any pixel is decoded), the corrections
+//! ([`corrections`]), the working size (area averaging, the intrinsics and
+//! masks scaled alike), the masks ([`read_mask_at`], the one reader of mask
+//! files), then the suggested confidence when asked for.
+
+mod camera;
+pub mod corrections;
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::camera::Intrinsics;
+use crate::grid::Grid;
+use crate::io::{self, IoError, SrgbMode};
+use crate::light::PointLight;
+use crate::memory::{self, MemoryError};
+use crate::model_fit::{self, Suggestion};
+use crate::resample::{resize_area, scale_intrinsics, working_size};
+use crate::solver::Problem;
+
+pub use camera::{CameraSource, exif_focal_35mm};
+pub use corrections::{MIN_ALBEDO, Vignetting, cos4};
+
+/// Where the camera's intrinsics come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CameraSpec {
+    /// A camera file (`scene.json` keys or a near_ps `calibration.json`);
+    /// intrinsics for another size of the same image are scaled.
+    File(PathBuf),
+    /// A focal length in pixels of the photograph as given, and optionally
+    /// the principal point (default: the image centre, `(w - 1) / 2`).
+    Focal {
+        /// Focal length, pixels.
+        focal_px: f64,
+        /// Principal point column, pixels.
+        cx_px: Option<f64>,
+        /// Principal point row, pixels.
+        cy_px: Option<f64>,
+    },
+    /// The photograph's EXIF focal length (35 mm equivalent, 36 mm across
+    /// the long side). Without one: a 50 mm-equivalent guess when `guess`
+    /// (said in the report), else an error asking for a camera.
+    Exif {
+        /// Whether a missing EXIF focal length may be guessed.
+        guess: bool,
+    },
+}
+
+/// Which lights were on.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LightSpec {
+    /// The camera file's lights: those numbered in `picks` (summed), else
+    /// the one marked as taking each photograph (several photographs: their
+    /// lights summed), else all when they are not tied to images; no camera
+    /// file or no lights in it: one light at the optical centre. A light
+    /// that cannot be told is an error.
+    CameraFile {
+        /// LED numbers switched on (empty: decide from the image names).
+        picks: Vec<u32>,
+    },
+    /// As [`LightSpec::CameraFile`] without picks, but where the file
+    /// cannot tell which light took the photograph, one light at the
+    /// optical centre (said in the report) instead of an error: the
+    /// viewer's choice, where the user can still pick.
+    CameraFileOrCentred,
+    /// These lights (empty: one light at the optical centre).
+    Given(Vec<PointLight>),
+}
+
+/// Where the intensity scale `s` comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub enum ScaleSpec {
+    /// The camera file's `intensity_scale`, else unknown.
+    #[default]
+    FromCamera,
+    /// Unknown: the solve estimates it (lights off the centre) or takes 1.
+    Auto,
+    /// This value.
+    Given(f64),
+}
+
+/// Everything a solve's input is made of.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhotoInput {
+    /// The photographs (several: lights on together, summed in linear light).
+    pub images: Vec<PathBuf>,
+    /// sRGB decoding.
+    pub srgb: SrgbMode,
+    /// The camera's intrinsics.
+    pub camera: CameraSpec,
+    /// The lights.
+    pub lights: LightSpec,
+    /// The intensity scale.
+    pub intensity_scale: ScaleSpec,
+    /// Object mask image (white = object), at the photograph's size or the
+    /// working size.
+    pub object_mask: Option<PathBuf>,
+    /// Confidence image in [0, 1], at the photograph's size or the working
+    /// size.
+    pub confidence: Option<PathBuf>,
+    /// Lower the confidence of highlights, near-black and cast-shadow pixels
+    /// and the silhouette band (combined with `confidence` by the minimum).
+    pub auto_confidence: bool,
+    /// A frame with every light off, subtracted from each photograph.
+    pub ambient: Option<PathBuf>,
+    /// Vignetting correction.
+    pub vignetting: Vignetting,
+    /// A known albedo map (linear, relative), divided out.
+    pub albedo: Option<PathBuf>,
+    /// Largest side of the working size (area averaging); `None`: full size.
+    pub max_side: Option<usize>,
+    /// The pyramid's total pixels over the working size's, for the memory
+    /// guard (see [`crate::solver::pyramid::pyramid_factor`]).
+    pub pyramid_factor: f64,
+    /// How the user sets the working size, for the memory guard's way out
+    /// (e.g. `--max-side` or "the working size in the Camera panel").
+    pub max_side_setting: String,
+}
+
+impl PhotoInput {
+    /// One photograph, its camera from EXIF (no guess), lights and scale
+    /// from no camera file, no masks or corrections, full size.
+    pub fn new(image: impl Into<PathBuf>) -> Self {
+        Self {
+            images: vec![image.into()],
+            srgb: SrgbMode::Auto,
+            camera: CameraSpec::Exif { guess: false },
+            lights: LightSpec::CameraFile { picks: Vec::new() },
+            intensity_scale: ScaleSpec::FromCamera,
+            object_mask: None,
+            confidence: None,
+            auto_confidence: false,
+            ambient: None,
+            vignetting: Vignetting::None,
+            albedo: None,
+            max_side: None,
+            pyramid_factor: memory::DEFAULT_PYRAMID_FACTOR,
+            max_side_setting: "--max-side".into(),
+        }
+    }
+
+    /// Every file this input reads (photographs, camera file, masks,
+    /// ambient frame, flat field, albedo).
+    pub fn files(&self) -> Vec<&Path> {
+        let camera = match &self.camera {
+            CameraSpec::File(path) => Some(path.as_path()),
+            _ => None,
+        };
+        let flat = match &self.vignetting {
+            Vignetting::FlatField(path) => Some(path.as_path()),
+            _ => None,
+        };
+        self.images
+            .iter()
+            .map(PathBuf::as_path)
+            .chain(camera)
+            .chain(self.object_mask.as_deref())
+            .chain(self.confidence.as_deref())
+            .chain(self.ambient.as_deref())
+            .chain(flat)
+            .chain(self.albedo.as_deref())
+            .collect()
+    }
+}
+
+/// Why a photograph could not become a problem; the message names the file
+/// or the setting at fault.
+#[derive(Debug, thiserror::Error)]
+pub enum PhotoError {
+    /// A file could not be read or is unusable.
+    #[error(transparent)]
+    Io(#[from] IoError),
+    /// The solve would not fit the free memory.
+    #[error(transparent)]
+    Memory(#[from] MemoryError),
+    /// The input is incomplete or inconsistent.
+    #[error("{0}")]
+    Input(String),
+}
+
+/// The camera as decided, for the report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CameraReport {
+    /// Focal length at the working size, pixels.
+    pub focal: f64,
+    /// Principal point column at the working size, pixels.
+    pub cx: f64,
+    /// Principal point row at the working size, pixels.
+    pub cy: f64,
+    /// Where the intrinsics came from.
+    pub source: CameraSource,
+    /// The intensity scale the problem starts from.
+    pub intensity_scale: f64,
+    /// Whether it was given (option or camera file); if not, it is 1 or
+    /// estimated by the solve.
+    pub intensity_scale_given: bool,
+    /// The unit of depth, when the camera file says it.
+    pub units: Option<String>,
+}
+
+/// Every decision [`prepare`] took, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PhotoReport {
+    /// The photographs.
+    pub images: Vec<PathBuf>,
+    /// The photograph's own width.
+    pub full_width: usize,
+    /// The photograph's own height.
+    pub full_height: usize,
+    /// The working width.
+    pub width: usize,
+    /// The working height.
+    pub height: usize,
+    /// Whether sRGB decoding was applied.
+    pub srgb: bool,
+    /// Why.
+    pub srgb_reason: String,
+    /// The ambient frame subtracted.
+    pub ambient: Option<PathBuf>,
+    /// Share of pixels that went below zero after the ambient subtraction
+    /// (clamped to 0).
+    pub ambient_clamped_share: f64,
+    /// The vignetting correction (`cos4` or the flat field's path).
+    pub vignetting: Option<String>,
+    /// The albedo map divided out.
+    pub albedo: Option<PathBuf>,
+    /// Share of pixels whose albedo was too low to divide by (confidence 0).
+    pub albedo_untrusted_share: f64,
+    /// The object mask.
+    pub mask: Option<PathBuf>,
+    /// The confidence image.
+    pub confidence: Option<PathBuf>,
+    /// What the suggested confidence lowered, when asked for.
+    pub auto_confidence: Option<Suggestion>,
+    /// The camera.
+    pub camera: CameraReport,
+    /// The lights switched on (empty: one at the optical centre).
+    pub lights: Vec<PointLight>,
+    /// Sentences for the summary: each decision that is not the obvious one,
+    /// with its reason (in a solve's report they are its `notes`).
+    #[serde(skip)]
+    pub notes: Vec<String>,
+}
+
+/// A photograph ready for the solver.
+#[derive(Clone, Debug)]
+pub struct PreparedPhoto {
+    /// The problem at the working size (intensity scale 1 when unknown).
+    pub problem: Problem,
+    /// The photograph's intrinsics at its own size.
+    pub full_camera: Intrinsics,
+    /// Whether the intensity scale was given.
+    pub intensity_scale_given: bool,
+    /// Whether a correction or `auto_confidence` made the confidence (not
+    /// only a confidence file).
+    pub confidence_derived: bool,
+    /// What was decided and why.
+    pub report: PhotoReport,
+}
+
+impl PreparedPhoto {
+    /// The working size.
+    pub fn size(&self) -> (usize, usize) {
+        self.problem.image.size()
+    }
+
+    /// The photograph's own size.
+    pub fn full_size(&self) -> (usize, usize) {
+        (self.report.full_width, self.report.full_height)
+    }
+}
+
+/// Reads a mask or confidence image for a photograph of `full` pixels solved
+/// at `working` pixels: an image of the photograph's size is area-averaged
+/// to the working size, one of the working size is taken as it is. Values in
+/// [0, 1]. The one reader of mask files.
+///
+/// # Errors
+/// An unreadable file, or one of neither size; the message names `what`,
+/// the file and the sizes.
+pub fn read_mask_at(
+    path: &Path,
+    what: &str,
+    full: (usize, usize),
+    working: (usize, usize),
+) -> Result<Grid<f64>, IoError> {
+    let mask = io::read_mask(path)?;
+    if mask.size() == working {
+        return Ok(mask);
+    }
+    if mask.size() == full {
+        return Ok(resize_area(&mask, working.0, working.1));
+    }
+    let working_too = if working == full {
+        String::new()
+    } else {
+        format!(" (or the working size {}x{})", working.0, working.1)
+    };
+    Err(IoError::BadImage {
+        path: path.to_path_buf(),
+        reason: format!(
+            "the {what} is {}x{} but the photograph is {}x{}{working_too}",
+            mask.width(),
+            mask.height(),
+            full.0,
+            full.1
+        ),
+    })
+}
+
+/// Reads and corrects the photograph(s) of `input` into a solver problem,
+/// with the report of what was decided.
+///
+/// # Errors
+/// A file that cannot be read or does not fit the photograph, a camera or
+/// lights that cannot be decided, a solve that would not fit the memory;
+/// the message names the file or setting.
+pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
+    let Some(first) = input.images.first() else {
+        return Err(PhotoError::Input("no photograph given".into()));
+    };
+    let full_size = io::image_size(first)?;
+    let mut decided = camera::decide(input, full_size)?;
+    check_memory(input, full_size)?;
+    let vignetting = &input.vignetting;
+    let photo = corrections::load(
+        &corrections::Corrections {
+            images: &input.images,
+            srgb: input.srgb,
+            ambient: input.ambient.as_deref(),
+            vignetting,
+            albedo: input.albedo.as_deref(),
+            max_side: input.max_side,
+        },
+        Some(decided.camera),
+    )?;
+    let size = photo.image.size();
+    let camera = scale_intrinsics(decided.camera, full_size, size);
+    if size != full_size {
+        decided.notes.push(format!(
+            "solved at {}x{} (area-averaged from {}x{}; {} 0 for the full size)",
+            size.0, size.1, full_size.0, full_size.1, input.max_side_setting
+        ));
+    }
+    let object_mask = match &input.object_mask {
+        Some(path) => Some(read_mask_at(path, "mask", full_size, size)?.map(|&v| v >= 0.5)),
+        None => None,
+    };
+    let mut confidence = match &input.confidence {
+        Some(path) => Some(read_mask_at(path, "confidence", full_size, size)?),
+        None => None,
+    };
+    let mut albedo_untrusted_share = 0.0;
+    if let Some(lost) = &photo.lost {
+        let untrusted = lost.as_slice().iter().filter(|&&v| v < 1.0).count();
+        albedo_untrusted_share = untrusted as f64 / lost.len().max(1) as f64;
+        confidence = Some(match confidence {
+            Some(c) => c.zip_map(lost, |a, b| a.min(*b)),
+            None => lost.clone(),
+        });
+    }
+    let mut suggestion = None;
+    if input.auto_confidence {
+        let object = object_mask
+            .clone()
+            .unwrap_or_else(|| Grid::filled(size.0, size.1, true));
+        let (suggested, counts) = model_fit::suggest_confidence(&photo.image, &object, None);
+        confidence = Some(match confidence {
+            Some(c) => c.zip_map(&suggested, |a, b| a.min(*b)),
+            None => suggested,
+        });
+        suggestion = Some(counts);
+    }
+    let (srgb, srgb_reason) = photo.srgb;
+    let intensity_scale = decided.intensity_scale.unwrap_or(1.0);
+    let report = PhotoReport {
+        images: input.images.clone(),
+        full_width: full_size.0,
+        full_height: full_size.1,
+        width: size.0,
+        height: size.1,
+        srgb,
+        srgb_reason,
+        ambient: input.ambient.clone(),
+        ambient_clamped_share: photo.ambient_clamped,
+        vignetting: match vignetting {
+            Vignetting::None => None,
+            Vignetting::Cos4 => Some("cos4".into()),
+            Vignetting::FlatField(path) => Some(path.display().to_string()),
+        },
+        albedo: input.albedo.clone(),
+        albedo_untrusted_share,
+        mask: input.object_mask.clone(),
+        confidence: input.confidence.clone(),
+        auto_confidence: suggestion,
+        camera: CameraReport {
+            focal: camera.focal_px,
+            cx: camera.principal_x_px,
+            cy: camera.principal_y_px,
+            source: decided.source,
+            intensity_scale,
+            intensity_scale_given: decided.intensity_scale.is_some(),
+            units: decided.units,
+        },
+        lights: decided.lights.clone(),
+        notes: decided.notes,
+    };
+    Ok(PreparedPhoto {
+        problem: Problem {
+            image: photo.image,
+            camera,
+            intensity_scale,
+            object_mask,
+            confidence,
+            lights: decided.lights,
+        },
+        full_camera: decided.camera,
+        intensity_scale_given: decided.intensity_scale.is_some(),
+        confidence_derived: photo.lost.is_some() || input.auto_confidence,
+        report,
+    })
+}
+
+/// Refuses a solve that would not fit the free memory, before any pixel is
+/// decoded, with the working size that would.
+fn check_memory(input: &PhotoInput, full: (usize, usize)) -> Result<(), MemoryError> {
+    let working = working_size(full.0, full.1, input.max_side);
+    let what = if working == full {
+        format!("solving {}x{} pixels", full.0, full.1)
+    } else {
+        format!(
+            "solving {}x{} pixels (working size of {}x{})",
+            working.0, working.1, full.0, full.1
+        )
+    };
+    memory::check_solve(&memory::SolvePlan {
+        what,
+        full,
+        working,
+        images: input.images.len(),
+        pyramid_factor: input.pyramid_factor,
+        smaller: &|side| {
+            format!(
+                "solve at a smaller working size with {} {side} or less",
+                input.max_side_setting
+            )
+        },
+        otherwise: "use a smaller image",
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::io::{write_mask_png, write_png16};
+    use tempfile::tempdir;
+
+    fn ramp(w: usize, h: usize) -> Grid<f64> {
+        Grid::from_fn(w, h, |c, r| 0.1 + 0.8 * (c + w * r) as f64 / (w * h) as f64)
+    }
+
+    #[test]
+    fn masks_are_read_at_the_photographs_size_or_the_working_size() {
+        let dir = tempdir().unwrap();
+        let full = dir.path().join("full.png");
+        let small = dir.path().join("small.png");
+        let odd = dir.path().join("odd.png");
+        write_mask_png(&full, &Grid::from_fn(8, 4, |c, _| c < 4)).unwrap();
+        write_mask_png(&small, &Grid::from_fn(4, 2, |c, _| c < 2)).unwrap();
+        write_mask_png(&odd, &Grid::filled(5, 5, true)).unwrap();
+        let a = read_mask_at(&full, "mask", (8, 4), (4, 2)).unwrap();
+        let b = read_mask_at(&small, "mask", (8, 4), (4, 2)).unwrap();
+        assert_eq!(a, b);
+        let e = read_mask_at(&odd, "confidence", (8, 4), (4, 2))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("odd.png") && e.contains("confidence") && e.contains("5x5"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_photograph_with_a_focal_length_becomes_the_problem_it_says() {
+        let dir = tempdir().unwrap();
+        let image = dir.path().join("photo.png");
+        write_png16(&image, &ramp(40, 30)).unwrap();
+        let mask = dir.path().join("mask.png");
+        write_mask_png(&mask, &Grid::from_fn(40, 30, |c, _| c >= 10)).unwrap();
+        let input = PhotoInput {
+            camera: CameraSpec::Focal {
+                focal_px: 50.0,
+                cx_px: None,
+                cy_px: Some(14.0),
+            },
+            object_mask: Some(mask.clone()),
+            max_side: Some(20),
+            ..PhotoInput::new(&image)
+        };
+        let prepared = prepare(&input).unwrap();
+        assert_eq!(prepared.size(), (20, 15));
+        assert_eq!(prepared.full_size(), (40, 30));
+        let camera = prepared.problem.camera;
+        assert!((camera.focal_px - 25.0).abs() < 1e-12);
+        assert!((camera.principal_x_px - 9.5).abs() < 1e-12);
+        assert!((camera.principal_y_px - 6.75).abs() < 1e-12);
+        assert!(prepared.problem.lights.is_empty());
+        assert!(!prepared.intensity_scale_given);
+        let object = prepared.problem.object_mask.as_ref().unwrap();
+        assert!(!*object.at(4, 7) && *object.at(5, 7));
+        assert!(prepared.report.notes.iter().any(|n| n.contains("20x15")));
+        assert_eq!(input.files(), vec![image.as_path(), mask.as_path()]);
+    }
+
+    #[test]
+    fn no_camera_is_an_error_unless_a_guess_is_allowed() {
+        let dir = tempdir().unwrap();
+        let image = dir.path().join("photo.png");
+        write_png16(&image, &ramp(36, 24)).unwrap();
+        let e = prepare(&PhotoInput::new(&image)).unwrap_err().to_string();
+        assert!(e.contains("no camera"), "{e}");
+        let guessed = prepare(&PhotoInput {
+            camera: CameraSpec::Exif { guess: true },
+            ..PhotoInput::new(&image)
+        })
+        .unwrap();
+        assert_eq!(guessed.report.camera.source, CameraSource::Guess);
+        assert!((guessed.problem.camera.focal_px - 50.0).abs() < 1e-12);
+        assert!(guessed.report.notes.iter().any(|n| n.contains("guess")));
+    }
+
+    #[test]
+    fn an_albedo_below_the_floor_is_not_trusted_and_reported() {
+        let dir = tempdir().unwrap();
+        let image = dir.path().join("photo.png");
+        write_png16(&image, &ramp(10, 10)).unwrap();
+        let albedo = dir.path().join("albedo.png");
+        write_png16(
+            &albedo,
+            &Grid::from_fn(10, 10, |c, _| if c < 5 { 0.0 } else { 0.5 }),
+        )
+        .unwrap();
+        let prepared = prepare(&PhotoInput {
+            camera: CameraSpec::Focal {
+                focal_px: 20.0,
+                cx_px: None,
+                cy_px: None,
+            },
+            albedo: Some(albedo),
+            ..PhotoInput::new(&image)
+        })
+        .unwrap();
+        assert!((prepared.report.albedo_untrusted_share - 0.5).abs() < 1e-12);
+        let confidence = prepared.problem.confidence.as_ref().unwrap();
+        assert_eq!((*confidence.at(0, 0), *confidence.at(9, 0)), (0.0, 1.0));
+        assert!(prepared.confidence_derived);
+    }
+}
