@@ -17,6 +17,7 @@ mod robustness;
 mod speed;
 use sfs_core::depth_smoothing;
 use sfs_core::grid::Grid;
+use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero};
@@ -292,19 +293,6 @@ fn reset_peak_memory() -> bool {
     std::fs::write("/proc/self/clear_refs", "5").is_ok()
 }
 
-/// The value of a `key: N kB` line of a /proc file, in MiB (NaN if absent).
-fn proc_mib(file: &str, key: &str) -> f64 {
-    std::fs::read_to_string(file)
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with(key))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<f64>().ok())
-        })
-        .map_or(f64::NAN, |kib| kib / 1024.0)
-}
-
 fn machine() -> Machine {
     let cpuinfo = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let cpu = cpuinfo
@@ -312,7 +300,7 @@ fn machine() -> Machine {
         .find(|l| l.starts_with("model name"))
         .and_then(|l| l.split_once(':'))
         .map_or_else(|| "unknown".to_string(), |(_, v)| v.trim().to_string());
-    let memory_mib = proc_mib("/proc/meminfo", "MemTotal:");
+    let memory_mib = proc_mib("/proc/meminfo", "MemTotal").unwrap_or(f64::NAN);
     Machine {
         cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
         cpu,
@@ -398,7 +386,7 @@ impl Runner {
             .elapsed()
             .saturating_sub(recorder.overhead)
             .as_secs_f64();
-        let peak_mib = proc_mib("/proc/self/status", "VmHWM:");
+        let peak_mib = proc_mib("/proc/self/status", "VmHWM").unwrap_or(f64::NAN);
         let errors = metrics::errors(
             &depth,
             &scene.depth_gt,

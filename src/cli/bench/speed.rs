@@ -15,7 +15,8 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use super::super::figures::{self, Series};
-use super::{BenchArgs, CurveRecorder, proc_mib, reset_peak_memory};
+use super::{BenchArgs, CurveRecorder, reset_peak_memory};
+use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
 use sfs_core::params::{InitialDepth, LinearSolver, SolverParams};
 use sfs_core::scene::Scene;
@@ -163,7 +164,7 @@ fn measure(
     let (w, h) = scene.image.size();
     release_freed_memory();
     reset_peak_memory();
-    let before_mib = proc_mib("/proc/self/status", "VmRSS:");
+    let before_mib = proc_mib("/proc/self/status", "VmRSS").unwrap_or(f64::NAN);
     let mut recorder = Recorder {
         curve: CurveRecorder {
             truth: &scene.depth_gt,
@@ -181,7 +182,7 @@ fn measure(
         .elapsed()
         .saturating_sub(recorder.curve.overhead)
         .as_secs_f64();
-    let peak_mib = proc_mib("/proc/self/status", "VmHWM:");
+    let peak_mib = proc_mib("/proc/self/status", "VmHWM").unwrap_or(f64::NAN);
     let growth = (peak_mib - before_mib).max(0.0);
     let rse = metrics::rse(&solution.depth, &scene.depth_gt)
         .with_context(|| format!("scoring {name} failed"))?;
