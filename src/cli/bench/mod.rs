@@ -10,9 +10,10 @@ use anyhow::{Context, Result};
 use clap::Args;
 use serde::Serialize;
 
-use super::figures::{self, Canvas, Series, Shade};
+use super::figures;
 
 mod lights;
+mod paper_figures;
 mod robustness;
 mod speed;
 use sfs_core::depth_smoothing;
@@ -669,11 +670,17 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             });
         }
         let plot = format!("rse_time_{}.png", bench.name);
-        rse_time_plot(&lin.curve, &exp.curve).save(&args.out.join(&plot))?;
+        paper_figures::rse_time(&bench.name, &lin.curve, &exp.curve)?
+            .save(&args.out.join(&plot))?;
         figures_written.push(plot);
         if !bench.small {
             let name = "fig4_highres.png";
-            fig4(bench, &lin, &fmm).save(&args.out.join(name))?;
+            paper_figures::fig4(
+                &bench.scene,
+                [&lin.depth, &lin.reprojection],
+                [&fmm.depth, &fmm.reprojection],
+            )?
+            .save(&args.out.join(name))?;
             figures_written.push(name.into());
         }
         rows.extend([lin.row, exp.row, fmm.row]);
@@ -741,7 +748,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     // Fig. 2: the Bunny for increasing alpha.
     let mut alpha_sweep = Vec::new();
     if let Some(bunny) = benches.iter().find(|b| b.name == "bunny") {
-        let mut panels = vec![bunny.scene.image.clone()];
+        let mut reprojections = Vec::new();
         for alpha in [1.0, 100.0, 1e4, 1e6] {
             let o = runner.run(
                 bunny,
@@ -754,14 +761,10 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 false,
             )?;
             alpha_sweep.push((alpha, o.row.rse, o.row.rie));
-            panels.push(o.reprojection);
+            reprojections.push((alpha, o.reprojection));
         }
-        let row: Vec<(&Grid<f64>, Shade)> = panels
-            .iter()
-            .map(|g| (g, Shade::Grey([0.0, 1.0])))
-            .collect();
         let name = "fig2_bunny_alpha.png";
-        figures::panel_grid(&[row], 1).save(&args.out.join(name))?;
+        paper_figures::fig2(&bunny.scene.image, &reprojections)?.save(&args.out.join(name))?;
         figures_written.push(name.into());
     }
 
@@ -791,22 +794,13 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             false,
         )?;
         inpainting = Some((masked.row.rse, full.row.rse));
-        let degraded = Grid::from_fn(w, h, |c, r| {
-            if *holes.at(c, r) == 0.0 {
-                f64::NAN
-            } else {
-                *suzanne.scene.image.at(c, r)
-            }
-        });
         let name = "fig3_suzanne_inpainting.png";
-        figures::panel_grid(
-            &[vec![
-                (&degraded, Shade::Grey([0.0, 1.0])),
-                (&masked.reprojection, Shade::Grey([0.0, 1.0])),
-                (&full.reprojection, Shade::Grey([0.0, 1.0])),
-            ]],
-            1,
-        )
+        paper_figures::fig3(
+            &suzanne.scene.image,
+            &holes,
+            &masked.reprojection,
+            &full.reprojection,
+        )?
         .save(&args.out.join(name))?;
         figures_written.push(name.into());
         let mut row = masked.row;
@@ -856,74 +850,6 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         report.total_seconds
     );
     Ok(())
-}
-
-/// RSE over time: linearised blue, explicit red.
-fn rse_time_plot(lin: &[(f64, f64)], exp: &[(f64, f64)]) -> Canvas {
-    let all = || lin.iter().chain(exp);
-    let x = figures::decades(all().map(|p| p.0));
-    let y = figures::decades(all().map(|p| p.1));
-    figures::log_log_plot(
-        &[
-            Series {
-                colour: [31, 90, 200],
-                label: "linearised",
-                points: lin,
-            },
-            Series {
-                colour: [210, 40, 40],
-                label: "explicit",
-                points: exp,
-            },
-        ],
-        x,
-        y,
-        "seconds",
-        "RSE",
-    )
-}
-
-/// Fig. 4: reprojection and depth of the high-resolution scene: ground truth,
-/// linearised and its difference, fast marching and its difference.
-fn fig4(bench: &BenchScene, lin: &Outcome, fmm: &Outcome) -> Canvas {
-    let scene = &bench.scene;
-    let diff = |a: &Grid<f64>, b: &Grid<f64>| {
-        Grid::from_fn(a.width(), a.height(), |c, r| {
-            (a.at(c, r) - b.at(c, r)).abs()
-        })
-    };
-    let gt_depth = &scene.depth_gt;
-    let depth_range = figures::range_of([gt_depth]);
-    let (dl, df) = (diff(&lin.depth, gt_depth), diff(&fmm.depth, gt_depth));
-    let (il, ifm) = (
-        diff(&lin.reprojection, &scene.image),
-        diff(&fmm.reprojection, &scene.image),
-    );
-    let depth_err = [
-        0.0,
-        0.05 * (depth_range[1] - depth_range[0]).max(1e-9) * 4.0,
-    ];
-    let image_err = [0.0, 0.1];
-    let step = (scene.image.width() / 270).max(1);
-    figures::panel_grid(
-        &[
-            vec![
-                (&scene.image, Shade::Grey([0.0, 1.0])),
-                (&lin.reprojection, Shade::Grey([0.0, 1.0])),
-                (&il, Shade::Colour(image_err)),
-                (&fmm.reprojection, Shade::Grey([0.0, 1.0])),
-                (&ifm, Shade::Colour(image_err)),
-            ],
-            vec![
-                (gt_depth, Shade::Colour(depth_range)),
-                (&lin.depth, Shade::Colour(depth_range)),
-                (&dl, Shade::Colour(depth_err)),
-                (&fmm.depth, Shade::Colour(depth_range)),
-                (&df, Shade::Colour(depth_err)),
-            ],
-        ],
-        step,
-    )
 }
 
 fn fmt(v: f64) -> String {

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use super::super::figures::{self, Series};
+use super::super::figures::{self, Figure, LogLogPlot, Series};
 use super::{BenchArgs, CurveRecorder, reset_peak_memory};
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
@@ -382,9 +382,11 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
             cancels.push(cancel_latency(&scene, Duration::from_millis(500)));
         }
         let figure = format!("speed-{name}-{}x{}.png", size.0, size.1);
-        curve_plot(&group)
-            .save(&args.out.join(&figure))
-            .with_context(|| format!("cannot write {figure}"))?;
+        curve_plot(
+            &group,
+            &format!("RSE over time: {name} {}x{}", size.0, size.1),
+        )?
+        .save(&args.out.join(&figure))?;
         rows.extend(group);
     }
     let report = SpeedReport {
@@ -400,7 +402,8 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
     Ok(report)
 }
 
-fn curve_plot(rows: &[SpeedRow]) -> figures::Canvas {
+/// RSE over time of every method of one size, titled `title`.
+fn curve_plot(rows: &[SpeedRow], title: &str) -> Result<Figure> {
     const COLOURS: [[u8; 3]; 5] = [
         [31, 90, 200],
         [40, 150, 60],
@@ -418,9 +421,15 @@ fn curve_plot(rows: &[SpeedRow]) -> figures::Canvas {
         })
         .collect();
     let all = || rows.iter().flat_map(|r| r.curve.iter());
-    let x = figures::decades(all().map(|p| p.0));
-    let y = figures::decades(all().map(|p| p.1));
-    figures::log_log_plot(&series, x, y, "seconds", "RSE")
+    LogLogPlot {
+        title,
+        x_name: "seconds",
+        y_name: "RSE",
+        x_range: figures::decades(all().map(|p| p.0)),
+        y_range: figures::decades(all().map(|p| p.1)),
+        series: &series,
+    }
+    .draw()
 }
 
 fn markdown(report: &SpeedReport) -> String {
