@@ -164,9 +164,34 @@ pub fn available() -> Option<u64> {
 
 /// `MemAvailable` (in bytes) from the text of `/proc/meminfo`.
 fn meminfo_available(text: &str) -> Option<u64> {
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib.saturating_mul(1024))
+    proc_kib(text, "MemAvailable").map(|kib| kib.saturating_mul(1024))
+}
+
+/// The number of the `KEY: N kB` line of a Linux `/proc` file's text
+/// (`/proc/meminfo`, `/proc/self/status`), in KiB. `key` is the field's
+/// whole name without its colon (`MemAvailable`, `VmHWM`): a longer name
+/// that starts with it does not match. `None` when the line is missing or
+/// its value is not a whole number of kB.
+pub fn proc_kib(text: &str, key: &str) -> Option<u64> {
+    text.lines().find_map(|line| {
+        let (name, value) = line.split_once(':')?;
+        if name != key {
+            return None;
+        }
+        let mut words = value.split_whitespace();
+        let kib = words.next()?.parse().ok()?;
+        (words.next() == Some("kB")).then_some(kib)
+    })
+}
+
+/// The `KEY: N kB` field `key` of the Linux `/proc` file at `path`, in MiB
+/// (see [`proc_kib`]): e.g. `proc_mib("/proc/self/status", "VmHWM")` is the
+/// process's peak resident set, `proc_mib("/proc/meminfo", "MemTotal")` the
+/// machine's memory. `None` where the file or the field cannot be read (not
+/// Linux).
+pub fn proc_mib(path: &str, key: &str) -> Option<f64> {
+    let text = fs::read_to_string(path).ok()?;
+    proc_kib(&text, key).map(|kib| kib as f64 / 1024.0)
 }
 
 /// The cgroup v2 limit minus the usage, when a limit is set; the usage
@@ -281,6 +306,18 @@ mod tests {
         let text = "MemTotal:       24000000 kB\nMemAvailable:    1000 kB\n";
         assert_eq!(meminfo_available(text), Some(1_024_000));
         assert_eq!(meminfo_available("nothing"), None);
+        let status = "VmPeak:\t  20000 kB\nVmHWM:\t    3072 kB\nVmHWMx:\t 1 kB\nThreads:\t4\n";
+        assert_eq!(proc_kib(status, "VmHWM"), Some(3072));
+        // The whole name, not a prefix; only values in kB.
+        assert_eq!(proc_kib(status, "VmHW"), None);
+        assert_eq!(proc_kib(status, "Threads"), None);
+        assert_eq!(proc_kib("VmHWM: many kB", "VmHWM"), None);
+        // This process has a peak resident set on Linux.
+        if cfg!(target_os = "linux") {
+            let peak = proc_mib("/proc/self/status", "VmHWM").expect("VmHWM");
+            assert!(peak > 0.0, "{peak}");
+        }
+        assert_eq!(proc_mib("/no/such/file", "VmHWM"), None);
         let stat = "active_file 5\ninactive_file 4096\ninactive_anon 7\n";
         assert_eq!(stat_value(stat, "inactive_file"), Some(4096));
         assert_eq!(stat_value(stat, "file"), None);

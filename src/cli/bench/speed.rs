@@ -14,8 +14,9 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use super::super::figures::{self, Series};
-use super::{BenchArgs, CurveRecorder, proc_mib, reset_peak_memory};
+use super::super::figures::{self, Figure, LogLogPlot, Series};
+use super::{BenchArgs, CurveRecorder, reset_peak_memory};
+use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
 use sfs_core::params::{InitialDepth, LinearSolver, SolverParams};
 use sfs_core::scene::Scene;
@@ -163,7 +164,7 @@ fn measure(
     let (w, h) = scene.image.size();
     release_freed_memory();
     reset_peak_memory();
-    let before_mib = proc_mib("/proc/self/status", "VmRSS:");
+    let before_mib = proc_mib("/proc/self/status", "VmRSS").unwrap_or(f64::NAN);
     let mut recorder = Recorder {
         curve: CurveRecorder {
             truth: &scene.depth_gt,
@@ -181,7 +182,7 @@ fn measure(
         .elapsed()
         .saturating_sub(recorder.curve.overhead)
         .as_secs_f64();
-    let peak_mib = proc_mib("/proc/self/status", "VmHWM:");
+    let peak_mib = proc_mib("/proc/self/status", "VmHWM").unwrap_or(f64::NAN);
     let growth = (peak_mib - before_mib).max(0.0);
     let rse = metrics::rse(&solution.depth, &scene.depth_gt)
         .with_context(|| format!("scoring {name} failed"))?;
@@ -381,9 +382,11 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
             cancels.push(cancel_latency(&scene, Duration::from_millis(500)));
         }
         let figure = format!("speed-{name}-{}x{}.png", size.0, size.1);
-        curve_plot(&group)
-            .save(&args.out.join(&figure))
-            .with_context(|| format!("cannot write {figure}"))?;
+        curve_plot(
+            &group,
+            &format!("RSE over time: {name} {}x{}", size.0, size.1),
+        )?
+        .save(&args.out.join(&figure))?;
         rows.extend(group);
     }
     let report = SpeedReport {
@@ -399,7 +402,8 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
     Ok(report)
 }
 
-fn curve_plot(rows: &[SpeedRow]) -> figures::Canvas {
+/// RSE over time of every method of one size, titled `title`.
+fn curve_plot(rows: &[SpeedRow], title: &str) -> Result<Figure> {
     const COLOURS: [[u8; 3]; 5] = [
         [31, 90, 200],
         [40, 150, 60],
@@ -417,9 +421,15 @@ fn curve_plot(rows: &[SpeedRow]) -> figures::Canvas {
         })
         .collect();
     let all = || rows.iter().flat_map(|r| r.curve.iter());
-    let x = figures::decades(all().map(|p| p.0));
-    let y = figures::decades(all().map(|p| p.1));
-    figures::log_log_plot(&series, x, y, "seconds", "RSE")
+    LogLogPlot {
+        title,
+        x_name: "seconds",
+        y_name: "RSE",
+        x_range: figures::decades(all().map(|p| p.0)),
+        y_range: figures::decades(all().map(|p| p.1)),
+        series: &series,
+    }
+    .draw()
 }
 
 fn markdown(report: &SpeedReport) -> String {
