@@ -250,8 +250,7 @@ fn a_screenshot_run_records_why_it_failed() {
 
     // A black image opens but cannot be solved: the reason is recorded.
     let black = dir.path().join("black.png");
-    sfs_core::io::write_png8(&black, &sfs_core::grid::Grid::filled(16, 16, 0.0))
-        .expect("write");
+    sfs_core::io::write_png8(&black, &sfs_core::grid::Grid::filled(16, 16, 0.0)).expect("write");
     let failure = sfs_viewer::app::ExitReport::default();
     let mut harness = harness(ViewerOptions {
         image: Some(black),
