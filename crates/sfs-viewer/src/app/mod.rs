@@ -12,6 +12,7 @@
 //! - `measure`: screenshots, frame statistics and latency trials.
 
 mod document;
+mod energy_plot;
 mod images;
 mod level_prep;
 mod measure;

@@ -1,5 +1,6 @@
 //! The viewer's panels: menu, status line, controls (camera, parameters,
-//! mask tools, progress, export), the 2-D image panels and the 3-D view.
+//! mask tools, progress, export), the 2-D image panels and the 3-D view;
+//! the energy plot is `energy_plot`'s.
 
 use std::path::PathBuf;
 
@@ -452,7 +453,7 @@ impl Panels {
                 cx.actions.push(Action::SolveNow);
             }
         });
-        energy_plot(ui, &cx.session.solve.energies);
+        super::energy_plot::energy_plot(ui, &cx.session.solve.energies);
     }
 
     fn params_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
@@ -1082,74 +1083,6 @@ fn split(
         Some((t, r)) => (Some(t.clone()), Some(*r)),
         None => (None, None),
     }
-}
-
-/// log10 of the energy per pixel over all outer iterations of the job,
-/// levels coarse to fine, a faint line where a level starts.
-fn energy_plot(ui: &mut egui::Ui, energies: &[super::session::EnergyPoint]) {
-    let (rect, _) =
-        ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
-    let painter = ui.painter_at(rect);
-    painter.rect_stroke(
-        rect,
-        2.0,
-        ui.visuals().widgets.noninteractive.bg_stroke,
-        egui::StrokeKind::Inside,
-    );
-    let points: Vec<(usize, f64)> = energies
-        .iter()
-        .filter(|e| e.per_pixel.is_finite() && e.per_pixel > 0.0)
-        .map(|e| (e.level, e.per_pixel.log10()))
-        .collect();
-    let weak = ui.visuals().weak_text_color();
-    if points.len() < 2 {
-        painter.text(
-            rect.center(),
-            egui::Align2::CENTER_CENTER,
-            "energy per pixel, per iteration",
-            egui::FontId::proportional(11.0),
-            weak,
-        );
-        return;
-    }
-    let lo = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
-    let hi = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
-    let span = (hi - lo).max(1e-12);
-    let n = points.len() - 1;
-    let x = |i: usize| egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32);
-    for i in 1..points.len() {
-        if points[i].0 != points[i - 1].0 {
-            painter.vline(
-                x(i),
-                rect.y_range(),
-                egui::Stroke::new(1.0, weak.gamma_multiply(0.5)),
-            );
-        }
-    }
-    let line: Vec<egui::Pos2> = points
-        .iter()
-        .enumerate()
-        .map(|(i, &(_, v))| {
-            egui::pos2(
-                x(i),
-                egui::lerp(
-                    rect.bottom() - 4.0..=rect.top() + 4.0,
-                    ((v - lo) / span) as f32,
-                ),
-            )
-        })
-        .collect();
-    painter.add(egui::Shape::line(
-        line,
-        egui::Stroke::new(1.5, ui.visuals().hyperlink_color),
-    ));
-    painter.text(
-        rect.left_top() + egui::vec2(4.0, 2.0),
-        egui::Align2::LEFT_TOP,
-        format!("log10 energy per pixel (total / level w·h) {hi:.2} … {lo:.2}"),
-        egui::FontId::proportional(10.0),
-        weak,
-    );
 }
 
 /// A slider's number: scientific notation where plain decimals would show

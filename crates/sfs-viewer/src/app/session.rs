@@ -59,6 +59,9 @@ pub struct Progress {
 pub struct EnergyPoint {
     /// Level index (0 = coarsest).
     pub level: usize,
+    /// Outer iteration within the level (from 0); `None` for a level
+    /// without iterations (a fast-marching start).
+    pub iteration: Option<usize>,
     /// Total energy divided by the level's pixel count ([`per_pixel`]).
     pub per_pixel: f64,
 }
@@ -359,6 +362,7 @@ impl Session {
                     let energy_per_pixel = per_pixel(report.energy.total, size);
                     self.solve.energies.push(EnergyPoint {
                         level: report.level,
+                        iteration: Some(report.iteration),
                         per_pixel: energy_per_pixel,
                     });
                     self.solve.progress = Progress {
@@ -441,6 +445,7 @@ impl Session {
         if self.solve.energies.last().map(|e| e.level) != Some(result.level) {
             self.solve.energies.push(EnergyPoint {
                 level: result.level,
+                iteration: None,
                 per_pixel: per_pixel(result.energy.total, size),
             });
         }
