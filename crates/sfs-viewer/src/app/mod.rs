@@ -203,9 +203,7 @@ impl ViewerApp {
         match self.session.open(path, self.options.srgb, max_side) {
             Ok(notes) => {
                 self.settings.remember(path.to_path_buf());
-                if let Some(doc) = &self.session.document {
-                    self.panels.document_opened(ctx, doc);
-                }
+                self.panels.document_opened(ctx, &self.session);
                 self.notice = (!notes.is_empty()).then(|| notes.join("; "));
             }
             Err(e) => self.notice = Some(e),

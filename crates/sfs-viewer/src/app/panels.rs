@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use eframe::egui;
 
-use super::document::{CameraSource, Document};
+use super::document::CameraSource;
 use super::images;
 use super::level_prep::BuiltMesh;
 use super::session::{Export, Session};
@@ -84,7 +84,8 @@ enum Gesture {
 /// Textures of the 2-D panels.
 #[derive(Default)]
 struct Textures {
-    input: Option<egui::TextureHandle>,
+    /// The input as shown, with the display mapping it was built with.
+    input: Option<(images::DisplayMapping, egui::TextureHandle)>,
     overlay: Option<(u64, egui::TextureHandle)>,
     reprojection: Option<egui::TextureHandle>,
     difference: Option<(egui::TextureHandle, [f64; 2])>,
@@ -123,12 +124,16 @@ fn pick_save(name: &str, extension: &str) -> Option<PathBuf> {
 
 const IMAGE_EXTENSIONS: &[&str] = &["png", "tif", "tiff", "jpg", "jpeg"];
 
-/// The input image's texture.
-fn input_texture(ctx: &egui::Context, image: &Grid<f64>) -> egui::TextureHandle {
+/// The input image's texture, shown through `mapping`.
+fn input_texture(
+    ctx: &egui::Context,
+    image: &Grid<f64>,
+    mapping: images::DisplayMapping,
+) -> egui::TextureHandle {
     images::load_texture(
         ctx,
         "input",
-        images::grey_image(image),
+        mapping.image(image),
         egui::TextureOptions::NEAREST,
     )
 }
@@ -163,13 +168,32 @@ impl Panels {
     }
 
     /// A new document: forget the old one's textures and surface, show its
-    /// input.
-    pub fn document_opened(&mut self, ctx: &egui::Context, doc: &Document) {
+    /// input (with the session's display mapping).
+    pub fn document_opened(&mut self, ctx: &egui::Context, session: &Session) {
         self.textures = Textures::default();
         self.surface.clear();
         self.zoom = 1.0;
         self.pan = egui::Vec2::ZERO;
-        self.textures.input = Some(input_texture(ctx, &doc.image));
+        self.input_texture(ctx, session);
+    }
+
+    /// The input's texture, rebuilt when the session's display mapping
+    /// changed (or after the image was re-read).
+    fn input_texture(
+        &mut self,
+        ctx: &egui::Context,
+        session: &Session,
+    ) -> Option<egui::TextureHandle> {
+        let doc = session.document.as_ref()?;
+        let mapping = session.display;
+        match &self.textures.input {
+            Some((built, texture)) if *built == mapping => Some(texture.clone()),
+            _ => {
+                let texture = input_texture(ctx, &doc.image, mapping);
+                self.textures.input = Some((mapping, texture.clone()));
+                Some(texture)
+            }
+        }
     }
 
     /// Shows a prepared level: its mesh and its panel images.
@@ -716,6 +740,7 @@ impl Panels {
         }
         ui.weak(c.source.describe());
         let mut srgb = doc.srgb;
+        let mut reread = false;
         if ui
             .checkbox(&mut srgb, "sRGB photograph (linearise)")
             .changed()
@@ -723,7 +748,8 @@ impl Panels {
             match doc.set_srgb(srgb) {
                 Ok(()) => {
                     changed = true;
-                    self.textures.input = Some(input_texture(ui.ctx(), &doc.image));
+                    reread = true;
+                    self.textures.input = None;
                 }
                 Err(e) => cx.actions.push(Action::Notice(format!("{e:#}"))),
             }
@@ -758,6 +784,9 @@ impl Panels {
         });
         if changed {
             cx.actions.push(Action::RequestSolve);
+        }
+        if reread {
+            cx.session.refresh_display();
         }
     }
 
@@ -807,13 +836,26 @@ impl Panels {
                     ui.selectable_value(&mut self.panel, panel, name);
                 });
             }
+            if matches!(self.panel, Panel2d::Input | Panel2d::Reprojection)
+                && cx.session.document.is_some()
+            {
+                let display = cx.session.display;
+                ui.weak(display.describe()).on_hover_text(format!(
+                    "For viewing only: the linear values times {:.3}, so that the {:.0}th \
+                     percentile of the object's pixels is white, then the sRGB transfer \
+                     function (display gamma). The solver gets the linear values, and \
+                     hovering shows them (I).",
+                    display.exposure,
+                    100.0 * images::WHITE_QUANTILE
+                ));
+            }
         });
         let Some((w, h)) = cx.session.document.as_ref().map(|d| d.size()) else {
             ui.label("Open an image (File > Open or drop a file here).");
             return;
         };
         let (texture, range) = match self.panel {
-            Panel2d::Input => (self.textures.input.clone(), None),
+            Panel2d::Input => (self.input_texture(ui.ctx(), cx.session), None),
             Panel2d::Reprojection => (self.textures.reprojection.clone(), None),
             Panel2d::Difference => split(&self.textures.difference),
             Panel2d::Depth => split(&self.textures.depth),

@@ -1,7 +1,8 @@
 //! The document session: the open image with its camera and masks, the
 //! autosave of the masks, and the solve of that document (the worker, the
 //! debounced re-solve, the state of the job on screen). No drawing; uses
-//! `document`, `worker`, `solver`, `metrics`, `mask_edit`, `io`.
+//! `document`, `worker`, `solver`, `metrics`, `mask_edit`, `io`, and
+//! `images` for the display mapping it keeps.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -16,6 +17,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::solver::{LevelResult, Problem, Solution};
 
 use super::document::Document;
+use super::images::DisplayMapping;
 use super::level_prep::LevelInputs;
 
 /// While a slider is dragged, solve after it rests this long.
@@ -138,6 +140,12 @@ pub struct Session {
     pub document: Option<Document>,
     /// The solve on screen.
     pub solve: SolveState,
+    /// How the input panel (and the reprojection) shows the document's
+    /// image: the automatic viewing exposure over the object, then sRGB.
+    /// Recomputed when an image is opened or re-read and when an object
+    /// mask is loaded from a file, not while painting (the view stays
+    /// still); the solver and the hover readout keep the linear values.
+    pub display: DisplayMapping,
     worker: Option<Worker>,
     /// Folder of the mask autosaves (`None`: no autosave).
     data_dir: Option<PathBuf>,
@@ -156,6 +164,7 @@ impl Session {
         Self {
             document: None,
             solve: SolveState::default(),
+            display: DisplayMapping::default(),
             worker,
             data_dir,
             dirty_since: None,
@@ -187,9 +196,18 @@ impl Session {
             }
         }
         self.document = Some(doc);
+        self.refresh_display();
         self.solve = SolveState::default();
         self.request_solve();
         Ok(notes)
+    }
+
+    /// Recomputes [`Session::display`] from the document's image and object
+    /// mask (after the image was re-read, e.g. with sRGB decoding toggled).
+    pub fn refresh_display(&mut self) {
+        if let Some(doc) = &self.document {
+            self.display = DisplayMapping::automatic(&doc.image, Some(doc.masks.object()));
+        }
     }
 
     /// Lowers the confidence layer where the model cannot hold
@@ -259,10 +277,11 @@ impl Session {
         let Some(doc) = &mut self.document else {
             return Ok(());
         };
-        doc.masks
-            .load_png(layer, path)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
+        doc.masks.load_png(layer, path).map_err(|e| e.to_string())?;
+        if layer == Layer::Object {
+            self.refresh_display();
+        }
+        Ok(())
     }
 
     /// Writes a mask layer as PNG.
@@ -322,6 +341,7 @@ impl Session {
             image: Arc::new(doc.image.clone()),
             ground_truth: doc.ground_truth.clone().map(Arc::new),
             object: problem.object_mask.clone().map(Arc::new),
+            display: self.display,
         });
         self.mask_revision_solved = doc.masks.revision();
         let estimate_scale = !doc.camera.scale_given;
