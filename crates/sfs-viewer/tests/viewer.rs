@@ -324,3 +324,36 @@ fn the_input_shows_the_photograph_as_it_looks_and_hovering_reads_linear_values()
         .any(|text| harness.query_by_label_contains(text).is_some());
     assert!(linear, "no linear value in the hover readout");
 }
+
+#[test]
+fn the_start_selector_says_what_is_used_with_lights_off_the_centre() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let plane = "fast marching (lights off the centre: best-fitting plane)";
+    harness.get_by_label("fast marching");
+    assert!(harness.query_by_label(plane).is_none());
+    // The sample's camera with one light beside the camera.
+    let camera = dir.path().join("camera.json");
+    std::fs::write(
+        &camera,
+        br#"{"width": 256, "height": 256, "focal": 256.0, "cx": 127.5, "cy": 127.5,
+            "intensity_scale": 2.0, "lights": [{"position": [1.0, 0.0, 0.0]}]}"#,
+    )
+    .expect("write");
+    let ctx = harness.ctx.clone();
+    harness.state_mut().drop_file(&ctx, &camera);
+    assert_eq!(harness.state().notice(), None);
+    harness.step();
+    harness.get_by_label(plane);
+    harness.get_by_label("from image (lights off the centre: best-fitting plane)");
+    // With the lights switched off the solve has the paper's centred light
+    // (the check box may lie below the fold of the controls: accesskit).
+    harness
+        .get_by_label("solve with the lights where they are")
+        .click_accesskit();
+    harness.step();
+    harness.step();
+    harness.get_by_label("fast marching");
+    assert!(harness.query_by_label(plane).is_none());
+}

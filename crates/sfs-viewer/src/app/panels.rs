@@ -544,13 +544,21 @@ impl Panels {
                 _ => {}
             }
         }
+        let lights_off_centre = cx
+            .session
+            .document
+            .as_ref()
+            .is_some_and(|d| !sfs_core::light::is_centred(&d.camera.solve_lights()));
+        let [fast_marching, from_image] = start_labels(lights_off_centre);
         let initial = &mut cx.settings.params.initial_depth;
         let before = *initial;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("start")
-                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver");
-            ui.selectable_value(initial, InitialChoice::FastMarching, "fast marching");
-            ui.selectable_value(initial, InitialChoice::FromImage, "from image");
+                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre the first two start from the best-fitting plane instead");
+            ui.selectable_value(initial, InitialChoice::FastMarching, fast_marching.0)
+                .on_hover_text(fast_marching.1);
+            ui.selectable_value(initial, InitialChoice::FromImage, from_image.0)
+                .on_hover_text(from_image.1);
             if ui
                 .selectable_label(matches!(initial, InitialChoice::Constant(_)), "constant")
                 .clicked()
@@ -1124,6 +1132,45 @@ fn split(
     match entry {
         Some((t, r)) => (Some(t.clone()), Some(*r)),
         None => (None, None),
+    }
+}
+
+/// The start selector's `(label, hover text)` for fast marching and for the
+/// paper's start from the image. Both assume the light at the optical
+/// centre: with the solve's lights off the centre the solver starts from
+/// the fronto-parallel plane whose rendering best fits the image, refined
+/// through the whole pyramid (`sfs_core::solver::prepare`), and the labels
+/// say so.
+fn start_labels(lights_off_centre: bool) -> [(&'static str, &'static str); 2] {
+    if lights_off_centre {
+        [
+            (
+                "fast marching (lights off the centre: best-fitting plane)",
+                "Fast marching needs the light at the optical centre. With these lights the \
+                 solver starts from the constant depth (fronto-parallel plane) whose rendering \
+                 best fits the image, refined through the whole pyramid.",
+            ),
+            (
+                "from image (lights off the centre: best-fitting plane)",
+                "The paper's constant from the brightest pixel assumes the light at the optical \
+                 centre. With these lights the solver starts from the constant depth \
+                 (fronto-parallel plane) whose rendering best fits the image, refined through \
+                 the whole pyramid: the same start as fast marching here.",
+            ),
+        ]
+    } else {
+        [
+            (
+                "fast marching",
+                "Fast marching on the (denoised) image, refined by the solver at full \
+                 resolution (the default).",
+            ),
+            (
+                "from image",
+                "The paper's start: a constant depth from the brightest pixel, refined through \
+                 the whole pyramid.",
+            ),
+        ]
     }
 }
 
