@@ -109,7 +109,7 @@ pub struct SolveState {
     pub completed_jobs: usize,
 }
 
-/// What [`Session::export`] writes.
+/// What `Session::export` writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Export {
     /// Depth as float32 `.npy` (NaN = no surface).
