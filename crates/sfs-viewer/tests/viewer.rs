@@ -283,3 +283,77 @@ fn an_image_wider_than_the_texture_limit_opens() {
         Some((9000, 6))
     );
 }
+
+#[test]
+fn the_input_shows_the_photograph_as_it_looks_and_hovering_reads_linear_values() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    // A dark linear image, as a photograph is: 0.02 with a square of 0.05.
+    let path = dir.path().join("dark.png");
+    let image = sfs_core::grid::Grid::from_fn(64, 48, |c, r| {
+        if (16..48).contains(&c) && (12..36).contains(&r) {
+            0.05
+        } else {
+            0.02
+        }
+    });
+    sfs_core::io::write_png16(&path, &image).expect("write");
+    let mut harness = harness(ViewerOptions {
+        image: Some(path),
+        ..options(dir.path())
+    });
+    harness.step();
+    // The document (what the solver gets) keeps the linear values.
+    let doc = harness.state().document().expect("open");
+    let largest_change = doc
+        .image
+        .as_slice()
+        .iter()
+        .zip(image.as_slice())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(largest_change < 1e-4, "{largest_change}");
+    // Shown with the exposure that makes the 99th percentile (0.05) white.
+    harness.get_by_label("shown ×20, sRGB");
+    // Hovering the image reads the linear value, not the displayed one.
+    let tab = harness.get_by_label("input + mask").rect();
+    harness.hover_at(egui::pos2(tab.left() + 200.0, tab.bottom() + 300.0));
+    harness.step();
+    harness.step();
+    let linear = ["I 0.0500", "I 0.0200"]
+        .iter()
+        .any(|text| harness.query_by_label_contains(text).is_some());
+    assert!(linear, "no linear value in the hover readout");
+}
+
+#[test]
+fn the_start_selector_says_what_is_used_with_lights_off_the_centre() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    harness.step();
+    let plane = "fast marching (lights off the centre: best-fitting plane)";
+    harness.get_by_label("fast marching");
+    assert!(harness.query_by_label(plane).is_none());
+    // The sample's camera with one light beside the camera.
+    let camera = dir.path().join("camera.json");
+    std::fs::write(
+        &camera,
+        br#"{"width": 256, "height": 256, "focal": 256.0, "cx": 127.5, "cy": 127.5,
+            "intensity_scale": 2.0, "lights": [{"position": [1.0, 0.0, 0.0]}]}"#,
+    )
+    .expect("write");
+    let ctx = harness.ctx.clone();
+    harness.state_mut().drop_file(&ctx, &camera);
+    assert_eq!(harness.state().notice(), None);
+    harness.step();
+    harness.get_by_label(plane);
+    harness.get_by_label("from image (lights off the centre: best-fitting plane)");
+    // With the lights switched off the solve has the paper's centred light
+    // (the check box may lie below the fold of the controls: accesskit).
+    harness
+        .get_by_label("solve with the lights where they are")
+        .click_accesskit();
+    harness.step();
+    harness.step();
+    harness.get_by_label("fast marching");
+    assert!(harness.query_by_label(plane).is_none());
+}

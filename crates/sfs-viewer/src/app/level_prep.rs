@@ -11,6 +11,7 @@ use std::thread::JoinHandle;
 use crossbeam_channel::{Receiver, Sender, TryRecvError};
 use eframe::egui;
 
+use super::images;
 use crate::render::SurfaceMesh;
 use sfs_core::depth_mesh::{DepthMesh, MeshOptions};
 use sfs_core::grid::Grid;
@@ -32,6 +33,9 @@ pub struct LevelInputs {
     /// carry depth off the object too (the paper's domain): the view shows
     /// only the object.
     pub object: Option<Arc<Grid<bool>>>,
+    /// How the input panel shows the image: the reprojection (in the
+    /// image's units) is shown the same way, so the two compare.
+    pub display: images::DisplayMapping,
 }
 
 /// A level to prepare for display: its mesh and its 2-D panel images.
@@ -46,7 +50,7 @@ pub struct MeshJob {
 
 /// Images of the 2-D panels for one level, with the colour-map ranges.
 pub struct LevelPanels {
-    /// Reprojection, grey.
+    /// Reprojection, grey, shown as the input is.
     pub reprojection: egui::ColorImage,
     /// |input - reprojection| at full size, on the object.
     pub difference: (egui::ColorImage, [f64; 2]),
@@ -147,7 +151,6 @@ fn view_stride((width, height): (usize, usize)) -> usize {
 /// geometry), coloured by the reprojection error and carrying the
 /// photograph at the level's size.
 fn prepare_level(job: MeshJob) -> BuiltMesh {
-    use super::images;
     let MeshJob {
         generation,
         level,
@@ -178,7 +181,7 @@ fn prepare_level(job: MeshJob) -> BuiltMesh {
         (images::colour_mapped(&error, range), range)
     });
     let panels = LevelPanels {
-        reprojection: images::grey_image(&level.reprojection),
+        reprojection: inputs.display.image(&level.reprojection),
         difference: (
             images::colour_mapped(&difference, difference_range),
             difference_range,
@@ -365,6 +368,7 @@ mod tests {
             image: Arc::new(Grid::from_fn(w, h, |c, _| c as f64 / w as f64)),
             ground_truth: None,
             object: Some(Arc::new(object.clone())),
+            display: images::DisplayMapping { exposure: 2.0 },
         };
         let built = prepare_level(MeshJob {
             generation: 7,
@@ -375,6 +379,10 @@ mod tests {
         let inside = object_at_half.as_slice().iter().filter(|&&o| o).count();
         assert!(inside > 50 && inside < 300 / 2, "{inside}");
         assert_eq!(built.generation, 7);
+        // The reprojection (0.5 everywhere) is shown as the input: x2, sRGB.
+        let panels = built.panels.as_ref().expect("panel images");
+        let white = egui::Color32::WHITE;
+        assert!(panels.reprojection.pixels.iter().all(|&p| p == white));
         assert_eq!(built.mesh.vertices().len(), inside);
         // Vertices lie on the object's rays: framing sees the disc, not the
         // image rectangle (half-width at depth 3: 20 px * 3 / 60 = 1).

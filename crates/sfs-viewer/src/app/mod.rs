@@ -12,6 +12,7 @@
 //! - `measure`: screenshots, frame statistics and latency trials.
 
 mod document;
+mod energy_plot;
 mod images;
 mod level_prep;
 mod measure;
@@ -224,9 +225,7 @@ impl ViewerApp {
         match self.session.open(path, options) {
             Ok(notes) => {
                 self.settings.remember(path.to_path_buf());
-                if let Some(doc) = &self.session.document {
-                    self.panels.document_opened(ctx, doc);
-                }
+                self.panels.document_opened(ctx, &self.session);
                 self.notice = (!notes.is_empty()).then(|| notes.join("; "));
             }
             Err(e) => self.notice = Some(e),

@@ -1,5 +1,6 @@
 //! The viewer's panels: menu, status line, controls (camera, parameters,
-//! mask tools, progress, export), the 2-D image panels and the 3-D view.
+//! mask tools, progress, export), the 2-D image panels and the 3-D view;
+//! the energy plot is `energy_plot`'s.
 
 use std::path::{Path, PathBuf};
 
@@ -84,7 +85,8 @@ enum Gesture {
 /// Textures of the 2-D panels.
 #[derive(Default)]
 struct Textures {
-    input: Option<egui::TextureHandle>,
+    /// The input as shown, with the display mapping it was built with.
+    input: Option<(images::DisplayMapping, egui::TextureHandle)>,
     overlay: Option<(u64, egui::TextureHandle)>,
     reprojection: Option<egui::TextureHandle>,
     difference: Option<(egui::TextureHandle, [f64; 2])>,
@@ -123,12 +125,16 @@ fn pick_save(name: &str, extension: &str) -> Option<PathBuf> {
 
 const IMAGE_EXTENSIONS: &[&str] = &["png", "tif", "tiff", "jpg", "jpeg"];
 
-/// The input image's texture.
-fn input_texture(ctx: &egui::Context, image: &Grid<f64>) -> egui::TextureHandle {
+/// The input image's texture, shown through `mapping`.
+fn input_texture(
+    ctx: &egui::Context,
+    image: &Grid<f64>,
+    mapping: images::DisplayMapping,
+) -> egui::TextureHandle {
     images::load_texture(
         ctx,
         "input",
-        images::grey_image(image),
+        mapping.image(image),
         egui::TextureOptions::NEAREST,
     )
 }
@@ -163,13 +169,32 @@ impl Panels {
     }
 
     /// A new document: forget the old one's textures and surface, show its
-    /// input.
-    pub fn document_opened(&mut self, ctx: &egui::Context, doc: &Document) {
+    /// input (with the session's display mapping).
+    pub fn document_opened(&mut self, ctx: &egui::Context, session: &Session) {
         self.textures = Textures::default();
         self.surface.clear();
         self.zoom = 1.0;
         self.pan = egui::Vec2::ZERO;
-        self.textures.input = Some(input_texture(ctx, &doc.image));
+        self.input_texture(ctx, session);
+    }
+
+    /// The input's texture, rebuilt when the session's display mapping
+    /// changed (or after the image was re-read).
+    fn input_texture(
+        &mut self,
+        ctx: &egui::Context,
+        session: &Session,
+    ) -> Option<egui::TextureHandle> {
+        let doc = session.document.as_ref()?;
+        let mapping = session.display;
+        match &self.textures.input {
+            Some((built, texture)) if *built == mapping => Some(texture.clone()),
+            _ => {
+                let texture = input_texture(ctx, &doc.image, mapping);
+                self.textures.input = Some((mapping, texture.clone()));
+                Some(texture)
+            }
+        }
     }
 
     /// Shows a prepared level: its mesh and its panel images.
@@ -453,7 +478,7 @@ impl Panels {
                 cx.actions.push(Action::SolveNow);
             }
         });
-        energy_plot(ui, &cx.session.solve.energies);
+        super::energy_plot::energy_plot(ui, &cx.session.solve.energies);
     }
 
     fn params_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
@@ -520,13 +545,21 @@ impl Panels {
                 _ => {}
             }
         }
+        let lights_off_centre = cx
+            .session
+            .document
+            .as_ref()
+            .is_some_and(|d| !sfs_core::light::is_centred(&d.camera.solve_lights()));
+        let [fast_marching, from_image] = start_labels(lights_off_centre);
         let initial = &mut cx.settings.params.initial_depth;
         let before = *initial;
-        ui.horizontal(|ui| {
+        ui.horizontal_wrapped(|ui| {
             ui.label("start")
-                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver");
-            ui.selectable_value(initial, InitialChoice::FastMarching, "fast marching");
-            ui.selectable_value(initial, InitialChoice::FromImage, "from image");
+                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre the first two start from the best-fitting plane instead");
+            ui.selectable_value(initial, InitialChoice::FastMarching, fast_marching.0)
+                .on_hover_text(fast_marching.1);
+            ui.selectable_value(initial, InitialChoice::FromImage, from_image.0)
+                .on_hover_text(from_image.1);
             if ui
                 .selectable_label(matches!(initial, InitialChoice::Constant(_)), "constant")
                 .clicked()
@@ -716,6 +749,7 @@ impl Panels {
         }
         ui.weak(c.source.describe());
         let mut srgb = doc.srgb;
+        let mut reread = false;
         if ui
             .checkbox(&mut srgb, "sRGB photograph (linearise)")
             .changed()
@@ -723,13 +757,17 @@ impl Panels {
             match doc.set_srgb(srgb) {
                 Ok(()) => {
                     changed = true;
-                    self.textures.input = Some(input_texture(ui.ctx(), &doc.image));
+                    reread = true;
+                    self.textures.input = None;
                 }
                 Err(e) => cx.actions.push(Action::Notice(format!("{e:#}"))),
             }
         }
         ui.weak(&doc.srgb_reason);
-        changed |= self.corrections_ui(ui, doc, cx.actions);
+        if self.corrections_ui(ui, doc, cx.actions) {
+            changed = true;
+            reread = true;
+        }
         let (w, h) = doc.size();
         if (w, h) != doc.full_size {
             ui.weak(format!(
@@ -760,6 +798,9 @@ impl Panels {
         if changed {
             cx.actions.push(Action::RequestSolve);
         }
+        if reread {
+            cx.session.refresh_display();
+        }
     }
 
     /// The photograph's corrections (ambient frame, vignetting, albedo):
@@ -773,12 +814,12 @@ impl Panels {
     ) -> bool {
         type Change = Box<dyn FnOnce(&mut PhotoInput)>;
         let mut change: Option<Change> = None;
-        let name = |path: &Path| {
+        fn name(path: &Path) -> String {
             path.file_name().map_or_else(
                 || path.display().to_string(),
                 |n| n.to_string_lossy().into_owned(),
             )
-        };
+        }
         let images = [("image", IMAGE_EXTENSIONS)];
         ui.horizontal(|ui| {
             ui.label("ambient frame");
@@ -879,7 +920,7 @@ impl Panels {
         };
         match doc.reread(change) {
             Ok(()) => {
-                self.textures.input = Some(input_texture(ui.ctx(), &doc.image));
+                self.textures.input = None;
                 true
             }
             Err(e) => {
@@ -935,13 +976,26 @@ impl Panels {
                     ui.selectable_value(&mut self.panel, panel, name);
                 });
             }
+            if matches!(self.panel, Panel2d::Input | Panel2d::Reprojection)
+                && cx.session.document.is_some()
+            {
+                let display = cx.session.display;
+                ui.weak(display.describe()).on_hover_text(format!(
+                    "For viewing only: the linear values times {:.3}, so that the {:.0}th \
+                     percentile of the object's pixels is white, then the sRGB transfer \
+                     function (display gamma). The solver gets the linear values, and \
+                     hovering shows them (I).",
+                    display.exposure,
+                    100.0 * images::WHITE_QUANTILE
+                ));
+            }
         });
         let Some((w, h)) = cx.session.document.as_ref().map(|d| d.size()) else {
             ui.label("Open an image (File > Open or drop a file here).");
             return;
         };
         let (texture, range) = match self.panel {
-            Panel2d::Input => (self.textures.input.clone(), None),
+            Panel2d::Input => (self.input_texture(ui.ctx(), cx.session), None),
             Panel2d::Reprojection => (self.textures.reprojection.clone(), None),
             Panel2d::Difference => split(&self.textures.difference),
             Panel2d::Depth => split(&self.textures.depth),
@@ -1213,72 +1267,43 @@ fn split(
     }
 }
 
-/// log10 of the energy per pixel over all outer iterations of the job,
-/// levels coarse to fine, a faint line where a level starts.
-fn energy_plot(ui: &mut egui::Ui, energies: &[super::session::EnergyPoint]) {
-    let (rect, _) =
-        ui.allocate_exact_size(egui::vec2(ui.available_width(), 60.0), egui::Sense::hover());
-    let painter = ui.painter_at(rect);
-    painter.rect_stroke(
-        rect,
-        2.0,
-        ui.visuals().widgets.noninteractive.bg_stroke,
-        egui::StrokeKind::Inside,
-    );
-    let points: Vec<(usize, f64)> = energies
-        .iter()
-        .filter(|e| e.per_pixel.is_finite() && e.per_pixel > 0.0)
-        .map(|e| (e.level, e.per_pixel.log10()))
-        .collect();
-    let weak = ui.visuals().weak_text_color();
-    if points.len() < 2 {
-        painter.text(
-            rect.center(),
-            egui::Align2::CENTER_CENTER,
-            "energy per pixel, per iteration",
-            egui::FontId::proportional(11.0),
-            weak,
-        );
-        return;
+/// The start selector's `(label, hover text)` for fast marching and for the
+/// paper's start from the image. Both assume the light at the optical
+/// centre: with the solve's lights off the centre the solver starts from
+/// the fronto-parallel plane whose rendering best fits the image, refined
+/// through the whole pyramid (`sfs_core::solver::prepare`), and the labels
+/// say so.
+fn start_labels(lights_off_centre: bool) -> [(&'static str, &'static str); 2] {
+    if lights_off_centre {
+        [
+            (
+                "fast marching (lights off the centre: best-fitting plane)",
+                "Fast marching needs the light at the optical centre. With these lights the \
+                 solver starts from the constant depth (fronto-parallel plane) whose rendering \
+                 best fits the image, refined through the whole pyramid.",
+            ),
+            (
+                "from image (lights off the centre: best-fitting plane)",
+                "The paper's constant from the brightest pixel assumes the light at the optical \
+                 centre. With these lights the solver starts from the constant depth \
+                 (fronto-parallel plane) whose rendering best fits the image, refined through \
+                 the whole pyramid: the same start as fast marching here.",
+            ),
+        ]
+    } else {
+        [
+            (
+                "fast marching",
+                "Fast marching on the (denoised) image, refined by the solver at full \
+                 resolution (the default).",
+            ),
+            (
+                "from image",
+                "The paper's start: a constant depth from the brightest pixel, refined through \
+                 the whole pyramid.",
+            ),
+        ]
     }
-    let lo = points.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
-    let hi = points.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
-    let span = (hi - lo).max(1e-12);
-    let n = points.len() - 1;
-    let x = |i: usize| egui::lerp(rect.left()..=rect.right(), i as f32 / n as f32);
-    for i in 1..points.len() {
-        if points[i].0 != points[i - 1].0 {
-            painter.vline(
-                x(i),
-                rect.y_range(),
-                egui::Stroke::new(1.0, weak.gamma_multiply(0.5)),
-            );
-        }
-    }
-    let line: Vec<egui::Pos2> = points
-        .iter()
-        .enumerate()
-        .map(|(i, &(_, v))| {
-            egui::pos2(
-                x(i),
-                egui::lerp(
-                    rect.bottom() - 4.0..=rect.top() + 4.0,
-                    ((v - lo) / span) as f32,
-                ),
-            )
-        })
-        .collect();
-    painter.add(egui::Shape::line(
-        line,
-        egui::Stroke::new(1.5, ui.visuals().hyperlink_color),
-    ));
-    painter.text(
-        rect.left_top() + egui::vec2(4.0, 2.0),
-        egui::Align2::LEFT_TOP,
-        format!("log10 energy per pixel (total / level w·h) {hi:.2} … {lo:.2}"),
-        egui::FontId::proportional(10.0),
-        weak,
-    );
 }
 
 /// A slider's number: scientific notation where plain decimals would show

@@ -1,7 +1,8 @@
 //! The document session: the open image with its camera and masks, the
 //! autosave of the masks, and the solve of that document (the worker, the
 //! debounced re-solve, the state of the job on screen). No drawing; uses
-//! `document`, `worker`, `solver`, `metrics`, `mask_edit`, `io`.
+//! `document`, `worker`, `solver`, `metrics`, `mask_edit`, `io`, and
+//! `images` for the display mapping it keeps.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -16,6 +17,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::solver::{LevelResult, Solution};
 
 use super::document::{Document, OpenOptions};
+use super::images::DisplayMapping;
 use super::level_prep::LevelInputs;
 
 /// While a slider is dragged, solve after it rests this long.
@@ -59,6 +61,9 @@ pub struct Progress {
 pub struct EnergyPoint {
     /// Level index (0 = coarsest).
     pub level: usize,
+    /// Outer iteration within the level (from 0); `None` for a level
+    /// without iterations (a fast-marching start).
+    pub iteration: Option<usize>,
     /// Total energy divided by the level's pixel count ([`per_pixel`]).
     pub per_pixel: f64,
 }
@@ -104,7 +109,7 @@ pub struct SolveState {
     pub completed_jobs: usize,
 }
 
-/// What [`Session::export`] writes.
+/// What `Session::export` writes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Export {
     /// Depth as float32 `.npy` (NaN = no surface).
@@ -135,6 +140,12 @@ pub struct Session {
     pub document: Option<Document>,
     /// The solve on screen.
     pub solve: SolveState,
+    /// How the input panel (and the reprojection) shows the document's
+    /// image: the automatic viewing exposure over the object, then sRGB.
+    /// Recomputed when an image is opened or re-read and when an object
+    /// mask is loaded from a file, not while painting (the view stays
+    /// still); the solver and the hover readout keep the linear values.
+    pub display: DisplayMapping,
     worker: Option<Worker>,
     /// Folder of the mask autosaves (`None`: no autosave).
     data_dir: Option<PathBuf>,
@@ -153,6 +164,7 @@ impl Session {
         Self {
             document: None,
             solve: SolveState::default(),
+            display: DisplayMapping::default(),
             worker,
             data_dir,
             dirty_since: None,
@@ -179,9 +191,18 @@ impl Session {
             }
         }
         self.document = Some(doc);
+        self.refresh_display();
         self.solve = SolveState::default();
         self.request_solve();
         Ok(notes)
+    }
+
+    /// Recomputes [`Session::display`] from the document's image and object
+    /// mask (after the image was re-read, e.g. with sRGB decoding toggled).
+    pub fn refresh_display(&mut self) {
+        if let Some(doc) = &self.document {
+            self.display = DisplayMapping::automatic(&doc.image, Some(doc.masks.object()));
+        }
     }
 
     /// Lowers the confidence layer where the model cannot hold
@@ -251,10 +272,14 @@ impl Session {
         let Some(doc) = &mut self.document else {
             return Ok(());
         };
+        let photo_size = doc.full_size;
         doc.masks
-            .load_png(layer, path)
-            .map(|_| ())
-            .map_err(|e| e.to_string())
+            .load_png(layer, path, photo_size)
+            .map_err(|e| e.to_string())?;
+        if layer == Layer::Object {
+            self.refresh_display();
+        }
+        Ok(())
     }
 
     /// Writes a mask layer as PNG.
@@ -307,6 +332,7 @@ impl Session {
             image: Arc::new(doc.image.clone()),
             ground_truth: doc.ground_truth.clone().map(Arc::new),
             object: problem.object_mask.clone().map(Arc::new),
+            display: self.display,
         });
         self.mask_revision_solved = doc.masks.revision();
         let estimate_scale = !doc.camera.scale_given;
@@ -347,6 +373,7 @@ impl Session {
                     let energy_per_pixel = per_pixel(report.energy.total, size);
                     self.solve.energies.push(EnergyPoint {
                         level: report.level,
+                        iteration: Some(report.iteration),
                         per_pixel: energy_per_pixel,
                     });
                     self.solve.progress = Progress {
@@ -429,6 +456,7 @@ impl Session {
         if self.solve.energies.last().map(|e| e.level) != Some(result.level) {
             self.solve.energies.push(EnergyPoint {
                 level: result.level,
+                iteration: None,
                 per_pixel: per_pixel(result.energy.total, size),
             });
         }
