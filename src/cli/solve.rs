@@ -10,6 +10,7 @@ use serde_json::json;
 
 use crate::output::OutputStage;
 use sfs_core::camera::Intrinsics;
+use sfs_core::cancel::{Cancel, Uncancelled};
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
 use sfs_core::light::PointLight;
@@ -492,19 +493,13 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             size.0, size.1, full_size.0, full_size.1
         ));
     }
+    let resize = |grid: &Grid<f64>| resize_area(grid, size.0, size.1, Cancel::NEVER).uncancelled();
     let object_mask = match &args.mask {
-        Some(path) => Some(
-            resize_area(&read_sized_mask(path, "mask", full_size)?, size.0, size.1)
-                .map(|&v| v >= 0.5),
-        ),
+        Some(path) => Some(resize(&read_sized_mask(path, "mask", full_size)?).map(|&v| v >= 0.5)),
         None => None,
     };
     let mut confidence = match &args.confidence {
-        Some(path) => Some(resize_area(
-            &read_sized_mask(path, "confidence", full_size)?,
-            size.0,
-            size.1,
-        )),
+        Some(path) => Some(resize(&read_sized_mask(path, "confidence", full_size)?)),
         None => None,
     };
     if let Some(lost) = &photo.lost {

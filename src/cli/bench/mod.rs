@@ -15,6 +15,7 @@ use super::figures::{self, Canvas, Series, Shade};
 mod lights;
 mod robustness;
 mod speed;
+use sfs_core::cancel::{Cancel, Uncancelled};
 use sfs_core::depth_smoothing;
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
@@ -277,7 +278,8 @@ impl SolveObserver for CurveRecorder<'_> {
         let started = Instant::now();
         let level_domain = result.depth.map(|z| z.is_finite());
         let full = pyramid::upsample_depth(&result.depth, &level_domain, &self.full_domain);
-        let full = sfs_core::solver::problem::masked(&full, &self.full_domain);
+        let full = sfs_core::solver::problem::masked(&full, &self.full_domain, Cancel::NEVER)
+            .uncancelled();
         if let Ok(rse) = metrics::rse(&full, self.truth) {
             let t = result.elapsed.saturating_sub(self.overhead).as_secs_f64();
             self.points.push((t, rse));
@@ -369,7 +371,9 @@ impl Runner {
                 image,
                 sfs_core::denoise::default_tv_weight(image),
                 TV_ITERATIONS,
+                Cancel::NEVER,
             )
+            .uncancelled()
         } else {
             image.clone()
         };
@@ -415,7 +419,8 @@ impl Runner {
             let geometry = sfs_core::model::LevelGeometry::new(w, h, w, h, scene.camera);
             let domain = depth.map(|z| z.is_finite());
             let filled = depth.map(|z| if z.is_finite() { *z } else { 1.0 });
-            sfs_core::model::reproject(&model, &geometry, &domain, &filled)
+            sfs_core::model::reproject(&model, &geometry, &domain, &filled, Cancel::NEVER)
+                .uncancelled()
         } else {
             solution.reprojection
         };

@@ -8,6 +8,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 use crate::light::{LightModel, PointLight};
 use crate::model::{Energy, LevelGeometry};
@@ -59,6 +60,13 @@ pub enum SolveError {
     /// returned rather than a surface that is not one.
     #[error("the solve diverged: {0}")]
     Diverged(String),
+}
+
+/// A pass that stopped on the observer's request stops the solve.
+impl From<Cancelled> for SolveError {
+    fn from(_: Cancelled) -> Self {
+        SolveError::Cancelled
+    }
 }
 
 /// Reported after every outer iteration.
@@ -259,20 +267,13 @@ impl Problem {
     }
 
     /// Checks sizes and values; returns the effective domain and confidence
-    /// (0 off the object and on clipped pixels, see [`SATURATED`]).
+    /// (0 off the object and on clipped pixels, see [`SATURATED`]). Its
+    /// passes over the pixels run by rows in parallel, polling `cancel` per
+    /// row.
     pub(crate) fn validate(
         &self,
         params: &SolverParams,
-    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
-        self.validate_polled(params, NEVER)
-    }
-
-    /// [`Self::validate`], its passes over the pixels by rows in parallel,
-    /// polling `cancelled` per row.
-    pub(crate) fn validate_polled(
-        &self,
-        params: &SolverParams,
-        cancelled: Probe<'_>,
+        cancel: Cancel<'_>,
     ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
         use rayon::prelude::*;
         let (w, h) = self.image.size();
@@ -305,10 +306,8 @@ impl Problem {
             .as_slice()
             .par_chunks(w)
             .with_min_len(rows_per_task(w))
-            .position_first(|row| !cancelled() && row.iter().any(invalid));
-        if cancelled() {
-            return Err(SolveError::Cancelled);
-        }
+            .position_first(|row| !cancel.is_cancelled() && row.iter().any(invalid));
+        cancel.check()?;
         if let Some(bad_value) = first_bad_row.and_then(|r| {
             self.image.as_slice()[r * w..(r + 1) * w]
                 .iter()
@@ -357,7 +356,7 @@ impl Problem {
             .with_min_len(rows_per_task(w))
             .map(|(r, row)| {
                 let mut counts = (0usize, 0usize, 0usize, 0.0f64);
-                if cancelled() {
+                if cancel.is_cancelled() {
                     return counts;
                 }
                 for (c, out) in row.iter_mut().enumerate() {
@@ -383,9 +382,7 @@ impl Problem {
                 || (0, 0, 0, 0.0),
                 |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3.max(b.3)),
             );
-        if cancelled() {
-            return Err(SolveError::Cancelled);
-        }
+        cancel.check()?;
         if objects == 0 {
             return bad("the object mask is empty".into());
         }
@@ -421,19 +418,11 @@ impl Problem {
     }
 }
 
+pub(crate) use crate::grid::rows_per_task;
+
 /// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
 /// the long single passes over an image (each about a second at 18
 /// megapixels).
-pub(crate) use crate::grid::rows_per_task;
-
-/// A cancellation probe that long parallel passes call per block of rows
-/// (`true`: stop; the pass's result is then garbage and its caller returns
-/// [`SolveError::Cancelled`]).
-pub type Probe<'a> = &'a (dyn Fn() -> bool + Sync);
-
-/// A probe that never cancels.
-pub const NEVER: Probe<'static> = &|| false;
-
 pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveError> {
     if observer.is_cancelled() {
         Err(SolveError::Cancelled)
@@ -508,22 +497,16 @@ pub(crate) fn on_object(
     (depth, reprojection)
 }
 
-/// The depth with NaN outside `domain`.
-pub fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
-    masked_polled(depth, domain, NEVER)
-}
-
-/// [`masked`], rows in parallel (the copy's pages are first touched there
-/// too), polling `cancelled` per row (the rest is left 0 once it said true:
-/// the caller stops).
-pub(crate) fn masked_polled(
+/// The depth with NaN outside `domain`, by rows in parallel (the copy's
+/// pages are first touched there too), polling `cancel` per row.
+pub fn masked(
     depth: &Grid<f64>,
     domain: &Grid<bool>,
-    cancelled: Probe<'_>,
-) -> Grid<f64> {
+    cancel: Cancel<'_>,
+) -> Result<Grid<f64>, Cancelled> {
     let (w, h) = depth.size();
     let mut out = Grid::filled(w, h, 0.0);
-    crate::grid::for_rows_polled(out.as_mut_slice(), w, cancelled, |r, out| {
+    crate::grid::for_rows(out.as_mut_slice(), w, cancel, |r, out| {
         for (c, out) in out.iter_mut().enumerate() {
             *out = if *domain.at(c, r) {
                 *depth.at(c, r)
@@ -531,8 +514,8 @@ pub(crate) fn masked_polled(
                 f64::NAN
             };
         }
-    });
-    out
+    })?;
+    Ok(out)
 }
 
 #[cfg(test)]

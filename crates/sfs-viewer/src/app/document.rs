@@ -9,9 +9,11 @@ use anyhow::{Context, Result, bail};
 
 use crate::mask_edit::Masks;
 use sfs_core::camera::Intrinsics;
+use sfs_core::cancel::{Cancel, Uncancelled};
 use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::light::PointLight;
+use sfs_core::resample::resize_area;
 
 /// Where the camera values came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -155,7 +157,7 @@ impl Document {
             .with_context(|| format!("cannot open image {}", path.display()))?;
         let full_size = full.size();
         let (w, h) = sfs_core::resample::working_size(full_size.0, full_size.1, max_side);
-        let image = sfs_core::resample::resize_area(&full, w, h);
+        let image = resize_area(&full, w, h, Cancel::NEVER).uncancelled();
         drop(full);
         let mut notes = Vec::new();
         if (w, h) != full_size {
@@ -252,7 +254,7 @@ impl Document {
             bail!("{} changed size on disk", self.path.display());
         }
         let (w, h) = self.image.size();
-        self.image = sfs_core::resample::resize_area(&image, w, h);
+        self.image = resize_area(&image, w, h, Cancel::NEVER).uncancelled();
         self.srgb = srgb;
         self.srgb_reason = if srgb {
             "sRGB decoding on (set in the Camera panel)".into()
@@ -276,7 +278,9 @@ fn load_object_mask(path: &Path, full: (usize, usize), working: (usize, usize)) 
             full.1
         );
     }
-    let object = sfs_core::resample::resize_area(&values, working.0, working.1).map(|&v| v >= 0.5);
+    let object = resize_area(&values, working.0, working.1, Cancel::NEVER)
+        .uncancelled()
+        .map(|&v| v >= 0.5);
     Ok(Masks::from_layers(
         Grid::filled(working.0, working.1, 1.0f32),
         object,
