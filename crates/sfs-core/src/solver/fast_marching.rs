@@ -68,7 +68,7 @@ use crate::cancel::{Cancel, Cancelled, Uncancelled};
 use crate::grid::Grid;
 use crate::light::LightModel;
 use crate::model::{self, Lambertian, LevelGeometry};
-use crate::params::{DomainMode, SolverParams};
+use crate::params::DomainMode;
 
 use super::problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
@@ -608,8 +608,7 @@ impl FrontalQueue {
 const CANCEL_POLL: usize = 4096;
 
 /// Solves `problem` by fast marching on its object pixels. The confidence is
-/// ignored (the method has no use for it); `params` is used only to validate
-/// the problem.
+/// ignored (the method has no use for it).
 pub fn solve_fast_marching(
     problem: &Problem,
     settings: &FastMarchingParams,
@@ -621,12 +620,8 @@ pub fn solve_fast_marching(
             "fast marching: min_relative_intensity must lie in (0, 1)".into(),
         ));
     }
-    let validation = SolverParams {
-        domain: DomainMode::Object,
-        ..SolverParams::default()
-    };
-    let (domain, confidence) = problem.validate(&validation, Cancel::NEVER)?;
-    let scales = super::prepare::problem_scales(problem, &confidence, Cancel::NEVER).uncancelled();
+    let (domain, confidence) = problem.validate(DomainMode::Object, None, Cancel::NEVER)?;
+    let scales = problem.scales(&confidence, Cancel::NEVER).uncancelled();
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let s = match problem.model() {

@@ -88,15 +88,18 @@ pub(crate) fn prepare<'a>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Prepared<'a>, SolveError> {
     params.validate()?;
-    let (domain, confidence) =
-        problem.validate(params, Cancel::new(&|| observer.is_cancelled()))?;
-    check_cancelled(observer)?;
-    let (w, h) = problem.image.size();
-    let scales = problem_scales(
-        problem,
-        &confidence,
+    let initial_depth_map = match &params.initial_depth {
+        InitialDepth::Map(map) => Some(map),
+        _ => None,
+    };
+    let (domain, confidence) = problem.validate(
+        params.domain,
+        initial_depth_map,
         Cancel::new(&|| observer.is_cancelled()),
     )?;
+    check_cancelled(observer)?;
+    let (w, h) = problem.image.size();
+    let scales = problem.scales(&confidence, Cancel::new(&|| observer.is_cancelled()))?;
     let finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
         image: std::borrow::Cow::Borrowed(&problem.image),
@@ -339,42 +342,6 @@ fn fast_marching_start(
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.
 const TV_ITERATIONS: usize = 200;
-
-/// The scales of [`ProblemScales`]: the median over trusted object pixels
-/// (confidence > 0, brightness > 0) of the "facing the light" depth
-/// `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already 0 off the
-/// object; `validate` guarantees a trusted pixel with brightness > 0. By rows
-/// in parallel, polling `cancel` per row.
-pub(crate) fn problem_scales(
-    problem: &Problem,
-    confidence: &Grid<f64>,
-    cancel: Cancel<'_>,
-) -> Result<ProblemScales, Cancelled> {
-    let w = problem.image.width();
-    let s = problem.intensity_scale;
-    let camera = problem.camera;
-    let facing = |r: usize, out: &mut Vec<f64>| {
-        for c in 0..w {
-            let v = *problem.image.at(c, r);
-            if *confidence.at(c, r) > 0.0 && v > 0.0 {
-                let q = model::PixelRay {
-                    x_px: c as f64 - camera.principal_x_px,
-                    y_px: r as f64 - camera.principal_y_px,
-                    focal_px: camera.focal_px,
-                }
-                .q();
-                out.push(q * (s / v).sqrt());
-            }
-        }
-    };
-    let median = crate::selection::kth_smallest(problem.image.height(), facing, |n| n / 2, cancel)?;
-    let depth = median.unwrap_or(1.0);
-    Ok(ProblemScales {
-        depth,
-        intensity: s / (depth * depth),
-        focal_px: camera.focal_px,
-    })
-}
 
 /// The constant initial depth of [`InitialDepth::FromImage`] on a level: the
 /// brightest trusted domain pixel `b` is assumed to face the light,

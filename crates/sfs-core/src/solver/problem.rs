@@ -12,7 +12,7 @@ use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 use crate::light::{LightModel, PointLight};
 use crate::model::{Energy, LevelGeometry};
-use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
+use crate::params::{DomainMode, ParamError, ProblemScales};
 
 /// Image values at or above this are clipped (the top of a file's range,
 /// which the readers map to 1): such pixels get confidence 0.
@@ -266,13 +266,15 @@ impl Problem {
         crate::light::is_centred(&self.lights)
     }
 
-    /// Checks sizes and values; returns the effective domain and confidence
-    /// (0 off the object and on clipped pixels, see [`SATURATED`]). Its
-    /// passes over the pixels run by rows in parallel, polling `cancel` per
-    /// row.
+    /// Checks sizes and values (and the size of `initial_depth_map`, when a
+    /// solve starts from one); returns the domain that `domain` asks for (the
+    /// object, or every pixel) and the confidence (0 off the object and on
+    /// clipped pixels, see [`SATURATED`]). Its passes over the pixels run by
+    /// rows in parallel, polling `cancel` per row.
     pub(crate) fn validate(
         &self,
-        params: &SolverParams,
+        domain: DomainMode,
+        initial_depth_map: Option<&Grid<f64>>,
         cancel: Cancel<'_>,
     ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
         use rayon::prelude::*;
@@ -401,7 +403,7 @@ impl Problem {
                  lower the exposure or mask the saturated region (confidence 0)"
             ));
         }
-        if let InitialDepth::Map(map) = &params.initial_depth
+        if let Some(map) = initial_depth_map
             && map.size() != (w, h)
         {
             return bad(format!(
@@ -410,11 +412,48 @@ impl Problem {
                 map.height()
             ));
         }
-        let domain = match params.domain {
+        let domain = match domain {
             DomainMode::Object => object,
             DomainMode::Paper => Grid::filled(w, h, true),
         };
         Ok((domain, confidence))
+    }
+
+    /// The scales of [`ProblemScales`]: the median over trusted object
+    /// pixels (confidence > 0, brightness > 0) of the "facing the light"
+    /// depth `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already
+    /// 0 off the object; [`Self::validate`] guarantees a trusted pixel with
+    /// brightness > 0. By rows in parallel, polling `cancel` per row.
+    pub(crate) fn scales(
+        &self,
+        confidence: &Grid<f64>,
+        cancel: Cancel<'_>,
+    ) -> Result<ProblemScales, Cancelled> {
+        let w = self.image.width();
+        let s = self.intensity_scale;
+        let camera = self.camera;
+        let facing = |r: usize, out: &mut Vec<f64>| {
+            for c in 0..w {
+                let v = *self.image.at(c, r);
+                if *confidence.at(c, r) > 0.0 && v > 0.0 {
+                    let q = crate::model::PixelRay {
+                        x_px: c as f64 - camera.principal_x_px,
+                        y_px: r as f64 - camera.principal_y_px,
+                        focal_px: camera.focal_px,
+                    }
+                    .q();
+                    out.push(q * (s / v).sqrt());
+                }
+            }
+        };
+        let median =
+            crate::selection::kth_smallest(self.image.height(), facing, |n| n / 2, cancel)?;
+        let depth = median.unwrap_or(1.0);
+        Ok(ProblemScales {
+            depth,
+            intensity: s / (depth * depth),
+            focal_px: camera.focal_px,
+        })
     }
 }
 
