@@ -603,8 +603,7 @@ impl FrontalQueue {
     }
 }
 
-/// Heap operations between two polls of the cancellation (a few
-/// milliseconds).
+/// Heap operations between two polls of `cancel` (a few milliseconds).
 const CANCEL_POLL: usize = 4096;
 
 /// Solves `problem` by fast marching on its object pixels. The confidence is
