@@ -9,6 +9,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use sfs_core::cancel::{Cancel, Uncancelled};
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
 use sfs_core::params::{Alpha, SolverParams};
@@ -204,20 +205,26 @@ fn main() {
     let level = PyramidLevel {
         geometry: sfs_core::model::LevelGeometry::new(n, n, n, n, case.scene.camera),
         image: std::borrow::Cow::Borrowed(&case.scene.image),
-        confidence: sfs_core::grid::Confidence::from_grid(Grid::filled(n, n, 1.0)),
+        confidence: sfs_core::grid::Confidence::from_grid(Grid::filled(n, n, 1.0), Cancel::NEVER)
+            .uncancelled(),
         domain: Grid::filled(n, n, true),
     };
-    let mut system = LinearSystem::new(&level);
+    let mut system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
     let model = sfs_core::model::Lambertian {
         intensity_scale: case.scene.intensity_scale,
     };
-    system.linearise_data(
-        &model,
-        &level,
-        &Grid::filled(n, n, 1.8),
-        sfs_core::model::Derivatives::Exact,
-    );
-    system.add_smoothness(&level, 1.0, 1e-3);
+    system
+        .linearise_data(
+            &model,
+            &level,
+            &Grid::filled(n, n, 1.8),
+            sfs_core::model::Derivatives::Exact,
+            Cancel::NEVER,
+        )
+        .uncancelled();
+    system
+        .add_smoothness(&level, 1.0, 1e-3, Cancel::NEVER)
+        .uncancelled();
     let rows = system.explicit_rows();
     let rhs: Vec<f64> = (0..n * n)
         .map(|q| f64::from(system.row(q % n, q / n).rhs))
@@ -229,7 +236,7 @@ fn main() {
     let sweeps = 100;
     let start = Instant::now();
     for _ in 0..sweeps {
-        sor::sweep(&mut system, 1.5);
+        sor::sweep(&mut system, 1.5, Cancel::NEVER).uncancelled();
     }
     let fast = start.elapsed().as_secs_f64();
     let mut x = vec![0.0; n * n];

@@ -4,6 +4,7 @@
 //! used by the solver (the fast-marching start, the automatic alpha) and by
 //! the benchmark's pre-processing.
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 
 /// Noise standard deviation of an image (same units as its values), by
@@ -36,22 +37,17 @@ pub fn estimate_noise_sigma(image: &Grid<f64>) -> f64 {
 /// `1/2 sum (u - f)^2 + weight sum |grad u|` (isotropic TV, forward
 /// differences, Neumann boundary), by the accelerated primal-dual algorithm of
 /// Chambolle and Pock (2011, Algorithm 2, the data term being 1-strongly
-/// convex). `weight <= 0` returns the image unchanged.
-pub fn tv_denoise(image: &Grid<f64>, weight: f64, iterations: usize) -> Grid<f64> {
-    tv_denoise_cancellable(image, weight, iterations, &|| false).unwrap_or_else(|| image.clone())
-}
-
-/// [`tv_denoise`], polling `cancelled` every few iterations; `None` when it
-/// returned true.
-pub fn tv_denoise_cancellable(
+/// convex). `weight <= 0` returns the image unchanged. Polls `cancel`
+/// every few iterations.
+pub fn tv_denoise(
     image: &Grid<f64>,
     weight: f64,
     iterations: usize,
-    cancelled: &dyn Fn() -> bool,
-) -> Option<Grid<f64>> {
+    cancel: Cancel<'_>,
+) -> Result<Grid<f64>, Cancelled> {
     let (w, h) = image.size();
     if !(weight > 0.0 && weight.is_finite()) || w == 0 || h == 0 {
-        return Some(image.clone());
+        return Ok(image.clone());
     }
     let f = image.as_slice();
     let n = w * h;
@@ -61,8 +57,8 @@ pub fn tv_denoise_cancellable(
     // ||grad||^2 <= 8.
     let (mut tau, mut sigma) = (0.25f64, 0.5f64);
     for iteration in 0..iterations {
-        if iteration % 4 == 0 && cancelled() {
-            return None;
+        if iteration % 4 == 0 {
+            cancel.check()?;
         }
         // Dual ascent and projection onto |p| <= weight.
         for r in 0..h {
@@ -99,7 +95,7 @@ pub fn tv_denoise_cancellable(
         tau *= theta;
         sigma /= theta;
     }
-    Some(Grid::from_vec(w, h, u).unwrap_or_else(|| image.clone()))
+    Ok(Grid::from_vec(w, h, u).unwrap_or_else(|| image.clone()))
 }
 
 /// The default TV weight for an image: its estimated noise level
@@ -115,22 +111,16 @@ pub fn default_tv_weight(image: &Grid<f64>) -> f64 {
 /// quartile of `|N(0, 36)|`. A low quantile keeps silhouettes, creases and
 /// fine detail (large responses on part of the image) from counting as
 /// noise: on a clean 128x64 Suzanne the median read 5.2/255, the quartile
-/// 1.8/255. 0 when no such pixel exists.
-pub fn robust_noise_sigma(image: &Grid<f64>, trusted: &Grid<bool>) -> f64 {
-    robust_noise_sigma_polled(image, trusted, &|| false)
-        .unwrap_or_else(|| unreachable!("never cancelled"))
-}
-
-/// [`robust_noise_sigma`], rows in parallel, polling `cancelled` per row;
-/// `None` once it said true.
-pub fn robust_noise_sigma_polled(
+/// 1.8/255. 0 when no such pixel exists. Rows in parallel, polling `cancel`
+/// per row.
+pub fn robust_noise_sigma(
     image: &Grid<f64>,
     trusted: &Grid<bool>,
-    cancelled: &(dyn Fn() -> bool + Sync),
-) -> Option<f64> {
+    cancel: Cancel<'_>,
+) -> Result<f64, Cancelled> {
     let (w, h) = image.size();
     if w < 3 || h < 3 {
-        return Some(0.0);
+        return Ok(0.0);
     }
     const MASK: [[f64; 3]; 3] = [[1.0, -2.0, 1.0], [-2.0, 4.0, -2.0], [1.0, -2.0, 1.0]];
     let responses = |row: usize, out: &mut Vec<f64>| {
@@ -149,11 +139,8 @@ pub fn robust_noise_sigma_polled(
             out.push(sum.abs());
         }
     };
-    let quartile = crate::selection::kth_smallest(h - 2, responses, |n| n / 4, cancelled);
-    if cancelled() {
-        return None;
-    }
-    Some(quartile.map_or(0.0, |q| q / (6.0 * ABS_NORMAL_LOWER_QUARTILE)))
+    let quartile = crate::selection::kth_smallest(h - 2, responses, |n| n / 4, cancel)?;
+    Ok(quartile.map_or(0.0, |q| q / (6.0 * ABS_NORMAL_LOWER_QUARTILE)))
 }
 
 /// The lower quartile of `|N(0, 1)|`: the normal quantile at 0.625.
@@ -162,22 +149,17 @@ const ABS_NORMAL_LOWER_QUARTILE: f64 = 0.318_639_363_964_375;
 /// Fills the pixels where `known` is false by diffusion from the known ones
 /// (Jacobi iterations of Laplace's equation on a coarse-to-fine schedule, so
 /// large holes fill in `O(log)` passes); known pixels keep their values.
-/// With no known pixel the image is returned unchanged.
-pub fn fill_unknown(image: &Grid<f64>, known: &Grid<bool>) -> Grid<f64> {
-    fill_unknown_cancellable(image, known, &|| false).unwrap_or_else(|| image.clone())
-}
-
-/// [`fill_unknown`], polling `cancelled` between sweeps; `None` when it
-/// returned true.
-pub fn fill_unknown_cancellable(
+/// With no known pixel the image is returned unchanged. Polls `cancel`
+/// between sweeps.
+pub fn fill_unknown(
     image: &Grid<f64>,
     known: &Grid<bool>,
-    cancelled: &dyn Fn() -> bool,
-) -> Option<Grid<f64>> {
+    cancel: Cancel<'_>,
+) -> Result<Grid<f64>, Cancelled> {
     let (w, h) = image.size();
     let count = known.as_slice().iter().filter(|&&k| k).count();
     if count == 0 || count == w * h {
-        return Some(image.clone());
+        return Ok(image.clone());
     }
     let mean = image
         .as_slice()
@@ -200,9 +182,7 @@ pub fn fill_unknown_cancellable(
     let mut stride = w.max(h).next_power_of_two() / 2;
     while stride >= 1 {
         for _ in 0..8 {
-            if cancelled() {
-                return None;
-            }
+            cancel.check()?;
             previous.as_mut_slice().copy_from_slice(u.as_slice());
             for r in 0..h {
                 for c in 0..w {
@@ -235,12 +215,13 @@ pub fn fill_unknown_cancellable(
         }
         stride /= 2;
     }
-    Some(u)
+    Ok(u)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cancel::Uncancelled;
     use crate::scene::{add_noise, sombrero::sombrero};
 
     #[test]
@@ -264,22 +245,28 @@ mod tests {
                 .sum::<f64>()
                 .sqrt()
         };
-        let denoised = tv_denoise(&noisy, default_tv_weight(&noisy), 200);
+        let denoised =
+            tv_denoise(&noisy, default_tv_weight(&noisy), 200, Cancel::NEVER).uncancelled();
         assert!(
             error(&denoised) < 0.5 * error(&noisy),
             "{} -> {}",
             error(&noisy),
             error(&denoised)
         );
-        assert_eq!(tv_denoise(&noisy, 0.0, 10), noisy);
+        assert_eq!(
+            tv_denoise(&noisy, 0.0, 10, Cancel::NEVER),
+            Ok(noisy.clone())
+        );
     }
 
     #[test]
     fn robust_estimate_ignores_shading_and_finds_added_noise() {
         let scene = sombrero(128, 128);
         let all = Grid::filled(128, 128, true);
-        let clean = robust_noise_sigma(&scene.image, &all) * 255.0;
-        let noisy = robust_noise_sigma(&add_noise(&scene.image, 20.0, 3), &all) * 255.0;
+        let clean = robust_noise_sigma(&scene.image, &all, Cancel::NEVER).uncancelled() * 255.0;
+        let noisy = robust_noise_sigma(&add_noise(&scene.image, 20.0, 3), &all, Cancel::NEVER)
+            .uncancelled()
+            * 255.0;
         assert!(clean < 0.5, "clean {clean}");
         assert!((noisy - 20.0).abs() < 2.0, "noisy {noisy}");
         // Only trusted pixels count: noise outside them is not seen.
@@ -291,7 +278,7 @@ mod tests {
                 0.5 + if (c + r) % 2 == 0 { 0.3 } else { -0.3 }
             }
         });
-        assert!(robust_noise_sigma(&mixed, &half) * 255.0 < 0.5);
+        assert!(robust_noise_sigma(&mixed, &half, Cancel::NEVER).uncancelled() * 255.0 < 0.5);
     }
 
     #[test]
@@ -305,7 +292,7 @@ mod tests {
             30,
             |c, r| if *known.at(c, r) { *ramp.at(c, r) } else { 7.0 },
         );
-        let filled = fill_unknown(&holed, &known);
+        let filled = fill_unknown(&holed, &known, Cancel::NEVER).uncancelled();
         for r in 0..30 {
             for c in 0..40 {
                 let error = (filled.at(c, r) - ramp.at(c, r)).abs();

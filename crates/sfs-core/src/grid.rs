@@ -4,6 +4,8 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::cancel::{Cancel, Cancelled};
+
 /// Rows per parallel task of a pass over a `width`-pixel-wide image (about
 /// 8192 pixels), so that small images run as one task.
 pub fn rows_per_task(width: usize) -> usize {
@@ -11,25 +13,25 @@ pub fn rows_per_task(width: usize) -> usize {
 }
 
 /// Runs `row(r, values_of_row_r)` over the rows of the row-major buffer
-/// `values` (`width` wide), rows in parallel, calling `cancelled` before
-/// each row and skipping the rest once it says true. Returns false when it
-/// did (the buffer is then incomplete).
-pub fn for_rows_polled<T: Send>(
+/// `values` (`width` wide), rows in parallel, polling `cancel` before each
+/// row and skipping the rest once it says yes; `Err` then (the buffer is
+/// incomplete).
+pub fn for_rows<T: Send>(
     values: &mut [T],
     width: usize,
-    cancelled: &(dyn Fn() -> bool + Sync),
+    cancel: Cancel<'_>,
     row: impl Fn(usize, &mut [T]) + Sync,
-) -> bool {
+) -> Result<(), Cancelled> {
     values
         .par_chunks_mut(width.max(1))
         .enumerate()
         .with_min_len(rows_per_task(width))
         .for_each(|(r, values)| {
-            if !cancelled() {
+            if !cancel.is_cancelled() {
                 row(r, values);
             }
         });
-    !cancelled()
+    cancel.check()
 }
 
 /// A dense row-major 2-D array: `data[row * width + column]`.
@@ -202,38 +204,27 @@ pub enum Confidence {
 
 impl Confidence {
     /// `grid`, stored as [`Confidence::Binary`] when every value is exactly 0
-    /// or 1.
-    pub fn from_grid(grid: Grid<f64>) -> Self {
-        Self::from_grid_polled(grid, &|| false).unwrap_or_else(|| unreachable!())
-    }
-
-    /// [`Self::from_grid`] by rows in parallel, calling `cancelled` per row
-    /// (`None` once it said true). The `f64` grid a binary confidence
-    /// replaces is freed on rayon's pool.
-    pub fn from_grid_polled(
-        grid: Grid<f64>,
-        cancelled: &(dyn Fn() -> bool + Sync),
-    ) -> Option<Self> {
+    /// or 1; by rows in parallel, polling `cancel` per row. The `f64` grid a
+    /// binary confidence replaces is freed on rayon's pool.
+    pub fn from_grid(grid: Grid<f64>, cancel: Cancel<'_>) -> Result<Self, Cancelled> {
         let (width, height) = grid.size();
         let binary = grid
             .data
             .par_chunks(width.max(1))
             .with_min_len(rows_per_task(width))
-            .all(|row| !cancelled() && row.iter().all(|&v| v == 0.0 || v == 1.0));
-        if cancelled() {
-            return None;
-        }
+            .all(|row| !cancel.is_cancelled() && row.iter().all(|&v| v == 0.0 || v == 1.0));
+        cancel.check()?;
         if !binary {
-            return Some(Confidence::Weights(grid));
+            return Ok(Confidence::Weights(grid));
         }
         let mut bits = Grid::filled(width, height, false);
-        let whole = for_rows_polled(bits.as_mut_slice(), width, cancelled, |r, row| {
+        let whole = for_rows(bits.as_mut_slice(), width, cancel, |r, row| {
             for (bit, &value) in row.iter_mut().zip(&grid.data[r * width..]) {
                 *bit = value == 1.0;
             }
         });
         rayon::spawn(move || drop(grid));
-        whole.then_some(Confidence::Binary(bits))
+        whole.map(|()| Confidence::Binary(bits))
     }
 
     /// `(width, height)`.
@@ -281,13 +272,14 @@ impl Weights for Confidence {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cancel::Uncancelled;
 
     #[test]
     fn a_confidence_reads_the_values_it_was_given_in_either_storage() {
         let binary = Grid::from_fn(5, 3, |c, r| if (c + r) % 2 == 0 { 1.0 } else { 0.0 });
         let partial = Grid::from_fn(5, 3, |c, r| if c == 4 { 0.25 } else { (r % 2) as f64 });
         for (grid, compact) in [(binary, true), (partial, false)] {
-            let confidence = Confidence::from_grid(grid.clone());
+            let confidence = Confidence::from_grid(grid.clone(), Cancel::NEVER).uncancelled();
             assert_eq!(matches!(confidence, Confidence::Binary(_)), compact);
             assert_eq!(confidence.size(), (5, 3));
             assert_eq!(confidence.to_grid(), grid);

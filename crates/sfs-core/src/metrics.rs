@@ -4,6 +4,7 @@
 use serde::Serialize;
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::model::{self, Lambertian, LevelGeometry, Reflectance};
 
@@ -101,7 +102,8 @@ pub fn errors_with_model<M: Reflectance + ?Sized>(
     let (w, h) = depth_gt.size();
     let mask = depth_gt.map(|g| g.is_finite());
     let geometry = LevelGeometry::new(w, h, w, h, camera);
-    let reprojection = model::reproject(model, &geometry, &mask, depth);
+    let reprojection =
+        model::reproject(model, &geometry, &mask, depth, Cancel::NEVER).uncancelled();
     let (mut num, mut den) = (0.0, 0.0);
     for q in 0..w * h {
         if mask.as_slice()[q] {

@@ -5,6 +5,7 @@
 //! Everything here is a pure function of its arguments; the solver builds on it.
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::{Grid, Weights};
 
 /// Where a pixel sits on the image plane at some pyramid level.
@@ -484,7 +485,7 @@ pub struct Energy {
 }
 
 /// Evaluates the energy (paper Eqs. 6-8) of `depth` on one level (rows
-/// summed in parallel).
+/// summed in parallel, polling `cancel` per row).
 #[allow(clippy::too_many_arguments)]
 pub fn energy<M: Reflectance + ?Sized, C: Weights + ?Sized>(
     model: &M,
@@ -495,40 +496,14 @@ pub fn energy<M: Reflectance + ?Sized, C: Weights + ?Sized>(
     depth: &Grid<f64>,
     alpha: f64,
     lambda: f64,
-) -> Energy {
-    energy_polled(
-        model,
-        geometry,
-        image,
-        confidence,
-        domain,
-        depth,
-        alpha,
-        lambda,
-        &|| false,
-    )
-}
-
-/// [`energy`], calling `cancelled` before each row and skipping the rest
-/// once it says true (the sum is then meaningless: the caller stops).
-#[allow(clippy::too_many_arguments)]
-pub fn energy_polled<M: Reflectance + ?Sized, C: Weights + ?Sized>(
-    model: &M,
-    geometry: &LevelGeometry,
-    image: &Grid<f64>,
-    confidence: &C,
-    domain: &Grid<bool>,
-    depth: &Grid<f64>,
-    alpha: f64,
-    lambda: f64,
-    cancelled: &(dyn Fn() -> bool + Sync),
-) -> Energy {
+    cancel: Cancel<'_>,
+) -> Result<Energy, Cancelled> {
     use rayon::prelude::*;
     let (data, smoothness) = (0..geometry.height)
         .into_par_iter()
         .map(|r| {
             let (mut data, mut smooth) = (0.0, 0.0);
-            if cancelled() {
+            if cancel.is_cancelled() {
                 return (data, smooth);
             }
             for c in 0..geometry.width {
@@ -547,36 +522,27 @@ pub fn energy_polled<M: Reflectance + ?Sized, C: Weights + ?Sized>(
             (data, smooth)
         })
         .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-    Energy {
+    cancel.check()?;
+    Ok(Energy {
         data,
         smoothness,
         total: data + alpha * smoothness,
-    }
+    })
 }
 
 /// Reprojects a depth map into an image `R = s Q^3 / (z W)` with the solver's
-/// upwind derivatives; 0 outside `domain`.
+/// upwind derivatives; 0 outside `domain`. Rows in parallel, polling
+/// `cancel` per row.
 pub fn reproject<M: Reflectance + ?Sized>(
     model: &M,
     geometry: &LevelGeometry,
     domain: &Grid<bool>,
     depth: &Grid<f64>,
-) -> Grid<f64> {
-    reproject_polled(model, geometry, domain, depth, &|| false)
-}
-
-/// [`reproject`], rows in parallel, calling `cancelled` before each row and
-/// leaving the rest 0 once it says true (the caller stops).
-pub fn reproject_polled<M: Reflectance + ?Sized>(
-    model: &M,
-    geometry: &LevelGeometry,
-    domain: &Grid<bool>,
-    depth: &Grid<f64>,
-    cancelled: &(dyn Fn() -> bool + Sync),
-) -> Grid<f64> {
+    cancel: Cancel<'_>,
+) -> Result<Grid<f64>, Cancelled> {
     let (w, h) = (geometry.width, geometry.height);
     let mut out = Grid::filled(w, h, 0.0);
-    crate::grid::for_rows_polled(out.as_mut_slice(), w, cancelled, |r, row| {
+    crate::grid::for_rows(out.as_mut_slice(), w, cancel, |r, row| {
         for (c, out) in row.iter_mut().enumerate() {
             if !domain.at(c, r) {
                 continue;
@@ -586,8 +552,8 @@ pub fn reproject_polled<M: Reflectance + ?Sized>(
             let value = model.radiance(&geometry.ray(c, r), nb.centre, gx, gy);
             *out = if value.is_finite() { value } else { 0.0 };
         }
-    });
-    out
+    })?;
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -2,7 +2,8 @@
 //! intrinsics that follow it; pure functions over `grid` and `camera`.
 
 use crate::camera::Intrinsics;
-use crate::grid::Grid;
+use crate::cancel::{Cancel, Cancelled};
+use crate::grid::{Grid, for_rows};
 
 /// The working size for `max_side`: the image's own when it fits, else
 /// scaled down keeping the aspect ratio (each side at least 1).
@@ -21,44 +22,34 @@ pub fn working_size(width: usize, height: usize, max_side: Option<usize>) -> (us
 
 /// Resamples `grid` to `width` x `height` by area averaging: every output
 /// pixel is the mean of the input area it covers (fractional overlaps
-/// weighted). Upsampling repeats values.
-pub fn resize_area(grid: &Grid<f64>, width: usize, height: usize) -> Grid<f64> {
-    resize_area_polled(grid, width, height, &|| false)
-        .unwrap_or_else(|| unreachable!("never cancelled"))
-}
-
-/// [`resize_area`], rows in parallel, polling `cancelled` per row; `None`
-/// once it said true.
-pub fn resize_area_polled(
+/// weighted). Upsampling repeats values. Rows in parallel, polling `cancel`
+/// per row.
+pub fn resize_area(
     grid: &Grid<f64>,
     width: usize,
     height: usize,
-    cancelled: &(dyn Fn() -> bool + Sync),
-) -> Option<Grid<f64>> {
-    use crate::grid::for_rows_polled;
+    cancel: Cancel<'_>,
+) -> Result<Grid<f64>, Cancelled> {
     let (w, h) = grid.size();
     if (w, h) == (width, height) {
-        return Some(grid.clone());
+        return Ok(grid.clone());
     }
     let columns = weights(w, width);
     let rows = weights(h, height);
     // Horizontal pass (w -> width) per input row, then vertical.
     let mut across = Grid::filled(width, h, 0.0);
-    let done = for_rows_polled(across.as_mut_slice(), width, cancelled, |r, out| {
+    for_rows(across.as_mut_slice(), width, cancel, |r, out| {
         for (c, taps) in columns.iter().enumerate() {
             out[c] = taps.iter().map(|&(i, wt)| wt * grid.at(i, r)).sum();
         }
-    });
-    if !done {
-        return None;
-    }
+    })?;
     let mut out = Grid::filled(width, height, 0.0);
-    let done = for_rows_polled(out.as_mut_slice(), width, cancelled, |r, out| {
+    for_rows(out.as_mut_slice(), width, cancel, |r, out| {
         for (c, value) in out.iter_mut().enumerate() {
             *value = rows[r].iter().map(|&(i, wt)| wt * across.at(c, i)).sum();
         }
-    });
-    done.then_some(out)
+    })?;
+    Ok(out)
 }
 
 /// Per output index, the input indices it covers and their weights (sum 1).
@@ -105,6 +96,7 @@ pub fn scale_intrinsics(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cancel::Uncancelled;
 
     #[test]
     fn working_size_keeps_the_aspect() {
@@ -117,10 +109,10 @@ mod tests {
     #[test]
     fn area_averaging_keeps_the_mean_and_averages_blocks() {
         let g = Grid::from_fn(6, 4, |c, r| (c + 10 * r) as f64);
-        let half = resize_area(&g, 3, 2);
+        let half = resize_area(&g, 3, 2, Cancel::NEVER).uncancelled();
         assert_eq!(*half.at(0, 0), (0.0 + 1.0 + 10.0 + 11.0) / 4.0);
         assert_eq!(*half.at(2, 1), (24.0 + 25.0 + 34.0 + 35.0) / 4.0);
-        let odd = resize_area(&g, 4, 3);
+        let odd = resize_area(&g, 4, 3, Cancel::NEVER).uncancelled();
         let mean = |g: &Grid<f64>| g.as_slice().iter().sum::<f64>() / g.len() as f64;
         assert!((mean(&odd) - mean(&g)).abs() < 1e-12);
     }

@@ -1,6 +1,6 @@
 //! Order statistics of the large sets of values a photograph gives (a value
 //! per pixel): the exact k-th smallest, found in parallel by rows, polling a
-//! cancellation closure per row, without holding the whole set.
+//! [`Cancel`] per row, without holding the whole set.
 //!
 //! The values must be non-negative and finite: for those the bit patterns of
 //! `f64` sort as the numbers do. A first pass counts the values per bucket of
@@ -9,6 +9,8 @@
 //! The result is the same value a sort of the whole set gives.
 
 use rayon::prelude::*;
+
+use crate::cancel::{Cancel, Cancelled};
 
 /// Top bits of a value that name its bucket.
 const BUCKET_BITS: u32 = 16;
@@ -21,14 +23,14 @@ fn bucket(value: f64) -> usize {
 
 /// The `rank(count)`-th smallest (from 0) of the values `row_values(r, out)`
 /// pushes onto `out` for rows `0..rows` (non-negative and finite; `count` is
-/// how many there are, `rank(count) < count`). `None` when there is no value
-/// or `cancelled` said true during one of the two passes.
+/// how many there are, `rank(count) < count`); `None` when there is no
+/// value. Polls `cancel` per row of each of the two passes.
 pub fn kth_smallest(
     rows: usize,
     row_values: impl Fn(usize, &mut Vec<f64>) + Sync,
     rank: impl Fn(usize) -> usize,
-    cancelled: &(dyn Fn() -> bool + Sync),
-) -> Option<f64> {
+    cancel: Cancel<'_>,
+) -> Result<Option<f64>, Cancelled> {
     // Few enough tasks that their histograms (256 KiB each) stay small.
     let min_rows = rows.div_ceil(32).max(1);
     let counts = (0..rows)
@@ -37,7 +39,7 @@ pub fn kth_smallest(
         .fold(
             || (vec![0u32; 1 << BUCKET_BITS], Vec::new()),
             |(mut counts, mut values), r| {
-                if !cancelled() {
+                if !cancel.is_cancelled() {
                     values.clear();
                     row_values(r, &mut values);
                     for &v in &values {
@@ -55,12 +57,10 @@ pub fn kth_smallest(
                 a
             },
         );
-    if cancelled() {
-        return None;
-    }
+    cancel.check()?;
     let total: u64 = counts.iter().sum();
     if total == 0 {
-        return None;
+        return Ok(None);
     }
     let wanted = rank(total as usize).min(total as usize - 1) as u64;
     let mut before = 0u64;
@@ -78,7 +78,7 @@ pub fn kth_smallest(
         .fold(
             || (Vec::new(), Vec::new()),
             |(mut kept, mut values): (Vec<f64>, Vec<f64>), r| {
-                if !cancelled() {
+                if !cancel.is_cancelled() {
                     values.clear();
                     row_values(r, &mut values);
                     kept.extend(values.iter().filter(|&&v| bucket(v) == chosen));
@@ -91,12 +91,10 @@ pub fn kth_smallest(
             a.append(&mut b);
             a
         });
-    if cancelled() {
-        return None;
-    }
+    cancel.check()?;
     let within = (wanted - before) as usize;
-    (within < candidates.len())
-        .then(|| *candidates.select_nth_unstable_by(within, f64::total_cmp).1)
+    Ok((within < candidates.len())
+        .then(|| *candidates.select_nth_unstable_by(within, f64::total_cmp).1))
 }
 
 #[cfg(test)]
@@ -131,22 +129,33 @@ mod tests {
             .collect();
         let all: Vec<f64> = rows.iter().flatten().copied().collect();
         for rank in [0, 1, all.len() / 4, all.len() / 2, all.len() - 1] {
-            let got = kth_smallest(rows.len(), |r, out| out.extend(&rows[r]), |_| rank, &|| {
-                false
-            });
+            let got = kth_smallest(
+                rows.len(),
+                |r, out| out.extend(&rows[r]),
+                |_| rank,
+                Cancel::NEVER,
+            );
             assert_eq!(
-                got.map(f64::to_bits),
-                Some(by_sorting(&all, rank).to_bits())
+                got.map(|v| v.map(f64::to_bits)),
+                Ok(Some(by_sorting(&all, rank).to_bits()))
             );
         }
     }
 
     #[test]
-    fn nothing_or_a_cancel_gives_none() {
-        assert_eq!(kth_smallest(10, |_, _| {}, |n| n / 2, &|| false), None);
+    fn nothing_gives_none_and_a_cancel_gives_cancelled() {
         assert_eq!(
-            kth_smallest(10, |r, out| out.push(r as f64), |n| n / 2, &|| true),
-            None
+            kth_smallest(10, |_, _| {}, |n| n / 2, Cancel::NEVER),
+            Ok(None)
+        );
+        assert_eq!(
+            kth_smallest(
+                10,
+                |r, out| out.push(r as f64),
+                |n| n / 2,
+                Cancel::new(&|| true)
+            ),
+            Err(Cancelled)
         );
     }
 }

@@ -1,5 +1,6 @@
 //! Solver-level tests on small synthetic scenes.
 
+use sfs_core::cancel::{Cancel, Uncancelled};
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
 use sfs_core::model::{self, Derivatives, Lambertian, LevelGeometry, PixelRay, Reflectance};
@@ -41,7 +42,14 @@ fn upwind_residual(size: usize) -> f64 {
         intensity_scale: scene.intensity_scale,
     };
     let geometry = LevelGeometry::new(size, size, size, size, scene.camera);
-    let reprojection = model::reproject(&model, &geometry, &scene.object_mask, &scene.depth_gt);
+    let reprojection = model::reproject(
+        &model,
+        &geometry,
+        &scene.object_mask,
+        &scene.depth_gt,
+        Cancel::NEVER,
+    )
+    .uncancelled();
     let diff: f64 = reprojection
         .as_slice()
         .iter()
@@ -99,7 +107,9 @@ fn final_energy_is_well_below_the_initial_one() {
             depth,
             solution.alpha_px,
             solution.lambda_px,
+            Cancel::NEVER,
         )
+        .uncancelled()
         .total
     };
     let initial = energy_of(&Grid::filled(48, 48, solution.initial_depth));
@@ -482,7 +492,14 @@ fn upwind_differences_keep_their_sign_with_lights_off_centre() {
         let scene = sombrero_lit(size, size, lights);
         let model = LightModel::new(scene.intensity_scale, lights);
         let geometry = LevelGeometry::new(size, size, size, size, scene.camera);
-        let reprojection = model::reproject(&model, &geometry, &scene.object_mask, &scene.depth_gt);
+        let reprojection = model::reproject(
+            &model,
+            &geometry,
+            &scene.object_mask,
+            &scene.depth_gt,
+            Cancel::NEVER,
+        )
+        .uncancelled();
         let diff: f64 = reprojection
             .as_slice()
             .iter()

@@ -6,6 +6,7 @@
 //! `run` runs the paper's experiments, `report` writes them, `paper_figures`
 //! draws them; `robustness`, `lights` and `speed` are the other parts.
 
+use sfs_core::cancel::{Cancel, Uncancelled};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
@@ -108,7 +109,8 @@ impl SolveObserver for CurveRecorder<'_> {
         let started = Instant::now();
         let level_domain = result.depth.map(|z| z.is_finite());
         let full = pyramid::upsample_depth(&result.depth, &level_domain, &self.full_domain);
-        let full = sfs_core::solver::problem::masked(&full, &self.full_domain);
+        let full = sfs_core::solver::problem::masked(&full, &self.full_domain, Cancel::NEVER)
+            .uncancelled();
         if let Ok(rse) = metrics::rse(&full, self.truth) {
             let t = result.elapsed.saturating_sub(self.overhead).as_secs_f64();
             self.points.push((t, rse));

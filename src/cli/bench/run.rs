@@ -3,6 +3,7 @@
 //! on them (clean, noisy, with pre- and post-processing, Figs. 2-4), and
 //! hands what it measured to `report` and what it drew to `paper_figures`.
 
+use sfs_core::cancel::{Cancel, Uncancelled};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -195,7 +196,9 @@ fn solve_timed(bench: &BenchScene, job: Job<'_>, name: &str) -> Result<Solved> {
             job.image,
             sfs_core::denoise::default_tv_weight(job.image),
             TV_ITERATIONS,
+            Cancel::NEVER,
         )
+        .uncancelled()
     } else {
         job.image.clone()
     };
@@ -241,7 +244,7 @@ fn reproject(scene: &Scene, depth: &Grid<f64>) -> Grid<f64> {
     let geometry = sfs_core::model::LevelGeometry::new(w, h, w, h, scene.camera);
     let domain = depth.map(|z| z.is_finite());
     let filled = depth.map(|z| if z.is_finite() { *z } else { 1.0 });
-    sfs_core::model::reproject(&model, &geometry, &domain, &filled)
+    sfs_core::model::reproject(&model, &geometry, &domain, &filled, Cancel::NEVER).uncancelled()
 }
 
 /// Time after which a curve stays at or below `rse` (linear interpolation at

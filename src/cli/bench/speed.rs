@@ -212,6 +212,7 @@ fn convergence(
     fast_marching: &Solution,
     defaults: &Solution,
 ) -> Result<ConvergenceRow> {
+    use sfs_core::cancel::{Cancel, Uncancelled};
     use sfs_core::model::{Derivatives, LevelGeometry};
     use sfs_core::solver::multigrid::{Multigrid, Smoother, Sor};
     use sfs_core::solver::pyramid::PyramidLevel;
@@ -230,12 +231,16 @@ fn convergence(
         .map(|&z| if z.is_finite() { z } else { 1.0 });
     let model = problem.model();
     let fresh = || -> Result<LinearSystem> {
-        let mut system = LinearSystem::new(&level);
+        let mut system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
         anyhow::ensure!(
-            system.linearise_data(&model, &level, &depth, Derivatives::Exact),
+            system
+                .linearise_data(&model, &level, &depth, Derivatives::Exact, Cancel::NEVER)
+                .uncancelled(),
             "no exact derivatives"
         );
-        system.add_smoothness(&level, defaults.alpha_px, defaults.lambda_px);
+        system
+            .add_smoothness(&level, defaults.alpha_px, defaults.lambda_px, Cancel::NEVER)
+            .uncancelled();
         Ok(system)
     };
     let mut residual_buffer = Vec::new();

@@ -6,6 +6,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::io::{self, IoError, SrgbMode};
 
@@ -161,8 +162,9 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         lost = Some(albedo.map(|&b| if b >= MIN_ALBEDO { 1.0 } else { 0.0 }));
     }
     let (w, h) = working_size(size.0, size.1, setup.max_side);
-    let image = resize_area(&image, w, h);
-    let lost = lost.map(|l| resize_area(&l, w, h).map(|&v| if v >= 0.999 { 1.0 } else { 0.0 }));
+    let resize = |grid: &Grid<f64>| resize_area(grid, w, h, Cancel::NEVER).uncancelled();
+    let image = resize(&image);
+    let lost = lost.map(|l| resize(&l).map(|&v| if v >= 0.999 { 1.0 } else { 0.0 }));
     Ok(Photo {
         image,
         lost,

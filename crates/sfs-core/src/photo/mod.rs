@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::Serialize;
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::io::{self, IoError, SrgbMode};
 use crate::light::PointLight;
@@ -298,7 +299,7 @@ pub fn read_mask_at(
         return Ok(mask);
     }
     if mask.size() == full {
-        return Ok(resize_area(&mask, working.0, working.1));
+        return Ok(resize_area(&mask, working.0, working.1, Cancel::NEVER).uncancelled());
     }
     let working_too = if working == full {
         String::new()

@@ -12,6 +12,7 @@
 //! `I_ref`), `sigma_model` and `tau` are constants of the method, measured
 //! once over the test scenes (README, "Choosing alpha").
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 use crate::params::ProblemScales;
 
@@ -22,22 +23,17 @@ pub const SIGMA_MODEL: f64 = 0.023;
 /// Prior spread of the relative second derivatives `S_rel`.
 pub const TAU: f64 = 75.0;
 
-/// The relative noise level `sigma / I_ref` of the problem's finest level.
-pub fn relative_noise(finest: &PyramidLevel, scales: &ProblemScales) -> f64 {
-    relative_noise_polled(finest, scales, &|| false)
-        .unwrap_or_else(|| unreachable!("never cancelled"))
-}
-
-/// [`relative_noise`], polling `cancelled` per row; `None` once it said true.
-pub fn relative_noise_polled(
+/// The relative noise level `sigma / I_ref` of the problem's finest level,
+/// polling `cancel` per row.
+pub fn relative_noise(
     finest: &PyramidLevel,
     scales: &ProblemScales,
-    cancelled: &(dyn Fn() -> bool + Sync),
-) -> Option<f64> {
+    cancel: Cancel<'_>,
+) -> Result<f64, Cancelled> {
     let trusted = Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
         *finest.domain.at(c, r) && finest.confidence.at(c, r) > 0.0
     });
-    crate::denoise::robust_noise_sigma_polled(&finest.image, &trusted, cancelled)
+    crate::denoise::robust_noise_sigma(&finest.image, &trusted, cancel)
         .map(|sigma| sigma / scales.intensity)
 }
 

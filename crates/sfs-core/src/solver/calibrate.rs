@@ -10,6 +10,7 @@
 
 use serde::Serialize;
 
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::params::SolverParams;
 use crate::resample::{resize_area, scale_intrinsics, working_size};
@@ -38,19 +39,20 @@ pub struct ScaleEstimate {
 fn small(problem: &Problem) -> Problem {
     let (w, h) = problem.image.size();
     let (sw, sh) = working_size(w, h, Some(SEARCH_SIDE));
+    let resize = |grid: &Grid<f64>| resize_area(grid, sw, sh, Cancel::NEVER).uncancelled();
     let mask = problem
         .object_mask
         .as_ref()
-        .map(|m| resize_area(&m.map(|&v| if v { 1.0 } else { 0.0 }), sw, sh).map(|&v| v >= 0.5));
+        .map(|m| resize(&m.map(|&v| if v { 1.0 } else { 0.0 })).map(|&v| v >= 0.5));
     Problem {
-        image: resize_area(&problem.image, sw, sh),
+        image: resize(&problem.image),
         camera: scale_intrinsics(problem.camera, (w, h), (sw, sh)),
         intensity_scale: problem.intensity_scale,
         object_mask: mask,
         confidence: problem
             .confidence
             .as_ref()
-            .map(|c| resize_area(c, sw, sh).map(|v| v.clamp(0.0, 1.0))),
+            .map(|c| resize(c).map(|v| v.clamp(0.0, 1.0))),
         lights: problem.lights.clone(),
     }
 }

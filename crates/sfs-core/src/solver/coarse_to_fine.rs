@@ -6,10 +6,11 @@
 
 use std::time::Instant;
 
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::model::{self, Energy, Reflectance};
 
-use super::prepare::{Prepared, level_energy, level_energy_polled, level_result};
+use super::prepare::{Prepared, level_energy, level_result};
 use super::problem::{LevelReport, SolveError, SolveObserver, check_cancelled};
 use super::pyramid::{self, PyramidLevel};
 
@@ -92,10 +93,14 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
     let offset = usize::from(show_start) + shown;
     let count = levels.len() + offset;
     check_cancelled(observer)?;
-    let initial_energy = level_energy_polled(model, &levels[0], &depth, alpha, lambda, &|| {
-        observer.is_cancelled()
-    });
-    check_cancelled(observer)?;
+    let initial_energy = level_energy(
+        model,
+        &levels[0],
+        &depth,
+        alpha,
+        lambda,
+        Cancel::new(&|| observer.is_cancelled()),
+    )?;
     if show_start {
         let result = level_result(
             model,
@@ -105,8 +110,8 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             count,
             initial_energy,
             start,
-            &|| observer.is_cancelled(),
-        );
+            Cancel::new(&|| observer.is_cancelled()),
+        )?;
         // A cancelled reprojection is incomplete: it is not shown.
         check_cancelled(observer)?;
         observer.on_level(&result);
@@ -144,8 +149,8 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             count,
             end.energy,
             start,
-            &|| observer.is_cancelled(),
-        );
+            Cancel::new(&|| observer.is_cancelled()),
+        )?;
         check_cancelled(observer)?;
         observer.on_level(&result);
         walk.reprojection = std::sync::Arc::unwrap_or_clone(result.reprojection);
@@ -160,9 +165,16 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             if !step.finest {
                 // Carry the current depth straight to full resolution.
                 depth = pyramid::upsample_depth(&depth, &level.domain, &finest.domain);
-                walk.final_energy = level_energy(model, finest, &depth, alpha, lambda);
-                walk.reprojection =
-                    model::reproject(model, &finest.geometry, &finest.domain, &depth);
+                walk.final_energy =
+                    level_energy(model, finest, &depth, alpha, lambda, Cancel::NEVER).uncancelled();
+                walk.reprojection = model::reproject(
+                    model,
+                    &finest.geometry,
+                    &finest.domain,
+                    &depth,
+                    Cancel::NEVER,
+                )
+                .uncancelled();
             }
             break;
         }

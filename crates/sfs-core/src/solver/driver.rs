@@ -9,13 +9,14 @@
 
 use std::time::Instant;
 
+use crate::cancel::Cancel;
 use crate::grid::Grid;
 use crate::model::{Energy, Reflectance};
 use crate::params::{InitialDepth, LinearSolver, SolverParams, StepControl};
 
 use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::multigrid::Multigrid;
-use super::prepare::{Crop, Prepared, level_energy_polled, prepare};
+use super::prepare::{Crop, Prepared, level_energy, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
     free_on_pool, on_object, rows_per_task,
@@ -131,12 +132,16 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         // Every pass over the level polls cancellation per block of rows
         // (seconds each at 18 megapixels otherwise).
         let energy_of = |depth: &Grid<f64>, observer: &dyn SolveObserver| {
-            level_energy_polled(model, level, depth, alpha, lambda, &|| {
-                observer.is_cancelled()
-            })
+            level_energy(
+                model,
+                level,
+                depth,
+                alpha,
+                lambda,
+                Cancel::new(&|| observer.is_cancelled()),
+            )
         };
-        let mut system = LinearSystem::new_polled(level, &|| observer.is_cancelled());
-        check_cancelled(observer)?;
+        let mut system = LinearSystem::new(level, Cancel::new(&|| observer.is_cancelled()))?;
         let mut energies = Vec::with_capacity(params.kappa_max);
         // Energy of the current depth on this level, once known.
         let mut current: Option<Energy> = step.start_energy;
@@ -148,20 +153,21 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 break; // the level has converged
             }
             let t0 = Instant::now();
-            let linearised =
-                system.linearise_data_polled(model, level, depth, derivatives, &|| {
-                    observer.is_cancelled()
-                });
-            check_cancelled(observer)?;
+            let linearised = system.linearise_data(
+                model,
+                level,
+                depth,
+                derivatives,
+                Cancel::new(&|| observer.is_cancelled()),
+            )?;
             if !linearised {
                 return Err(SolveError::Input(
                     "the reflectance model has no exact derivatives; use numeric derivatives"
                         .into(),
                 ));
             }
-            system.clear_dz_polled(&|| observer.is_cancelled());
+            system.clear_dz(Cancel::new(&|| observer.is_cancelled()))?;
             self.phases.linearise_seconds += t0.elapsed().as_secs_f64();
-            check_cancelled(observer)?;
             // The multigrid hierarchy of this outer iteration's first
             // system serves its later inner iterations too: only Psi' moves.
             let mut hierarchy: Option<Multigrid> = None;
@@ -175,9 +181,11 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
             for inner in 0..params.inner_iterations {
                 let t1 = Instant::now();
-                let change =
-                    system.update_weights_polled(level, lambda, &|| observer.is_cancelled());
-                check_cancelled(observer)?;
+                let change = system.update_weights(
+                    level,
+                    lambda,
+                    Cancel::new(&|| observer.is_cancelled()),
+                )?;
                 self.phases.assemble_seconds += t1.elapsed().as_secs_f64();
                 // Refining a full-resolution start, once the weights have
                 // settled the later inner iterations only polish the step:
@@ -192,12 +200,12 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     break;
                 }
                 let t2 = Instant::now();
-                system.assemble_polled(level, alpha, &|| observer.is_cancelled());
-                check_cancelled(observer)?;
+                system.assemble(level, alpha, Cancel::new(&|| observer.is_cancelled()))?;
                 if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
                     // At dz = 0 the residual is the right-hand side.
-                    start_residual = system.rhs_norm_squared(&|| observer.is_cancelled()).sqrt();
-                    check_cancelled(observer)?;
+                    start_residual = system
+                        .rhs_norm_squared(Cancel::new(&|| observer.is_cancelled()))?
+                        .sqrt();
                 }
                 self.phases.assemble_seconds += t2.elapsed().as_secs_f64();
                 self.phases.inner_iterations += 1;
@@ -224,10 +232,13 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     let step =
                         apply_update(depth, &system, &level.domain, crop, 1.0, z_floor, observer);
                     check_cancelled(observer)?;
-                    (step, energy_of(depth, observer))
+                    (step, energy_of(depth, observer)?)
                 }
                 StepControl::Backtracking => {
-                    let before = current.unwrap_or_else(|| energy_of(depth, observer));
+                    let before = match current {
+                        Some(energy) => energy,
+                        None => energy_of(depth, observer)?,
+                    };
                     // The depth before the trial steps, kept in the
                     // system's data part (dead until the next linearisation).
                     system.stash_depth(depth);
@@ -243,8 +254,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                             observer,
                         );
                         check_cancelled(observer)?;
-                        let after = energy_of(depth, observer);
-                        check_cancelled(observer)?;
+                        let after = energy_of(depth, observer)?;
                         if after.total <= before.total || scale < 1.0 / 16.0 {
                             break (step, after);
                         }
@@ -253,7 +263,6 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     }
                 }
             };
-            check_cancelled(observer)?;
             energies.push(energy.total);
             current = Some(energy);
             self.phases.update_seconds += t3.elapsed().as_secs_f64();
@@ -268,7 +277,10 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 elapsed: step.start.elapsed(),
             });
         }
-        let energy = current.unwrap_or_else(|| energy_of(depth, observer));
+        let energy = match current {
+            Some(energy) => energy,
+            None => energy_of(depth, observer)?,
+        };
         // Freeing the system's pages takes tens of milliseconds at 18 MP: on
         // the pool, polling meanwhile, and done before the level's results
         // are allocated (a peak that does not depend on thread timing).
@@ -297,8 +309,11 @@ impl<M> GaussNewton<'_, M> {
         match params.linear_solver {
             LinearSolver::Sor => {
                 for _ in 0..params.sor_iterations {
-                    check_cancelled(observer)?;
-                    sor::sweep_polled(system, params.omega, &|| observer.is_cancelled());
+                    sor::sweep(
+                        system,
+                        params.omega,
+                        Cancel::new(&|| observer.is_cancelled()),
+                    )?;
                     self.phases.linear_iterations += 1;
                 }
             }
@@ -378,11 +393,9 @@ fn step_share_of_crop(
 /// The norm of the system's residual at its current unknowns (`Err` once
 /// cancelled).
 fn residual_norm(system: &LinearSystem, observer: &dyn SolveObserver) -> Result<f64, SolveError> {
-    let norm = system
-        .residual_norm_squared(&|| observer.is_cancelled())
-        .sqrt();
-    check_cancelled(observer)?;
-    Ok(norm)
+    Ok(system
+        .residual_norm_squared(Cancel::new(&|| observer.is_cancelled()))?
+        .sqrt())
 }
 
 /// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the

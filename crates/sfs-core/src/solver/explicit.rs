@@ -48,6 +48,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Reflectance, Spacing, charbonnier_derivative, slot};
 use crate::params::SolverParams;
@@ -451,7 +452,8 @@ impl<M: Reflectance> LevelScheme for Descent<'_, M> {
         };
         let (w, h) = depth.size();
         let mut ws = Workspace::new(w * h);
-        let mut energy = level_energy(model, level, depth, alpha, lambda);
+        let mut energy =
+            level_energy(model, level, depth, alpha, lambda, Cancel::NEVER).uncancelled();
         let mut checkpoint = depth.clone();
         let mut energies = vec![energy.total];
         let smooth_bound = smoothness_lipschitz(alpha, level.geometry.spacing);
@@ -491,7 +493,8 @@ impl<M: Reflectance> LevelScheme for Descent<'_, M> {
             if !steps.is_multiple_of(explicit.check_interval) {
                 continue;
             }
-            let trial = level_energy(model, level, depth, alpha, lambda);
+            let trial =
+                level_energy(model, level, depth, alpha, lambda, Cancel::NEVER).uncancelled();
             let improved = trial.total <= energy.total; // false for NaN too
             if !improved {
                 // Overshoot (or a non-finite energy): back to the last check.
@@ -528,8 +531,8 @@ impl<M: Reflectance> LevelScheme for Descent<'_, M> {
                     step.levels,
                     energy,
                     step.start,
-                    &|| observer.is_cancelled(),
-                );
+                    Cancel::new(&|| observer.is_cancelled()),
+                )?;
                 check_cancelled(observer)?;
                 observer.on_level(&result);
                 last_snapshot = Instant::now();
@@ -569,15 +572,16 @@ mod tests {
     #[test]
     fn gradient_matches_finite_differences_of_the_energy() {
         let scene = sombrero(24, 24);
-        let level =
-            PyramidLevel {
-                geometry: LevelGeometry::new(24, 24, 24, 24, scene.camera),
-                image: std::borrow::Cow::Borrowed(&scene.image),
-                confidence: Confidence::from_grid(Grid::from_fn(24, 24, |c, _| {
-                    if c < 5 { 0.0 } else { 1.0 }
-                })),
-                domain: Grid::filled(24, 24, true),
-            };
+        let level = PyramidLevel {
+            geometry: LevelGeometry::new(24, 24, 24, 24, scene.camera),
+            image: std::borrow::Cow::Borrowed(&scene.image),
+            confidence: Confidence::from_grid(
+                Grid::from_fn(24, 24, |c, _| if c < 5 { 0.0 } else { 1.0 }),
+                Cancel::NEVER,
+            )
+            .uncancelled(),
+            domain: Grid::filled(24, 24, true),
+        };
         // A depth with distinct neighbours (no upwind ties to flip).
         let depth = Grid::from_fn(24, 24, |c, r| {
             1.8 + 0.013 * c as f64 + 0.007 * r as f64 + 0.02 * ((c * 7 + r * 3) as f64).sin()
@@ -587,7 +591,11 @@ mod tests {
         };
         let (alpha, lambda) = (50.0, 1e-3);
         let gradient = energy_gradient(&model, &level, &depth, alpha, lambda);
-        let energy = |z: &Grid<f64>| level_energy(&model, &level, z, alpha, lambda).total;
+        let energy = |z: &Grid<f64>| {
+            level_energy(&model, &level, z, alpha, lambda, Cancel::NEVER)
+                .uncancelled()
+                .total
+        };
         for (c, r) in [(0, 0), (3, 7), (12, 12), (23, 5), (6, 23)] {
             let step = 1e-6;
             let mut plus = depth.clone();

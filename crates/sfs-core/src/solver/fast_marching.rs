@@ -64,14 +64,15 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Cancelled, Uncancelled};
 use crate::grid::Grid;
 use crate::light::LightModel;
 use crate::model::{self, Lambertian, LevelGeometry};
-use crate::params::{DomainMode, SolverParams};
+use crate::params::DomainMode;
 
 use super::problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver, check_cancelled, masked,
+    SolveObserver, masked,
 };
 
 /// Settings of the fast marching baseline.
@@ -268,7 +269,7 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
 /// The fast-marching depth of `image` seen by `camera` on `domain` (a
 /// problem validated by the caller, intensity scale `s`): a value at every pixel, the mean reached
 /// depth off the domain and where the front did not arrive; and that mean.
-/// Polls `observer`'s cancellation every [`CANCEL_POLL`] heap operations.
+/// Polls `cancel` every [`CANCEL_POLL`] heap operations.
 ///
 /// Every domain pixel starts with its frontal value; those are read in
 /// order from a [`FrontalQueue`] beside a binary heap that holds only the
@@ -280,7 +281,7 @@ pub(crate) fn march(
     domain: &Grid<bool>,
     s: f64,
     settings: &FastMarchingParams,
-    observer: &dyn SolveObserver,
+    cancel: Cancel<'_>,
 ) -> Result<(Grid<f64>, f64), SolveError> {
     let (w, h) = image.size();
     let geometry = LevelGeometry::new(w, h, w, h, camera);
@@ -292,7 +293,7 @@ pub(crate) fn march(
         .par_chunks(w.max(1))
         .zip(image.par_chunks(w.max(1)))
         .map(|(inside, image)| {
-            if observer.is_cancelled() {
+            if cancel.is_cancelled() {
                 return 0.0;
             }
             inside
@@ -302,7 +303,7 @@ pub(crate) fn march(
                 .fold(0.0, |brightest: f64, (_, &v)| brightest.max(v))
         })
         .reduce(|| 0.0, f64::max);
-    check_cancelled(observer)?;
+    cancel.check()?;
     let floor = settings.min_relative_intensity * brightest;
     let pixel = |q: usize, log_target: f64| {
         let ray = geometry.ray(q % w, q / w);
@@ -315,7 +316,7 @@ pub(crate) fn march(
         }
     };
     let mut log_target = vec![0.0; w * h];
-    fill_rows(&mut log_target, w, observer, |q| {
+    fill_rows(&mut log_target, w, cancel, |q| {
         (s * geometry.ray(q % w, q / w).q() / image[q].max(floor)).ln()
     })?;
     // Frontal values: a light-facing patch at distance e^v has I = s e^{-2v}.
@@ -323,7 +324,7 @@ pub(crate) fn march(
     // polled rows: one sequential fill of 8 bytes per pixel would be tens to
     // hundreds of milliseconds without a poll at 18 MP.
     let mut value = vec![0.0; w * h];
-    fill_rows(&mut value, w, observer, |q| {
+    fill_rows(&mut value, w, cancel, |q| {
         if inside[q] {
             0.5 * (s / image[q].max(floor)).ln()
         } else {
@@ -331,7 +332,7 @@ pub(crate) fn march(
         }
     })?;
     let mut accepted = vec![false; w * h];
-    let mut frontal = FrontalQueue::new(&value, inside, w, observer)?;
+    let mut frontal = FrontalQueue::new(&value, inside, w, cancel)?;
     let mut heap: BinaryHeap<Trial> = BinaryHeap::new();
     let axis = |value: &[f64], accepted: &[bool], minus: Option<usize>, plus: Option<usize>| {
         let m = minus.filter(|&n| accepted[n]).map(|n| value[n]);
@@ -371,8 +372,8 @@ pub(crate) fn march(
         // Polled per pop, not per accepted pixel: stale entries can run for
         // a long time at 18 megapixels.
         popped += 1;
-        if popped.is_multiple_of(CANCEL_POLL) && observer.is_cancelled() {
-            return Err(SolveError::Cancelled);
+        if popped.is_multiple_of(CANCEL_POLL) {
+            cancel.check()?;
         }
         if accepted[index] || v > value[index] {
             continue;
@@ -450,13 +451,13 @@ pub(crate) fn march(
                 .fold((0.0, 0), |(sum, count), q| (sum + depth_at(q), count + 1))
         })
         .collect();
-    check_cancelled(observer)?;
+    cancel.check()?;
     let (sum, count) = row_sums
         .iter()
         .fold((0.0, 0usize), |a, b| (a.0 + b.0, a.1 + b.1));
     let mean = sum / count.max(1) as f64;
     let mut solved = vec![0.0; w * h];
-    fill_rows(&mut solved, w, observer, |q| {
+    fill_rows(&mut solved, w, cancel, |q| {
         if reached(q) { depth_at(q) } else { mean }
     })?;
     let solved = Grid::from_vec(w, h, solved)
@@ -465,20 +466,18 @@ pub(crate) fn march(
 }
 
 /// Sets `out[q] = value(q)` for every pixel of a `w`-wide image, rows in
-/// parallel, polling `observer`'s cancellation per row.
+/// parallel, polling `cancel` per row.
 fn fill_rows<T: Send>(
     out: &mut [T],
     w: usize,
-    observer: &dyn SolveObserver,
+    cancel: Cancel<'_>,
     value: impl Fn(usize) -> T + Sync,
-) -> Result<(), SolveError> {
-    let cancelled = || observer.is_cancelled();
-    crate::grid::for_rows_polled(out, w, &cancelled, |r, row| {
+) -> Result<(), Cancelled> {
+    crate::grid::for_rows(out, w, cancel, |r, row| {
         for (c, v) in row.iter_mut().enumerate() {
             *v = value(r * w + c);
         }
-    });
-    check_cancelled(observer)
+    })
 }
 
 /// The frontal values of the domain pixels in increasing order (ties by
@@ -508,15 +507,15 @@ impl FrontalQueue {
         value: &[f64],
         inside: &[bool],
         w: usize,
-        observer: &dyn SolveObserver,
-    ) -> Result<Self, SolveError> {
+        cancel: Cancel<'_>,
+    ) -> Result<Self, Cancelled> {
         // By rows, polled (one pass over 18 MP is tens of milliseconds).
         let (low, high, count) = value
             .par_chunks(w.max(1))
             .zip(inside.par_chunks(w.max(1)))
             .map(|(value, inside)| {
                 let mut range = (f64::INFINITY, f64::NEG_INFINITY, 0usize);
-                if observer.is_cancelled() {
+                if cancel.is_cancelled() {
                     return range;
                 }
                 for (&v, _) in value.iter().zip(inside).filter(|(_, inside)| **inside) {
@@ -528,7 +527,7 @@ impl FrontalQueue {
                 || (f64::INFINITY, f64::NEG_INFINITY, 0),
                 |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
             );
-        check_cancelled(observer)?;
+        cancel.check()?;
         let buckets = (count / Self::PER_BUCKET).max(1);
         let scale = if high > low {
             (buckets - 1) as f64 / (high - low)
@@ -540,7 +539,7 @@ impl FrontalQueue {
         let mut starts = vec![0usize; buckets + 1];
         for (r, (inside, value)) in rows.clone().enumerate() {
             if r % 64 == 0 {
-                check_cancelled(observer)?;
+                cancel.check()?;
             }
             for (&inside, &v) in inside.iter().zip(value) {
                 if inside {
@@ -556,7 +555,7 @@ impl FrontalQueue {
         // rows below (a sequential fill would not poll).
         let mut trials: Vec<Trial> = bytemuck::zeroed_vec(count);
         for (r, (inside, value)) in rows.enumerate() {
-            check_cancelled(observer)?;
+            cancel.check()?;
             for (c, (&inside, &v)) in inside.iter().zip(value).enumerate() {
                 if inside {
                     let slot = &mut fill[bucket_of(v)];
@@ -604,13 +603,11 @@ impl FrontalQueue {
     }
 }
 
-/// Heap operations between two polls of the observer's cancellation (a few
-/// milliseconds).
+/// Heap operations between two polls of `cancel` (a few milliseconds).
 const CANCEL_POLL: usize = 4096;
 
 /// Solves `problem` by fast marching on its object pixels. The confidence is
-/// ignored (the method has no use for it); `params` is used only to validate
-/// the problem.
+/// ignored (the method has no use for it).
 pub fn solve_fast_marching(
     problem: &Problem,
     settings: &FastMarchingParams,
@@ -622,12 +619,8 @@ pub fn solve_fast_marching(
             "fast marching: min_relative_intensity must lie in (0, 1)".into(),
         ));
     }
-    let validation = SolverParams {
-        domain: DomainMode::Object,
-        ..SolverParams::default()
-    };
-    let (domain, confidence) = problem.validate(&validation)?;
-    let scales = super::prepare::problem_scales(problem, &confidence);
+    let (domain, confidence) = problem.validate(DomainMode::Object, None, Cancel::NEVER)?;
+    let scales = problem.scales(&confidence, Cancel::NEVER).uncancelled();
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
     let s = match problem.model() {
@@ -646,10 +639,11 @@ pub fn solve_fast_marching(
         &domain,
         s,
         settings,
-        observer,
+        Cancel::new(&|| observer.is_cancelled()),
     )?;
     let model = Lambertian { intensity_scale: s };
-    let reprojection = model::reproject(&model, &geometry, &domain, &solved);
+    let reprojection =
+        model::reproject(&model, &geometry, &domain, &solved, Cancel::NEVER).uncancelled();
     let ones = Grid::filled(w, h, 1.0);
     let energy = model::energy(
         &model,
@@ -660,8 +654,10 @@ pub fn solve_fast_marching(
         &solved,
         0.0,
         1e-3,
-    );
-    let depth = masked(&solved, &domain);
+        Cancel::NEVER,
+    )
+    .uncancelled();
+    let depth = masked(&solved, &domain, Cancel::NEVER).uncancelled();
     let elapsed = start.elapsed();
     observer.on_iteration(&IterationReport {
         level: 0,

@@ -20,6 +20,8 @@
 
 use rayon::prelude::*;
 
+use crate::cancel::{Cancel, Uncancelled};
+
 use super::sor;
 use super::system::{HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANES};
 
@@ -49,7 +51,7 @@ pub struct Sor {
 impl Smoother for Sor {
     fn smooth(&self, system: &mut LinearSystem, sweeps: usize) {
         for _ in 0..sweeps {
-            sor::sweep(system, self.omega);
+            sor::sweep(system, self.omega, Cancel::NEVER).uncancelled();
         }
     }
 }

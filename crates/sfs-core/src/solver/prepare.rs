@@ -8,15 +8,14 @@
 
 use std::time::Instant;
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Energy, LevelGeometry, Reflectance};
 use crate::params::{
     Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
 };
 
-use super::problem::{
-    LevelResult, NEVER, Probe, Problem, SolveError, SolveObserver, check_cancelled, masked_polled,
-};
+use super::problem::{LevelResult, Problem, SolveError, SolveObserver, check_cancelled, masked};
 use super::pyramid::{self, PyramidLevel};
 
 /// A validated problem ready for a coarse-to-fine scheme: its pyramid
@@ -89,22 +88,30 @@ pub(crate) fn prepare<'a>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Prepared<'a>, SolveError> {
     params.validate()?;
-    let (domain, confidence) = problem.validate_polled(params, &|| observer.is_cancelled())?;
+    let initial_depth_map = match &params.initial_depth {
+        InitialDepth::Map(map) => Some(map),
+        _ => None,
+    };
+    let (domain, confidence) = problem.validate(
+        params.domain,
+        initial_depth_map,
+        Cancel::new(&|| observer.is_cancelled()),
+    )?;
     check_cancelled(observer)?;
     let (w, h) = problem.image.size();
-    let scales = problem_scales_polled(problem, &confidence, &|| observer.is_cancelled())
-        .ok_or(SolveError::Cancelled)?;
+    let scales = problem.scales(&confidence, Cancel::new(&|| observer.is_cancelled()))?;
     let finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
         image: std::borrow::Cow::Borrowed(&problem.image),
         // One byte per pixel where no partial confidence is painted.
-        confidence: Confidence::from_grid_polled(confidence, &|| observer.is_cancelled())
-            .ok_or(SolveError::Cancelled)?,
+        confidence: Confidence::from_grid(confidence, Cancel::new(&|| observer.is_cancelled()))?,
         domain,
     };
-    let relative_noise =
-        super::auto_alpha::relative_noise_polled(&finest, &scales, &|| observer.is_cancelled())
-            .ok_or(SolveError::Cancelled)?;
+    let relative_noise = super::auto_alpha::relative_noise(
+        &finest,
+        &scales,
+        Cancel::new(&|| observer.is_cancelled()),
+    )?;
     // Fast marching knows only the centred light; with lights elsewhere the
     // default start is the plane that best explains the image, refined
     // through the whole pyramid (the paper's path).
@@ -118,13 +125,14 @@ pub(crate) fn prepare<'a>(
         _ => 0,
     };
     let cancelled = || observer.is_cancelled();
+    let cancel = Cancel::new(&cancelled);
     let fast_marching = match fast_marching_start_wanted {
         true => Some(fast_marching_start(
             problem,
             &finest,
             relative_noise * scales.intensity,
             relative_noise > FAST_MARCHING_DENOISE_ABOVE,
-            &cancelled,
+            cancel,
         )?),
         _ => None,
     };
@@ -151,9 +159,7 @@ pub(crate) fn prepare<'a>(
     }
     let mut levels = vec![finest];
     for &(lw, lh) in &sizes[1..] {
-        if cancelled() {
-            return Err(SolveError::Cancelled);
-        }
+        cancel.check()?;
         let geometry = LevelGeometry::new(lw, lh, w, h, problem.camera);
         let Some(finer) = levels.last() else { break };
         let source = if params.anti_alias_sigma == 0.0 {
@@ -171,7 +177,7 @@ pub(crate) fn prepare<'a>(
 
     let coarsest = &levels[0];
     let (depth, initial_depth) = match (&params.initial_depth, warm) {
-        (_, Some(map)) => fill_warm_start(map, &cancelled).ok_or(SolveError::Cancelled)?,
+        (_, Some(map)) => fill_warm_start(map, cancel)?,
         (InitialDepth::Constant(z0), None) => (
             Grid::filled(coarsest.geometry.width, coarsest.geometry.height, *z0),
             *z0,
@@ -253,7 +259,7 @@ fn fast_marching_start(
     finest: &PyramidLevel,
     noise_sigma: f64,
     denoise: bool,
-    cancelled: &(dyn Fn() -> bool + Sync),
+    cancel: Cancel<'_>,
 ) -> Result<Grid<f64>, SolveError> {
     // Fast marching reads only the object, so only untrusted object pixels
     // need filling; with denoising the background is filled too, so that
@@ -272,7 +278,7 @@ fn fast_marching_start(
         .par_chunks_mut(CHUNK)
         .enumerate()
         .map(|(k, chunk)| {
-            if cancelled() {
+            if cancel.is_cancelled() {
                 return 0;
             }
             let mut unknown = 0;
@@ -284,23 +290,24 @@ fn fast_marching_start(
             unknown
         })
         .sum::<usize>();
-    if cancelled() {
-        return Err(SolveError::Cancelled);
-    }
+    cancel.check()?;
     // Nothing to fill and no denoising: the problem's own image (no copy).
     let mut image = Cow::Borrowed(&problem.image);
     if unknown > 0 {
-        image = Cow::Owned(
-            crate::denoise::fill_unknown_cancellable(&problem.image, &known, cancelled)
-                .ok_or(SolveError::Cancelled)?,
-        );
+        image = Cow::Owned(crate::denoise::fill_unknown(
+            &problem.image,
+            &known,
+            cancel,
+        )?);
     }
     drop(known);
     if denoise {
-        image = Cow::Owned(
-            crate::denoise::tv_denoise_cancellable(&image, noise_sigma, TV_ITERATIONS, cancelled)
-                .ok_or(SolveError::Cancelled)?,
-        );
+        image = Cow::Owned(crate::denoise::tv_denoise(
+            &image,
+            noise_sigma,
+            TV_ITERATIONS,
+            cancel,
+        )?);
     }
     // The problem is validated already; the start needs only the depth (no
     // reprojection, energy or second validation: seconds at 18 megapixels).
@@ -319,80 +326,22 @@ fn fast_marching_start(
         object,
         problem.intensity_scale,
         &settings,
-        &ForwardCancel(cancelled),
+        cancel,
     )?;
     drop(image);
     // NaN off the object, in place.
-    let done = crate::grid::for_rows_polled(solved.as_mut_slice(), w, cancelled, |r, depth| {
+    crate::grid::for_rows(solved.as_mut_slice(), w, cancel, |r, depth| {
         for (c, z) in depth.iter_mut().enumerate() {
             if !object.at(c, r) {
                 *z = f64::NAN;
             }
         }
-    });
-    if !done {
-        return Err(SolveError::Cancelled);
-    }
+    })?;
     Ok(solved)
-}
-
-/// An observer that only forwards cancellation.
-struct ForwardCancel<'a>(&'a (dyn Fn() -> bool + Sync));
-
-impl SolveObserver for ForwardCancel<'_> {
-    fn is_cancelled(&self) -> bool {
-        (self.0)()
-    }
 }
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.
 const TV_ITERATIONS: usize = 200;
-
-/// The scales of [`ProblemScales`]: the median over trusted object pixels
-/// (confidence > 0, brightness > 0) of the "facing the light" depth
-/// `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already 0 off the
-/// object; `validate` guarantees a trusted pixel with brightness > 0.
-pub(crate) fn problem_scales(problem: &Problem, confidence: &Grid<f64>) -> ProblemScales {
-    problem_scales_polled(problem, confidence, NEVER)
-        .unwrap_or_else(|| unreachable!("never cancelled"))
-}
-
-/// [`problem_scales`] by rows in parallel, polling `cancelled` per row;
-/// `None` once it said true.
-pub(crate) fn problem_scales_polled(
-    problem: &Problem,
-    confidence: &Grid<f64>,
-    cancelled: Probe<'_>,
-) -> Option<ProblemScales> {
-    let w = problem.image.width();
-    let s = problem.intensity_scale;
-    let camera = problem.camera;
-    let facing = |r: usize, out: &mut Vec<f64>| {
-        for c in 0..w {
-            let v = *problem.image.at(c, r);
-            if *confidence.at(c, r) > 0.0 && v > 0.0 {
-                let q = model::PixelRay {
-                    x_px: c as f64 - camera.principal_x_px,
-                    y_px: r as f64 - camera.principal_y_px,
-                    focal_px: camera.focal_px,
-                }
-                .q();
-                out.push(q * (s / v).sqrt());
-            }
-        }
-    };
-    let median =
-        crate::selection::kth_smallest(problem.image.height(), facing, |n| n / 2, cancelled);
-    if cancelled() {
-        return None;
-    }
-    let depth = median.unwrap_or(1.0);
-    Some(ProblemScales {
-        depth,
-        intensity: s / (depth * depth),
-        focal_px: camera.focal_px,
-    })
-}
 
 /// The constant initial depth of [`InitialDepth::FromImage`] on a level: the
 /// brightest trusted domain pixel `b` is assumed to face the light,
@@ -481,16 +430,16 @@ pub fn nearest_object_depth(lights: &[crate::light::PointLight]) -> f64 {
 }
 
 /// Replaces non-finite or non-positive values of a warm start by the mean.
-/// Polls `cancelled` per row (`None` once it said true).
-fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, f64)> {
+/// Polls `cancel` per row.
+fn fill_warm_start(map: &Grid<f64>, cancel: Cancel<'_>) -> Result<(Grid<f64>, f64), Cancelled> {
     let valid = |z: f64| z.is_finite() && z > 0.0;
     let w = map.width().max(1);
     // Summed in order (the mean is the same to the bit as one pass's).
     let mut sum = 0.0;
     let mut count = 0usize;
     for (r, row) in map.as_slice().chunks(w).enumerate() {
-        if r % 64 == 0 && cancelled() {
-            return None;
+        if r % 64 == 0 {
+            cancel.check()?;
         }
         for &z in row.iter().filter(|&&z| valid(z)) {
             sum += z;
@@ -499,16 +448,17 @@ fn fill_warm_start(map: &Grid<f64>, cancelled: Probe<'_>) -> Option<(Grid<f64>, 
     }
     let mean = sum / count.max(1) as f64;
     let mut filled = Grid::filled(map.width(), map.height(), 0.0);
-    let done = crate::grid::for_rows_polled(filled.as_mut_slice(), w, cancelled, |r, out| {
+    crate::grid::for_rows(filled.as_mut_slice(), w, cancel, |r, out| {
         for (c, out) in out.iter_mut().enumerate() {
             let z = *map.at(c, r);
             *out = if valid(z) { z } else { mean };
         }
-    });
-    done.then_some((filled, mean))
+    })?;
+    Ok((filled, mean))
 }
 
-/// A level's depth (NaN off its domain) and reprojection, as observers get them.
+/// A level's depth (NaN off its domain) and reprojection, as observers get
+/// them; both passes poll `cancel` per row.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn level_result<M: Reflectance>(
     model: &M,
@@ -518,19 +468,19 @@ pub(crate) fn level_result<M: Reflectance>(
     levels: usize,
     energy: Energy,
     start: Instant,
-    cancelled: Probe<'_>,
-) -> LevelResult {
-    LevelResult {
+    cancel: Cancel<'_>,
+) -> Result<LevelResult, Cancelled> {
+    Ok(LevelResult {
         level: index,
         levels,
-        depth: std::sync::Arc::new(masked_polled(depth, &level.domain, cancelled)),
-        reprojection: std::sync::Arc::new(model::reproject_polled(
+        depth: std::sync::Arc::new(masked(depth, &level.domain, cancel)?),
+        reprojection: std::sync::Arc::new(model::reproject(
             model,
             &level.geometry,
             &level.domain,
             depth,
-            cancelled,
-        )),
+            cancel,
+        )?),
         geometry: level.geometry,
         domain_pixels: {
             use rayon::prelude::*;
@@ -538,31 +488,19 @@ pub(crate) fn level_result<M: Reflectance>(
         },
         energy,
         elapsed: start.elapsed(),
-    }
+    })
 }
 
-/// Energy of a level.
+/// Energy of a level, polling `cancel` per row.
 pub(crate) fn level_energy<M: Reflectance>(
     model: &M,
     level: &PyramidLevel,
     depth: &Grid<f64>,
     alpha: f64,
     lambda: f64,
-) -> Energy {
-    level_energy_polled(model, level, depth, alpha, lambda, NEVER)
-}
-
-/// [`level_energy`] polling `cancelled` per row (meaningless once it said
-/// true).
-pub(crate) fn level_energy_polled<M: Reflectance>(
-    model: &M,
-    level: &PyramidLevel,
-    depth: &Grid<f64>,
-    alpha: f64,
-    lambda: f64,
-    cancelled: Probe<'_>,
-) -> Energy {
-    model::energy_polled(
+    cancel: Cancel<'_>,
+) -> Result<Energy, Cancelled> {
+    model::energy(
         model,
         &level.geometry,
         &level.image,
@@ -571,6 +509,6 @@ pub(crate) fn level_energy_polled<M: Reflectance>(
         depth,
         alpha,
         lambda,
-        cancelled,
+        cancel,
     )
 }

@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use super::fast_marching::{FastMarchingParams, solve_fast_marching};
 use super::problem::{IterationReport, LevelResult, Problem, SolveError, SolveObserver};
+use crate::cancel::Cancel;
 use crate::grid::Grid;
-use crate::resample::{resize_area_polled, scale_intrinsics, working_size};
+use crate::resample::{resize_area, scale_intrinsics, working_size};
 
 /// Longest side of the preview, in pixels.
 pub const PREVIEW_SIDE: usize = 256;
@@ -55,9 +56,8 @@ pub(crate) fn send_preview(
     }
     let (pw, ph) = working_size(w, h, Some(PREVIEW_SIDE));
     let cancelled = || observer.is_cancelled();
-    let resize = |grid: &Grid<f64>| {
-        resize_area_polled(grid, pw, ph, &cancelled).ok_or(SolveError::Cancelled)
-    };
+    let cancel = Cancel::new(&cancelled);
+    let resize = |grid: &Grid<f64>| resize_area(grid, pw, ph, cancel);
     let image = resize(&problem.image)?;
     let object_mask = match &problem.object_mask {
         Some(mask) => Some(resize(&mask.map(|&o| f64::from(u8::from(o))))?.map(|&v| v >= 0.5)),

@@ -8,10 +8,11 @@ use std::time::Duration;
 use serde::Serialize;
 
 use crate::camera::Intrinsics;
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 use crate::light::{LightModel, PointLight};
 use crate::model::{Energy, LevelGeometry};
-use crate::params::{DomainMode, InitialDepth, ParamError, ProblemScales, SolverParams};
+use crate::params::{DomainMode, ParamError, ProblemScales};
 
 /// Image values at or above this are clipped (the top of a file's range,
 /// which the readers map to 1): such pixels get confidence 0.
@@ -59,6 +60,13 @@ pub enum SolveError {
     /// returned rather than a surface that is not one.
     #[error("the solve diverged: {0}")]
     Diverged(String),
+}
+
+/// A pass that stopped on the observer's request stops the solve.
+impl From<Cancelled> for SolveError {
+    fn from(_: Cancelled) -> Self {
+        SolveError::Cancelled
+    }
 }
 
 /// Reported after every outer iteration.
@@ -258,21 +266,16 @@ impl Problem {
         crate::light::is_centred(&self.lights)
     }
 
-    /// Checks sizes and values; returns the effective domain and confidence
-    /// (0 off the object and on clipped pixels, see [`SATURATED`]).
+    /// Checks sizes and values (and the size of `initial_depth_map`, when a
+    /// solve starts from one); returns the domain that `domain` asks for (the
+    /// object, or every pixel) and the confidence (0 off the object and on
+    /// clipped pixels, see [`SATURATED`]). Its passes over the pixels run by
+    /// rows in parallel, polling `cancel` per row.
     pub(crate) fn validate(
         &self,
-        params: &SolverParams,
-    ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
-        self.validate_polled(params, NEVER)
-    }
-
-    /// [`Self::validate`], its passes over the pixels by rows in parallel,
-    /// polling `cancelled` per row.
-    pub(crate) fn validate_polled(
-        &self,
-        params: &SolverParams,
-        cancelled: Probe<'_>,
+        domain: DomainMode,
+        initial_depth_map: Option<&Grid<f64>>,
+        cancel: Cancel<'_>,
     ) -> Result<(Grid<bool>, Grid<f64>), SolveError> {
         use rayon::prelude::*;
         let (w, h) = self.image.size();
@@ -305,10 +308,8 @@ impl Problem {
             .as_slice()
             .par_chunks(w)
             .with_min_len(rows_per_task(w))
-            .position_first(|row| !cancelled() && row.iter().any(invalid));
-        if cancelled() {
-            return Err(SolveError::Cancelled);
-        }
+            .position_first(|row| !cancel.is_cancelled() && row.iter().any(invalid));
+        cancel.check()?;
         if let Some(bad_value) = first_bad_row.and_then(|r| {
             self.image.as_slice()[r * w..(r + 1) * w]
                 .iter()
@@ -357,7 +358,7 @@ impl Problem {
             .with_min_len(rows_per_task(w))
             .map(|(r, row)| {
                 let mut counts = (0usize, 0usize, 0usize, 0.0f64);
-                if cancelled() {
+                if cancel.is_cancelled() {
                     return counts;
                 }
                 for (c, out) in row.iter_mut().enumerate() {
@@ -383,9 +384,7 @@ impl Problem {
                 || (0, 0, 0, 0.0),
                 |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2, a.3.max(b.3)),
             );
-        if cancelled() {
-            return Err(SolveError::Cancelled);
-        }
+        cancel.check()?;
         if objects == 0 {
             return bad("the object mask is empty".into());
         }
@@ -404,7 +403,7 @@ impl Problem {
                  lower the exposure or mask the saturated region (confidence 0)"
             ));
         }
-        if let InitialDepth::Map(map) = &params.initial_depth
+        if let Some(map) = initial_depth_map
             && map.size() != (w, h)
         {
             return bad(format!(
@@ -413,27 +412,56 @@ impl Problem {
                 map.height()
             ));
         }
-        let domain = match params.domain {
+        let domain = match domain {
             DomainMode::Object => object,
             DomainMode::Paper => Grid::filled(w, h, true),
         };
         Ok((domain, confidence))
     }
+
+    /// The scales of [`ProblemScales`]: the median over trusted object
+    /// pixels (confidence > 0, brightness > 0) of the "facing the light"
+    /// depth `Q sqrt(s / I)`, and `I_ref = s / Z^2`. `confidence` is already
+    /// 0 off the object; [`Self::validate`] guarantees a trusted pixel with
+    /// brightness > 0. By rows in parallel, polling `cancel` per row.
+    pub(crate) fn scales(
+        &self,
+        confidence: &Grid<f64>,
+        cancel: Cancel<'_>,
+    ) -> Result<ProblemScales, Cancelled> {
+        let w = self.image.width();
+        let s = self.intensity_scale;
+        let camera = self.camera;
+        let facing = |r: usize, out: &mut Vec<f64>| {
+            for c in 0..w {
+                let v = *self.image.at(c, r);
+                if *confidence.at(c, r) > 0.0 && v > 0.0 {
+                    let q = crate::model::PixelRay {
+                        x_px: c as f64 - camera.principal_x_px,
+                        y_px: r as f64 - camera.principal_y_px,
+                        focal_px: camera.focal_px,
+                    }
+                    .q();
+                    out.push(q * (s / v).sqrt());
+                }
+            }
+        };
+        let median =
+            crate::selection::kth_smallest(self.image.height(), facing, |n| n / 2, cancel)?;
+        let depth = median.unwrap_or(1.0);
+        Ok(ProblemScales {
+            depth,
+            intensity: s / (depth * depth),
+            focal_px: camera.focal_px,
+        })
+    }
 }
+
+pub(crate) use crate::grid::rows_per_task;
 
 /// `Err(SolveError::Cancelled)` once `observer` asks to stop: polled between
 /// the long single passes over an image (each about a second at 18
 /// megapixels).
-pub(crate) use crate::grid::rows_per_task;
-
-/// A cancellation probe that long parallel passes call per block of rows
-/// (`true`: stop; the pass's result is then garbage and its caller returns
-/// [`SolveError::Cancelled`]).
-pub type Probe<'a> = &'a (dyn Fn() -> bool + Sync);
-
-/// A probe that never cancels.
-pub const NEVER: Probe<'static> = &|| false;
-
 pub(crate) fn check_cancelled(observer: &dyn SolveObserver) -> Result<(), SolveError> {
     if observer.is_cancelled() {
         Err(SolveError::Cancelled)
@@ -508,22 +536,16 @@ pub(crate) fn on_object(
     (depth, reprojection)
 }
 
-/// The depth with NaN outside `domain`.
-pub fn masked(depth: &Grid<f64>, domain: &Grid<bool>) -> Grid<f64> {
-    masked_polled(depth, domain, NEVER)
-}
-
-/// [`masked`], rows in parallel (the copy's pages are first touched there
-/// too), polling `cancelled` per row (the rest is left 0 once it said true:
-/// the caller stops).
-pub(crate) fn masked_polled(
+/// The depth with NaN outside `domain`, by rows in parallel (the copy's
+/// pages are first touched there too), polling `cancel` per row.
+pub fn masked(
     depth: &Grid<f64>,
     domain: &Grid<bool>,
-    cancelled: Probe<'_>,
-) -> Grid<f64> {
+    cancel: Cancel<'_>,
+) -> Result<Grid<f64>, Cancelled> {
     let (w, h) = depth.size();
     let mut out = Grid::filled(w, h, 0.0);
-    crate::grid::for_rows_polled(out.as_mut_slice(), w, cancelled, |r, out| {
+    crate::grid::for_rows(out.as_mut_slice(), w, cancel, |r, out| {
         for (c, out) in out.iter_mut().enumerate() {
             *out = if *domain.at(c, r) {
                 *depth.at(c, r)
@@ -531,8 +553,8 @@ pub(crate) fn masked_polled(
                 f64::NAN
             };
         }
-    });
-    out
+    })?;
+    Ok(out)
 }
 
 #[cfg(test)]

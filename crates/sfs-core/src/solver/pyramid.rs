@@ -4,6 +4,7 @@
 
 use std::borrow::Cow;
 
+use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::LevelGeometry;
 
@@ -186,7 +187,7 @@ pub fn downsample(
     PyramidLevel {
         geometry,
         image: Cow::Owned(image),
-        confidence: Confidence::from_grid(confidence),
+        confidence: Confidence::from_grid(confidence, Cancel::NEVER).uncancelled(),
         domain,
     }
 }

@@ -11,7 +11,8 @@
 
 use rayon::prelude::*;
 
-use super::problem::{NEVER, Probe};
+use crate::cancel::{Cancel, Cancelled};
+
 use super::system::{HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES};
 
 /// Rows per band (at least 2, the stencil's reach).
@@ -70,14 +71,10 @@ unsafe impl Sync for SharedUnknowns {}
 /// x86-64 with AVX2 and FMA (detected at run time) the kernel is compiled for
 /// those; the FMA path rounds differently in the last bit, so results are
 /// deterministic per machine, not across machines.
-pub fn sweep(system: &mut LinearSystem, omega: f64) {
-    sweep_polled(system, omega, NEVER);
-}
-
-/// [`sweep`], calling `cancelled` before each band and skipping the rest of
-/// the sweep once it says true (the unknowns are then half-swept: the caller
-/// stops).
-pub fn sweep_polled(system: &mut LinearSystem, omega: f64, cancelled: Probe<'_>) {
+///
+/// Polls `cancel` before each band and skips the rest of the sweep once it
+/// says yes (`Err`: the unknowns are then half-swept).
+pub fn sweep(system: &mut LinearSystem, omega: f64, cancel: Cancel<'_>) -> Result<(), Cancelled> {
     let height = system.height;
     let pw = system.padded_width();
     let count_all = band_count(height);
@@ -104,7 +101,7 @@ pub fn sweep_polled(system: &mut LinearSystem, omega: f64, cancelled: Probe<'_>)
     let omega = omega as f32;
     for colour in 0..2 {
         let run = |(b, work): (usize, &mut [f32])| {
-            if b % 2 != colour || cancelled() {
+            if b % 2 != colour || cancel.is_cancelled() {
                 return;
             }
             // SAFETY: `unknowns` points to `len` f32s owned by `system`, which is
@@ -140,6 +137,7 @@ pub fn sweep_polled(system: &mut LinearSystem, omega: f64, cancelled: Probe<'_>)
                 .for_each(run);
         }
     }
+    cancel.check()
 }
 
 /// Sizes [`sweep_band`] needs.
@@ -389,6 +387,7 @@ pub fn reference_sweep(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cancel::Uncancelled;
     use crate::solver::system::test_system;
 
     /// A level of `w x h` with a smooth depth and an object mask with holes.
@@ -411,7 +410,7 @@ mod tests {
                 .collect();
             let mut x = vec![0.0; w * h];
             for _ in 0..5 {
-                sweep(&mut fast, 1.4);
+                sweep(&mut fast, 1.4, Cancel::NEVER).uncancelled();
                 reference_sweep(&rows, &rhs, &mut x, &order, 1.4);
             }
             let got = fast.dz_grid();
@@ -437,7 +436,7 @@ mod tests {
             .map(|q| f64::from(s.row(q % w, q / w).rhs))
             .collect();
         for _ in 0..3000 {
-            sweep(&mut s, 1.5);
+            sweep(&mut s, 1.5, Cancel::NEVER).uncancelled();
         }
         let x = s.dz_grid();
         let residual: f64 = rows

@@ -9,10 +9,11 @@
 
 use rayon::prelude::*;
 
+use crate::cancel::{Cancel, Cancelled};
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Reflectance};
 
-use super::problem::{NEVER, Probe, rows_per_task};
+use super::problem::rows_per_task;
 use super::pyramid::PyramidLevel;
 
 /// Offsets `(dx, dy)` of the 17-point stencil; entry 0 is the pixel itself,
@@ -150,14 +151,9 @@ pub struct LinearSystem {
 }
 
 impl LinearSystem {
-    /// Allocates the system for a level.
-    pub fn new(level: &PyramidLevel) -> Self {
-        Self::new_polled(level, NEVER)
-    }
-
-    /// [`Self::new`], its masks built by rows in parallel, polling
-    /// `cancelled` per row (the masks are then incomplete: the caller stops).
-    pub fn new_polled(level: &PyramidLevel, cancelled: Probe<'_>) -> Self {
+    /// Allocates the system for a level, its masks built by rows in
+    /// parallel, polling `cancel` per row.
+    pub fn new(level: &PyramidLevel, cancel: Cancel<'_>) -> Result<Self, Cancelled> {
         let (w, h) = level.domain.size();
         let n = w * h;
         let domain = &level.domain;
@@ -174,7 +170,7 @@ impl LinearSystem {
         let mut masks = vec![0u8; padded * MASK_PLANES];
         image_row_blocks(&mut masks, MASK_PLANES * pw, h, rows_per_task(w)).for_each(
             |(r, block)| {
-                if cancelled() {
+                if cancel.is_cancelled() {
                     return;
                 }
                 for c in 0..w {
@@ -193,8 +189,9 @@ impl LinearSystem {
                 }
             },
         );
+        cancel.check()?;
         let padded = (w + 2 * HALO) * (h + 2 * HALO);
-        Self {
+        Ok(Self {
             width: w,
             height: h,
             coefficients: vec![0.0; padded * PLANES],
@@ -206,7 +203,7 @@ impl LinearSystem {
             data_rhs: vec![0.0; n],
             smooth: vec![0.0; padded * SMOOTH_PLANES],
             masks,
-        }
+        })
     }
 
     /// Bytes held by the system's buffers (all proportional to the pixel count).
@@ -261,20 +258,16 @@ impl LinearSystem {
             .for_each(|(to, from)| *to = *from);
     }
 
-    /// Sets every unknown to 0.
-    pub fn clear_dz(&mut self) {
-        self.clear_dz_polled(NEVER);
-    }
-
-    /// [`Self::clear_dz`], calling `cancelled` per 8192 unknowns (the first
-    /// clear faults in the unknowns' fresh pages: tens of milliseconds at
-    /// photograph size) and skipping the rest once it says true.
-    pub fn clear_dz_polled(&mut self, cancelled: Probe<'_>) {
+    /// Sets every unknown to 0, polling `cancel` per 8192 unknowns (the
+    /// first clear faults in the unknowns' fresh pages: tens of milliseconds
+    /// at photograph size) and skipping the rest once it says yes.
+    pub fn clear_dz(&mut self, cancel: Cancel<'_>) -> Result<(), Cancelled> {
         self.dz_padded.par_chunks_mut(8192).for_each(|chunk| {
-            if !cancelled() {
+            if !cancel.is_cancelled() {
                 chunk.fill(0.0);
             }
         });
+        cancel.check()
     }
 
     /// Copies the unknowns into a `width x height` grid.
@@ -342,28 +335,17 @@ impl LinearSystem {
 
     /// Linearises the data term at `depth` (branches frozen there) and builds
     /// `J^T C J` and `-J^T C D`. Returns false when the reflectance model
-    /// cannot give the requested derivatives.
+    /// cannot give the requested derivatives. Polls `cancel` per block of
+    /// rows and skips the rest once it says yes (`Err`: the system is then
+    /// garbage).
     pub fn linearise_data<M: Reflectance + ?Sized>(
         &mut self,
         model: &M,
         level: &PyramidLevel,
         depth: &Grid<f64>,
         derivatives: Derivatives,
-    ) -> bool {
-        self.linearise_data_polled(model, level, depth, derivatives, NEVER)
-    }
-
-    /// [`Self::linearise_data`], calling `cancelled` per block of rows and
-    /// skipping the rest once it says true (the system is then garbage: the
-    /// caller stops).
-    pub fn linearise_data_polled<M: Reflectance + ?Sized>(
-        &mut self,
-        model: &M,
-        level: &PyramidLevel,
-        depth: &Grid<f64>,
-        derivatives: Derivatives,
-        cancelled: Probe<'_>,
-    ) -> bool {
+        cancel: Cancel<'_>,
+    ) -> Result<bool, Cancelled> {
         let w = self.width;
         let pw = self.padded_width();
         let min_rows = rows_per_task(w);
@@ -372,7 +354,7 @@ impl LinearSystem {
         let masks = &self.masks;
         image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, height, min_rows).for_each(
             |(r, block)| {
-                if cancelled() {
+                if cancel.is_cancelled() {
                     return;
                 }
                 let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..];
@@ -410,7 +392,7 @@ impl LinearSystem {
         let domain = &level.domain;
         let shared = SHARED_FORWARD.len();
         self.data_current = true;
-        bytemuck::cast_slice_mut::<f64, f32>(&mut self.data_forward)
+        let linearised = bytemuck::cast_slice_mut::<f64, f32>(&mut self.data_forward)
             .par_chunks_mut(shared * w * block_rows)
             .zip(self.data_diagonal.par_chunks_mut(w * block_rows))
             .zip(self.data_rhs.par_chunks_mut(w * block_rows))
@@ -418,7 +400,7 @@ impl LinearSystem {
             .enumerate()
             .map(
                 |(block, (((forward_rows, diagonal_rows), rhs_rows), coefficient_rows))| {
-                    if cancelled() {
+                    if cancel.is_cancelled() {
                         return true;
                     }
                     let r0 = block * block_rows;
@@ -436,7 +418,7 @@ impl LinearSystem {
                     {
                         // Polled per row too: a block's first pass faults in
                         // megabytes of fresh pages (tens of milliseconds).
-                        if cancelled() {
+                        if cancel.is_cancelled() {
                             return true;
                         }
                         ok &= linearise_row(
@@ -450,7 +432,7 @@ impl LinearSystem {
                         );
                     }
                     for k in 0..rows {
-                        if cancelled() {
+                        if cancel.is_cancelled() {
                             return true;
                         }
                         data_row(
@@ -476,7 +458,8 @@ impl LinearSystem {
                     ok
                 },
             )
-            .reduce(|| true, |a, b| a && b)
+            .reduce(|| true, |a, b| a && b);
+        cancel.check().map(|()| linearised)
     }
 
     /// Adds the smoothness part with `Psi'` evaluated at `z^k + dz` (the
@@ -493,35 +476,33 @@ impl LinearSystem {
     /// `sum |W_new - W_old| / sum W_new` (the Charbonnier `Psi'` moved by
     /// this much, weighted): the inner fixed point has converged when it is
     /// small. The first call on a system compares with zero weights (1).
-    pub fn add_smoothness(&mut self, level: &PyramidLevel, alpha: f64, lambda: f64) -> f64 {
-        self.add_smoothness_polled(level, alpha, lambda, NEVER)
-    }
-
-    /// [`Self::add_smoothness`], calling `cancelled` per row and skipping the
-    /// rest once it says true (the system is then garbage: the caller stops).
-    pub fn add_smoothness_polled(
+    ///
+    /// Polls `cancel` per row and skips the rest once it says yes (`Err`:
+    /// the system is then garbage).
+    pub fn add_smoothness(
         &mut self,
         level: &PyramidLevel,
         alpha: f64,
         lambda: f64,
-        cancelled: Probe<'_>,
-    ) -> f64 {
-        let change = self.update_weights_polled(level, lambda, cancelled);
-        self.assemble_polled(level, alpha, cancelled);
-        change
+        cancel: Cancel<'_>,
+    ) -> Result<f64, Cancelled> {
+        let change = self.update_weights(level, lambda, cancel)?;
+        self.assemble(level, alpha, cancel)?;
+        Ok(change)
     }
 
     /// The first pass of [`Self::add_smoothness`] alone: the weights `W` at
     /// `z^k + dz` and their relative change, without setting the rows (they
-    /// keep the previous weights until [`Self::assemble_polled`]). A caller
+    /// keep the previous weights until [`Self::assemble`]). A caller
     /// that stops the inner iterations once the weights have settled learns
-    /// so without paying for rows it will not solve.
-    pub fn update_weights_polled(
+    /// so without paying for rows it will not solve. Polls `cancel` per
+    /// block of rows, as there.
+    pub fn update_weights(
         &mut self,
         level: &PyramidLevel,
         lambda: f64,
-        cancelled: Probe<'_>,
-    ) -> f64 {
+        cancel: Cancel<'_>,
+    ) -> Result<f64, Cancelled> {
         let w = self.width;
         let pw = self.padded_width();
         let h = level.geometry.spacing;
@@ -549,26 +530,32 @@ impl LinearSystem {
         let (changed, total) =
             image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows)
                 .map(|(r, block)| {
-                    if cancelled() {
+                    if cancel.is_cancelled() {
                         return (0.0, 0.0);
                     }
                     let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
                     simd.run(|| weight_row(&inputs, r, mask_block, block))
                 })
                 .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-        if total > 0.0 {
+        cancel.check()?;
+        Ok(if total > 0.0 {
             changed / total
         } else if changed > 0.0 {
             1.0
         } else {
             0.0
-        }
+        })
     }
 
     /// The second pass of [`Self::add_smoothness`]: the full rows from the
-    /// data part and the current weights `W` (polling `cancelled` per block of
+    /// data part and the current weights `W` (polling `cancel` per block of
     /// rows, as there).
-    pub fn assemble_polled(&mut self, level: &PyramidLevel, alpha: f64, cancelled: Probe<'_>) {
+    pub fn assemble(
+        &mut self,
+        level: &PyramidLevel,
+        alpha: f64,
+        cancel: Cancel<'_>,
+    ) -> Result<(), Cancelled> {
         let w = self.width;
         let pw = self.padded_width();
         let min_rows = rows_per_task(w);
@@ -584,7 +571,7 @@ impl LinearSystem {
         let domain = level.domain.as_slice();
         image_row_blocks(&mut self.coefficients, PLANES * pw, self.height, min_rows).for_each(
             |(r, block)| {
-                if cancelled() {
+                if cancel.is_cancelled() {
                     return;
                 }
                 let inputs = RowInputs {
@@ -600,6 +587,7 @@ impl LinearSystem {
                 simd.run(|| assemble_row(&inputs, block));
             },
         );
+        cancel.check()
     }
 
     /// Whether pixel `(column, row)` is solved for (a positive diagonal).
@@ -664,15 +652,15 @@ impl LinearSystem {
 
     /// The squared Euclidean norm of the residual `b - A dz`, without
     /// storing it (the same sum as [`Self::residual_into`] returns).
-    /// Calls `cancelled` per row (meaningless once it said true).
-    pub fn residual_norm_squared(&self, cancelled: Probe<'_>) -> f64 {
+    /// Polls `cancel` per row.
+    pub fn residual_norm_squared(&self, cancel: Cancel<'_>) -> Result<f64, Cancelled> {
         let min_rows = rows_per_task(self.width);
-        (0..self.height + 2 * HALO)
+        let norm: f64 = (0..self.height + 2 * HALO)
             .into_par_iter()
             .with_min_len(min_rows)
             .map(|pr| {
                 let mut norm = 0.0f64;
-                if cancelled() {
+                if cancel.is_cancelled() {
                     return norm;
                 }
                 self.row_residuals(pr, |_, value| {
@@ -680,22 +668,23 @@ impl LinearSystem {
                 });
                 norm
             })
-            .sum()
+            .sum();
+        cancel.check().map(|()| norm)
     }
 
     /// The squared norm of the right-hand side over the solved pixels: the
     /// same sum as [`Self::residual_norm_squared`] at `dz = 0` (each row's
-    /// part bit for bit), reading two planes instead of the whole stencil. Calls `cancelled` per
-    /// row (meaningless once it said true).
-    pub fn rhs_norm_squared(&self, cancelled: Probe<'_>) -> f64 {
+    /// part bit for bit), reading two planes instead of the whole stencil.
+    /// Polls `cancel` per row.
+    pub fn rhs_norm_squared(&self, cancel: Cancel<'_>) -> Result<f64, Cancelled> {
         let pw = self.padded_width();
         let (w, h) = (self.width, self.height);
-        (0..h + 2 * HALO)
+        let norm: f64 = (0..h + 2 * HALO)
             .into_par_iter()
             .with_min_len(rows_per_task(w))
             .map(|pr| {
                 let mut norm = 0.0f64;
-                if pr < HALO || pr >= h + HALO || cancelled() {
+                if pr < HALO || pr >= h + HALO || cancel.is_cancelled() {
                     return norm;
                 }
                 let here = &self.coefficients[pr * PLANES * pw..(pr + 1) * PLANES * pw];
@@ -708,7 +697,8 @@ impl LinearSystem {
                 }
                 norm
             })
-            .sum()
+            .sum();
+        cancel.check().map(|()| norm)
     }
 
     /// The residual of every solved pixel of padded row `pr`, as `(padded
@@ -1165,6 +1155,7 @@ pub(crate) fn test_system(
     alpha: f64,
 ) -> LinearSystem {
     use crate::camera::Intrinsics;
+    use crate::cancel::Uncancelled;
     use crate::model::{Lambertian, LevelGeometry};
     let camera = Intrinsics::centred(w as f64, w, h);
     let level = PyramidLevel {
@@ -1172,16 +1163,22 @@ pub(crate) fn test_system(
         image: std::borrow::Cow::Owned(Grid::from_fn(w, h, |c, r| {
             0.3 + 0.05 * ((c * 3 + r * 7) as f64 * 0.1).sin()
         })),
-        confidence: Confidence::from_grid(Grid::filled(w, h, 1.0)),
+        confidence: Confidence::from_grid(Grid::filled(w, h, 1.0), Cancel::NEVER).uncancelled(),
         domain: Grid::from_fn(w, h, domain),
     };
     let depth = Grid::from_fn(w, h, |c, r| 2.0 + 0.02 * ((c + 2 * r) as f64 * wave).sin());
-    let mut system = LinearSystem::new(&level);
+    let mut system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
     let model = Lambertian {
         intensity_scale: 1.0,
     };
-    assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
-    system.add_smoothness(&level, alpha, 1e-3);
+    assert!(
+        system
+            .linearise_data(&model, &level, &depth, Derivatives::Exact, Cancel::NEVER)
+            .uncancelled()
+    );
+    system
+        .add_smoothness(&level, alpha, 1e-3, Cancel::NEVER)
+        .uncancelled();
     system
 }
 
@@ -1190,6 +1187,7 @@ mod tests {
     use super::*;
 
     use crate::camera::Intrinsics;
+    use crate::cancel::Uncancelled;
     use crate::model::{Lambertian, LevelGeometry};
 
     /// A small level with a random-looking smooth depth and a domain hole.
@@ -1209,7 +1207,7 @@ mod tests {
             PyramidLevel {
                 geometry,
                 image: std::borrow::Cow::Owned(image),
-                confidence: Confidence::from_grid(confidence),
+                confidence: Confidence::from_grid(confidence, Cancel::NEVER).uncancelled(),
                 domain,
             },
             depth,
@@ -1224,9 +1222,15 @@ mod tests {
                 intensity_scale: 1.3,
             };
             let (alpha, lambda) = (0.7, 0.05);
-            let mut system = LinearSystem::new(&level);
-            assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
-            system.add_smoothness(&level, alpha, lambda);
+            let mut system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
+            assert!(
+                system
+                    .linearise_data(&model, &level, &depth, Derivatives::Exact, Cancel::NEVER)
+                    .uncancelled()
+            );
+            system
+                .add_smoothness(&level, alpha, lambda, Cancel::NEVER)
+                .uncancelled();
             let energy = |z: &Grid<f64>| {
                 model::energy(
                     &model,
@@ -1237,7 +1241,9 @@ mod tests {
                     z,
                     alpha,
                     lambda,
+                    Cancel::NEVER,
                 )
+                .uncancelled()
                 .total
             };
             let (w, h) = depth.size();
@@ -1289,9 +1295,11 @@ mod tests {
             image: std::borrow::Cow::Owned(Grid::from_fn(w, h, |c, r| {
                 0.25 + 0.01 * ((c * 5 + r * 11) as f64).cos()
             })),
-            confidence: Confidence::from_grid(Grid::from_fn(w, h, |c, r| {
-                if (c + r) % 5 == 0 { 0.5 } else { 1.0 }
-            })),
+            confidence: Confidence::from_grid(
+                Grid::from_fn(w, h, |c, r| if (c + r) % 5 == 0 { 0.5 } else { 1.0 }),
+                Cancel::NEVER,
+            )
+            .uncancelled(),
             domain: Grid::filled(w, h, true),
         };
         let model = Lambertian {
@@ -1299,7 +1307,9 @@ mod tests {
         };
         let mut system = linearised(&level, &depth, &model);
         // alpha 0: the rows are the data part alone.
-        system.add_smoothness(&level, 0.0, 1.0);
+        system
+            .add_smoothness(&level, 0.0, 1.0, Cancel::NEVER)
+            .uncancelled();
         let data_energy = |z: &Grid<f64>| {
             model::energy(
                 &model,
@@ -1310,7 +1320,9 @@ mod tests {
                 z,
                 0.0,
                 1.0,
+                Cancel::NEVER,
             )
+            .uncancelled()
             .data
         };
         let edge = rows_per_task(w).max(MIN_DATA_BLOCK_ROWS);
@@ -1334,8 +1346,12 @@ mod tests {
 
     /// A new system on `level`, its data part linearised at `depth`.
     fn linearised(level: &PyramidLevel, depth: &Grid<f64>, model: &Lambertian) -> LinearSystem {
-        let mut system = LinearSystem::new(level);
-        assert!(system.linearise_data(model, level, depth, Derivatives::Exact));
+        let mut system = LinearSystem::new(level, Cancel::NEVER).uncancelled();
+        assert!(
+            system
+                .linearise_data(model, level, depth, Derivatives::Exact, Cancel::NEVER)
+                .uncancelled()
+        );
         system
     }
 
@@ -1356,20 +1372,28 @@ mod tests {
             assert_eq!(a.to_bits(), b.to_bits());
         }
         let assembled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            system.add_smoothness(&level, 1.0, 1.0)
+            system
+                .add_smoothness(&level, 1.0, 1.0, Cancel::NEVER)
+                .uncancelled()
         }));
         assert!(assembled.is_err(), "the data part was overwritten");
-        assert!(system.linearise_data(&model, &level, &depth, Derivatives::Exact));
-        system.add_smoothness(&level, 1.0, 1.0);
+        assert!(
+            system
+                .linearise_data(&model, &level, &depth, Derivatives::Exact, Cancel::NEVER)
+                .uncancelled()
+        );
+        system
+            .add_smoothness(&level, 1.0, 1.0, Cancel::NEVER)
+            .uncancelled();
     }
 
     #[test]
     fn the_rhs_norm_is_the_residual_norm_at_zero_step() {
         // A domain with holes: unsolved pixels count in neither.
         let mut system = test_system(37, 29, |c, r| (c * 3 + r) % 11 != 0, 0.4, 1e-2);
-        system.clear_dz();
-        let rhs = system.rhs_norm_squared(NEVER);
-        let residual = system.residual_norm_squared(NEVER);
+        system.clear_dz(Cancel::NEVER).uncancelled();
+        let rhs = system.rhs_norm_squared(Cancel::NEVER).uncancelled();
+        let residual = system.residual_norm_squared(Cancel::NEVER).uncancelled();
         assert!(rhs > 0.0);
         assert!(
             (rhs - residual).abs() <= 1e-12 * residual,
@@ -1377,7 +1401,7 @@ mod tests {
         );
         // Not at a non-zero step.
         system.dz_padded.iter_mut().for_each(|x| *x = 0.01);
-        let moved = system.residual_norm_squared(NEVER);
+        let moved = system.residual_norm_squared(Cancel::NEVER).uncancelled();
         assert!((moved - rhs).abs() > 1e-6 * rhs, "{moved} vs {rhs}");
     }
 
@@ -1389,7 +1413,9 @@ mod tests {
         };
         let assembled = || {
             let mut system = linearised(&level, &depth, &model);
-            system.add_smoothness(&level, 0.5, 0.1);
+            system
+                .add_smoothness(&level, 0.5, 0.1, Cancel::NEVER)
+                .uncancelled();
             system
         };
         let (mut fused, mut split) = (assembled(), assembled());
@@ -1402,11 +1428,18 @@ mod tests {
                 .for_each(|(i, x)| *x = 0.05 * (i as f32 * 0.37).sin());
         }
         let before = split.coefficients.clone();
-        let change = split.update_weights_polled(&level, 0.1, NEVER);
+        let change = split
+            .update_weights(&level, 0.1, Cancel::NEVER)
+            .uncancelled();
         assert!(change > 0.0);
         assert_eq!(split.coefficients, before);
-        split.assemble_polled(&level, 0.5, NEVER);
-        assert_eq!(fused.add_smoothness(&level, 0.5, 0.1), change);
+        split.assemble(&level, 0.5, Cancel::NEVER).uncancelled();
+        assert_eq!(
+            fused
+                .add_smoothness(&level, 0.5, 0.1, Cancel::NEVER)
+                .uncancelled(),
+            change
+        );
         assert_eq!(split.coefficients, fused.coefficients);
         assert_ne!(split.coefficients, before);
     }
