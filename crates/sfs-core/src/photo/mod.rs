@@ -122,8 +122,9 @@ pub struct PhotoInput {
     /// The pyramid's total pixels over the working size's, for the memory
     /// guard (see [`crate::solver::pyramid::pyramid_factor`]).
     pub pyramid_factor: f64,
-    /// How the user sets the working size, for the memory guard's way out
-    /// (e.g. `--max-side` or "the working size in the Camera panel").
+    /// How the user sets the working size, followed by a number in the
+    /// notes and the memory guard's way out (`--max-side`, or "a working
+    /// size (Camera panel) of").
     pub max_side_setting: String,
 }
 

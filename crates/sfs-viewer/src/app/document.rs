@@ -210,7 +210,7 @@ pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<P
         albedo: options.albedo.clone(),
         max_side: options.max_side,
         pyramid_factor: sfs_core::memory::DEFAULT_PYRAMID_FACTOR,
-        max_side_setting: "the working size (Camera panel) set to".into(),
+        max_side_setting: "a working size (Camera panel) of".into(),
     };
     let found_mask = options.mask.is_none() && mask_beside.is_some();
     (input, camera_beside, found_mask)
