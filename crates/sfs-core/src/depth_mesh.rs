@@ -24,6 +24,8 @@
 //!   `(v1 - v0) x (v2 - v0)` points towards it (negative z in camera space
 //!   for a plane facing the camera).
 
+use glam::DVec3;
+
 use crate::grid::Grid;
 use crate::model::LevelGeometry;
 
@@ -292,44 +294,31 @@ impl DepthMesh {
     /// area-weighted sum of the normals of the vertex's triangles; a vertex
     /// without a triangle faces the camera's centre.
     pub fn normals_camera(&self) -> Vec<[f64; 3]> {
-        let mut sums = vec![[0.0f64; 3]; self.positions_camera.len()];
-        let p = |v: u32| self.positions_camera[v as usize];
+        let mut sums = vec![DVec3::ZERO; self.positions_camera.len()];
+        let p = |v: u32| DVec3::from_array(self.positions_camera[v as usize]);
         for &[i, j, k] in &self.triangles {
             let (a, b, c) = (p(i), p(j), p(k));
-            let n = cross(sub(b, a), sub(c, a));
+            let n = (b - a).cross(c - a);
             for v in [i, j, k] {
-                let s = &mut sums[v as usize];
-                for axis in 0..3 {
-                    s[axis] += n[axis];
-                }
+                sums[v as usize] += n;
             }
         }
+        // Divided by the length rather than `try_normalize`'s multiplication
+        // by its reciprocal, which rounds differently.
+        let unit = |v: DVec3| {
+            let length = v.length();
+            (length.is_finite() && length > 0.0).then(|| v / length)
+        };
         sums.iter()
             .zip(&self.positions_camera)
             .map(|(&sum, &position)| {
-                normalised(sum)
-                    .or_else(|| normalised(position.map(|x| -x)))
-                    .unwrap_or([0.0, 0.0, -1.0])
+                unit(sum)
+                    .or_else(|| unit(-DVec3::from_array(position)))
+                    .unwrap_or(DVec3::NEG_Z)
+                    .to_array()
             })
             .collect()
     }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalised(v: [f64; 3]) -> Option<[f64; 3]> {
-    let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    (length.is_finite() && length > 0.0).then(|| v.map(|x| x / length))
 }
 
 #[cfg(test)]
@@ -378,10 +367,10 @@ mod tests {
         assert_eq!(m.triangles().len(), 2 * 4 * 3);
         // Outline of a 4x3 grid of cells: 5*3 column edges + 4*4 row edges.
         assert_eq!(m.edges().len(), 5 * 3 + 4 * 4);
-        let p = |v: u32| m.positions_camera()[v as usize];
+        let p = |v: u32| DVec3::from_array(m.positions_camera()[v as usize]);
         for &[a, b, c] in m.triangles() {
-            let n = cross(sub(p(b), p(a)), sub(p(c), p(a)));
-            assert!(n[2] < 0.0, "{n:?}");
+            let n = (p(b) - p(a)).cross(p(c) - p(a));
+            assert!(n.z < 0.0, "{n:?}");
         }
         for n in m.normals_camera() {
             assert!((n[2] + 1.0).abs() < 1e-12 && n[0].abs() < 1e-12, "{n:?}");

@@ -8,6 +8,7 @@
 //! and `a_k = (D_k . (P - S_k) / |P - S_k|)^mu_k`. One isotropic light at the
 //! optical centre gives back the paper's `s Q^3 / (z W)` exactly.
 
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 use crate::model::{Lambertian, PixelRay, Reflectance};
@@ -79,11 +80,14 @@ impl PointLight {
             ));
         }
         if let Some(d) = self.direction {
-            let length = dot(d, d).sqrt();
+            let v = DVec3::from_array(d);
+            let length = v.length();
             if !(length.is_finite() && length > 1e-12) {
                 return Err(format!("{name}: direction {d:?} must be a non-zero vector"));
             }
-            self.direction = Some([d[0] / length, d[1] / length, d[2] / length]);
+            // Divided by the length, not multiplied by its reciprocal as
+            // `normalize` does: the rounding the saved results were made with.
+            self.direction = Some((v / length).to_array());
         }
         Ok(self)
     }
@@ -110,20 +114,15 @@ pub struct NearLights {
     pub lights: Vec<PointLight>,
 }
 
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// An LED's emission towards a point at `l = S - P` (`d = |l|`):
 /// `(a, e, mu)` with `a = (e / d)^mu`, `e = D . (P - S)` and `mu` the
 /// effective exponent (0 and `a = 1` for an isotropic light); `None` behind
 /// the emitter.
 #[inline]
-fn emission(light: &PointLight, l: [f64; 3], d: f64) -> Option<(f64, f64, f64)> {
+fn emission(light: &PointLight, l: DVec3, d: f64) -> Option<(f64, f64, f64)> {
     match light.direction {
         Some(dir) if light.mu > 0.0 => {
-            let e = -dot(dir, l);
+            let e = -DVec3::from_array(dir).dot(l);
             (e > 0.0).then(|| ((e / d).powf(light.mu), e, light.mu))
         }
         _ => Some((1.0, 1.0, 0.0)),
@@ -144,13 +143,12 @@ fn light_term(
     let f = ray.focal_px;
     let (x, y) = (ray.x_px, ray.y_px);
     // P = z v, v = (x/f, y/f, 1); L = S - P.
-    let v = [x / f, y / f, 1.0];
-    let s = light.position;
-    let l = [s[0] - depth * v[0], s[1] - depth * v[1], s[2] - depth];
-    let n = [f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy)];
-    let g = dot(n, l);
-    let w2 = dot(n, n);
-    let d2 = dot(l, l);
+    let v = DVec3::new(x / f, y / f, 1.0);
+    let l = DVec3::from_array(light.position) - depth * v;
+    let n = DVec3::new(f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy));
+    let g = n.dot(l);
+    let w2 = n.length_squared();
+    let d2 = l.length_squared();
     if !(g > 0.0 && w2 > 0.0 && d2 > 0.0) {
         return None;
     }
@@ -158,15 +156,15 @@ fn light_term(
     let (aniso, e, mu) = emission(light, l, d)?;
     // d log a / dz = mu (de/dz) / e with e = -D . L, de/dz = D . v.
     let dlog_aniso_dz = match light.direction {
-        Some(dir) if mu > 0.0 => mu * dot(dir, v) / e,
+        Some(dir) if mu > 0.0 => mu * DVec3::from_array(dir).dot(v) / e,
         _ => 0.0,
     };
     let value = light.intensity * aniso * g / (w2.sqrt() * d2 * d);
     // d log I / d theta = mu e'/e - (mu + 3) d'/d + g'/g - W'/W.
-    let l_dot_v = dot(l, v);
-    let dz = dlog_aniso_dz + (mu + 3.0) * l_dot_v / d2 + (-l[2] - dot(n, v)) / g + n[2] / w2;
-    let dzx = (f * l[0] - x * l[2]) / g - (f * n[0] - x * n[2]) / w2;
-    let dzy = (f * l[1] - y * l[2]) / g - (f * n[1] - y * n[2]) / w2;
+    let l_dot_v = l.dot(v);
+    let dz = dlog_aniso_dz + (mu + 3.0) * l_dot_v / d2 + (-l.z - n.dot(v)) / g + n.z / w2;
+    let dzx = (f * l.x - x * l.z) / g - (f * n.x - x * n.z) / w2;
+    let dzy = (f * l.y - y * l.z) / g - (f * n.y - y * n.z) / w2;
     Some((value, [dz, dzx, dzy]))
 }
 
@@ -264,6 +262,7 @@ impl Reflectance for LightModel {
 /// point `point` with unit normal `normal` facing the camera (for renderers
 /// that know the true normal).
 pub fn irradiance(lights: &[PointLight], point: [f64; 3], normal: [f64; 3]) -> f64 {
+    let (point, normal) = (DVec3::from_array(point), DVec3::from_array(normal));
     let centred = [PointLight::CENTRED];
     let lights = if lights.is_empty() {
         &centred[..]
@@ -273,13 +272,9 @@ pub fn irradiance(lights: &[PointLight], point: [f64; 3], normal: [f64; 3]) -> f
     lights
         .iter()
         .map(|light| {
-            let l = [
-                light.position[0] - point[0],
-                light.position[1] - point[1],
-                light.position[2] - point[2],
-            ];
-            let d2 = dot(l, l);
-            let cos_n = dot(normal, l);
+            let l = DVec3::from_array(light.position) - point;
+            let d2 = l.length_squared();
+            let cos_n = normal.dot(l);
             if !(cos_n > 0.0 && d2 > 0.0) {
                 return 0.0;
             }

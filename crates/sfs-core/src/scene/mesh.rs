@@ -14,6 +14,7 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
+use glam::{DMat3, DVec3};
 use rayon::prelude::*;
 
 use crate::camera::Intrinsics;
@@ -423,9 +424,9 @@ struct PreparedTriangle {
     vertices: [u32; 3],
     /// `A x B`, `B x C`, `C x A` for the vertices `A, B, C`: the signed volumes
     /// `d . (A x B)` etc. are the unnormalised barycentrics of `C`, `A`, `B`.
-    edge_cross: [[f64; 3]; 3],
+    edge_cross: [DVec3; 3],
     /// Face normal `(B - A) x (C - A)` (unnormalised).
-    normal: [f64; 3],
+    normal: DVec3,
     /// `normal . A`: the plane is `normal . P = plane_offset`.
     plane_offset: f64,
     /// Inclusive pixel column range of candidate pixel centres.
@@ -439,17 +440,17 @@ impl PreparedTriangle {
     /// A, B, C))` when the ray passes through it (edges included) in front of
     /// the camera.
     #[inline]
-    fn hit(&self, d: [f64; 3]) -> Option<(f64, [f64; 3])> {
-        let w_c = dot(d, self.edge_cross[0]);
-        let w_a = dot(d, self.edge_cross[1]);
-        let w_b = dot(d, self.edge_cross[2]);
+    fn hit(&self, d: DVec3) -> Option<(f64, [f64; 3])> {
+        let w_c = d.dot(self.edge_cross[0]);
+        let w_a = d.dot(self.edge_cross[1]);
+        let w_b = d.dot(self.edge_cross[2]);
         let inside =
             (w_a >= 0.0 && w_b >= 0.0 && w_c >= 0.0) || (w_a <= 0.0 && w_b <= 0.0 && w_c <= 0.0);
         let sum = w_a + w_b + w_c;
         if !inside || sum == 0.0 {
             return None;
         }
-        let depth = self.plane_offset / dot(self.normal, d);
+        let depth = self.plane_offset / self.normal.dot(d);
         if !(depth.is_finite() && depth > 0.0) {
             return None;
         }
@@ -473,7 +474,7 @@ impl Band<'_> {
         &self,
         bin: &[u32],
         triangles: &[PreparedTriangle],
-        vertex_normals: &[[f64; 3]],
+        vertex_normals: &[DVec3],
         lights: &[PointLight],
         depth: &mut [f64],
         image: &mut [f64],
@@ -490,7 +491,7 @@ impl Band<'_> {
             for row in row_start..=row_end {
                 let local = (row - self.first_row) * self.width;
                 for column in tri.columns.0..=tri.columns.1 {
-                    let d = [self.ray_x[column], self.ray_y[row], 1.0];
+                    let d = DVec3::new(self.ray_x[column], self.ray_y[row], 1.0);
                     if let Some((z, _)) = tri.hit(d)
                         && z < nearest[local + column]
                     {
@@ -504,23 +505,23 @@ impl Band<'_> {
             let Some(tri) = triangles.get(t as usize) else {
                 continue;
             };
-            let d = [
+            let d = DVec3::new(
                 self.ray_x[k % self.width],
                 self.ray_y[self.first_row + k / self.width],
                 1.0,
-            ];
+            );
             let Some((z, bary)) = tri.hit(d) else {
                 continue;
             };
-            let point = scale(d, z);
+            let point = d * z;
             let normal = shading_normal(tri, bary, vertex_normals);
             // The normal turned to face the camera (N . P <= 0).
-            let facing = if dot(normal, point) > 0.0 {
-                scale(normal, -1.0)
+            let facing = if normal.dot(point) > 0.0 {
+                -normal
             } else {
                 normal
             };
-            let intensity = crate::light::irradiance(lights, point, facing);
+            let intensity = crate::light::irradiance(lights, point.to_array(), facing.to_array());
             depth[k] = z;
             mask[k] = true;
             image[k] = if intensity.is_finite() {
@@ -535,19 +536,18 @@ impl Band<'_> {
 /// Unit shading normal at barycentrics `bary` of `tri` (orientation not yet
 /// turned to the camera): interpolated smooth vertex normals, or the face
 /// normal where they cancel.
-fn shading_normal(tri: &PreparedTriangle, bary: [f64; 3], vertex_normals: &[[f64; 3]]) -> [f64; 3] {
-    let mut n = [0.0; 3];
+fn shading_normal(tri: &PreparedTriangle, bary: [f64; 3], vertex_normals: &[DVec3]) -> DVec3 {
+    let mut n = DVec3::ZERO;
     for (&vertex, weight) in tri.vertices.iter().zip(bary) {
-        let vertex_normal = vertex_normals[vertex as usize];
-        for axis in 0..3 {
-            n[axis] += weight * vertex_normal[axis];
-        }
+        n += weight * vertex_normals[vertex as usize];
     }
-    let length = norm(n);
+    // Both branches multiply by the reciprocal of the length, as `normalize`
+    // does (the face normal of a prepared triangle is never zero).
+    let length = n.length();
     if length.is_finite() && length > 0.0 {
-        scale(n, 1.0 / length)
+        n * (1.0 / length)
     } else {
-        scale(tri.normal, 1.0 / norm(tri.normal))
+        tri.normal.normalize()
     }
 }
 
@@ -556,31 +556,38 @@ fn place_vertices(
     mesh: &TriangleMesh,
     (min, max): ([f64; 3], [f64; 3]),
     placement: &Placement,
-) -> Vec<[f64; 3]> {
-    let centre = [0, 1, 2].map(|a| 0.5 * (min[a] + max[a]));
-    let largest_side = (0..3).map(|a| max[a] - min[a]).fold(0.0, f64::max);
+) -> Vec<DVec3> {
+    let (min, max) = (DVec3::from_array(min), DVec3::from_array(max));
+    let centre = 0.5 * (min + max);
+    let largest_side = (max - min).to_array().into_iter().fold(0.0, f64::max);
     let unit = 1.0 / largest_side;
     let rotation = rotation_matrix(placement.rotation_deg);
     mesh.positions
         .iter()
-        .map(|p| {
-            let q = [0, 1, 2].map(|a| (p[a] - centre[a]) * unit);
-            let mut out = mat_vec(&rotation, q);
-            out[2] += placement.distance;
+        .map(|&p| {
+            let mut out = rotation * ((DVec3::from_array(p) - centre) * unit);
+            out.z += placement.distance;
             out
         })
         .collect()
 }
 
 /// `R = Rz(a_z) Ry(a_y) Rx(a_x)` for `[a_x, a_y, a_z]` in degrees.
-fn rotation_matrix(rotation_deg: [f64; 3]) -> [[f64; 3]; 3] {
+fn rotation_matrix(rotation_deg: [f64; 3]) -> DMat3 {
     let (cx, sx) = cos_sin_deg(rotation_deg[0]);
     let (cy, sy) = cos_sin_deg(rotation_deg[1]);
     let (cz, sz) = cos_sin_deg(rotation_deg[2]);
-    let rx = [[1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]];
-    let ry = [[cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]];
-    let rz = [[cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]];
-    mat_mul(&rz, &mat_mul(&ry, &rx))
+    let rows = |r0: [f64; 3], r1: [f64; 3], r2: [f64; 3]| {
+        DMat3::from_rows(
+            DVec3::from_array(r0),
+            DVec3::from_array(r1),
+            DVec3::from_array(r2),
+        )
+    };
+    let rx = rows([1.0, 0.0, 0.0], [0.0, cx, -sx], [0.0, sx, cx]);
+    let ry = rows([cy, 0.0, sy], [0.0, 1.0, 0.0], [-sy, 0.0, cy]);
+    let rz = rows([cz, -sz, 0.0], [sz, cz, 0.0], [0.0, 0.0, 1.0]);
+    rz * (ry * rx)
 }
 
 /// Cosine and sine of an angle in degrees, exact at multiples of 90 degrees.
@@ -604,7 +611,7 @@ fn cos_sin_deg(angle_deg: f64) -> (f64, f64) {
 /// image with the default principal point.
 fn fit_focal_px(
     mesh: &TriangleMesh,
-    camera_points: &[[f64; 3]],
+    camera_points: &[DVec3],
     width: usize,
     height: usize,
     fill: f64,
@@ -615,9 +622,9 @@ fn fit_focal_px(
     for tri in &mesh.triangles {
         for &v in tri {
             let p = camera_points[v as usize];
-            if p[2] > 0.0 {
-                max_tan_x = max_tan_x.max((p[0] / p[2]).abs());
-                max_tan_y = max_tan_y.max((p[1] / p[2]).abs());
+            if p.z > 0.0 {
+                max_tan_x = max_tan_x.max((p.x / p.z).abs());
+                max_tan_y = max_tan_y.max((p.y / p.z).abs());
             }
         }
     }
@@ -636,16 +643,13 @@ fn fit_focal_px(
 
 /// Area-weighted vertex normals: the sum of the unnormalised face cross
 /// products `(B - A) x (C - A)` of the triangles at each vertex.
-fn vertex_normals(camera_points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f64; 3]> {
-    let mut normals = vec![[0.0; 3]; camera_points.len()];
+fn vertex_normals(camera_points: &[DVec3], triangles: &[[u32; 3]]) -> Vec<DVec3> {
+    let mut normals = vec![DVec3::ZERO; camera_points.len()];
     for tri in triangles {
         let [a, b, c] = tri.map(|v| camera_points[v as usize]);
-        let n = cross(sub(b, a), sub(c, a));
+        let n = (b - a).cross(c - a);
         for &v in tri {
-            let acc = &mut normals[v as usize];
-            for axis in 0..3 {
-                acc[axis] += n[axis];
-            }
+            normals[v as usize] += n;
         }
     }
     normals
@@ -655,7 +659,7 @@ fn vertex_normals(camera_points: &[[f64; 3]], triangles: &[[u32; 3]]) -> Vec<[f6
 /// degenerate ones and those whose screen bounding box holds no pixel centre.
 fn prepare_triangles(
     mesh: &TriangleMesh,
-    camera_points: &[[f64; 3]],
+    camera_points: &[DVec3],
     camera: &Intrinsics,
     width: usize,
     height: usize,
@@ -664,15 +668,15 @@ fn prepare_triangles(
     let mut prepared = Vec::with_capacity(mesh.triangles.len());
     for tri in &mesh.triangles {
         let [a, b, c] = tri.map(|v| camera_points[v as usize]);
-        if a[2] <= 0.0 || b[2] <= 0.0 || c[2] <= 0.0 {
+        if a.z <= 0.0 || b.z <= 0.0 || c.z <= 0.0 {
             continue;
         }
-        let normal = cross(sub(b, a), sub(c, a));
-        if normal == [0.0; 3] {
+        let normal = (b - a).cross(c - a);
+        if normal == DVec3::ZERO {
             continue;
         }
-        let us = [a, b, c].map(|p| camera.principal_x_px + f * p[0] / p[2]);
-        let vs = [a, b, c].map(|p| camera.principal_y_px + f * p[1] / p[2]);
+        let us = [a, b, c].map(|p| camera.principal_x_px + f * p.x / p.z);
+        let vs = [a, b, c].map(|p| camera.principal_y_px + f * p.y / p.z);
         let Some(columns) = pixel_range(&us, width) else {
             continue;
         };
@@ -681,9 +685,9 @@ fn prepare_triangles(
         };
         prepared.push(PreparedTriangle {
             vertices: *tri,
-            edge_cross: [cross(a, b), cross(b, c), cross(c, a)],
+            edge_cross: [a.cross(b), b.cross(c), c.cross(a)],
             normal,
-            plane_offset: dot(normal, a),
+            plane_offset: normal.dot(a),
             columns,
             rows,
         });
@@ -712,49 +716,6 @@ fn bin_by_band(triangles: &[PreparedTriangle], height: usize) -> Vec<Vec<u32>> {
         }
     }
     bins
-}
-
-#[inline]
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-#[inline]
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-#[inline]
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-#[inline]
-fn scale(a: [f64; 3], k: f64) -> [f64; 3] {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
-
-#[inline]
-fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-
-fn mat_vec(m: &[[f64; 3]; 3], v: [f64; 3]) -> [f64; 3] {
-    [dot(m[0], v), dot(m[1], v), dot(m[2], v)]
-}
-
-fn mat_mul(a: &[[f64; 3]; 3], b: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let mut out = [[0.0; 3]; 3];
-    for (i, row) in out.iter_mut().enumerate() {
-        for (j, value) in row.iter_mut().enumerate() {
-            *value = (0..3).map(|k| a[i][k] * b[k][j]).sum();
-        }
-    }
-    out
 }
 
 #[cfg(test)]
@@ -862,26 +823,27 @@ mod tests {
         q
     }
 
-    fn ray(scene: &Scene, column: usize, row: usize) -> [f64; 3] {
+    fn ray(scene: &Scene, column: usize, row: usize) -> DVec3 {
         let (x, y) = scene.camera.image_xy(column as f64, row as f64);
         let f = scene.camera.focal_px;
-        [x / f, y / f, 1.0]
+        DVec3::new(x / f, y / f, 1.0)
     }
 
     /// Moller-Trumbore: depth `Z` of the hit and the smallest barycentric.
-    fn ray_triangle(d: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> Option<(f64, f64)> {
-        let e1 = sub(b, a);
-        let e2 = sub(c, a);
-        let p = cross(d, e2);
-        let det = dot(e1, p);
+    fn ray_triangle(d: DVec3, triangle: [[f64; 3]; 3]) -> Option<(f64, f64)> {
+        let [a, b, c] = triangle.map(DVec3::from_array);
+        let e1 = b - a;
+        let e2 = c - a;
+        let p = d.cross(e2);
+        let det = e1.dot(p);
         if det.abs() < 1e-14 {
             return None;
         }
-        let t_vec = scale(a, -1.0);
-        let u = dot(t_vec, p) / det;
-        let q = cross(t_vec, e1);
-        let v = dot(d, q) / det;
-        let t = dot(e2, q) / det;
+        let t_vec = -a;
+        let u = t_vec.dot(p) / det;
+        let q = t_vec.cross(e1);
+        let v = d.dot(q) / det;
+        let t = e2.dot(q) / det;
         let margin = u.min(v).min(1.0 - u - v);
         (margin >= -1e-9 && t > 0.0).then_some((t, margin))
     }
@@ -889,12 +851,12 @@ mod tests {
     #[test]
     fn default_rotation_turns_y_up_into_camera_y_down() {
         let r = rotation_matrix(Placement::default().rotation_deg);
-        assert_eq!(mat_vec(&r, [1.0, 2.0, 3.0]), [1.0, -2.0, -3.0]);
+        assert_eq!(r * DVec3::new(1.0, 2.0, 3.0), DVec3::new(1.0, -2.0, -3.0));
         let angles = [20.0, -35.0, 110.0];
         let r = rotation_matrix(angles);
         let v = [0.3, -0.7, 0.2];
         let expected = rotate_about(rotate_about(rotate_about(v, 0, 20.0), 1, -35.0), 2, 110.0);
-        let got = mat_vec(&r, v);
+        let got = r * DVec3::from_array(v);
         for axis in 0..3 {
             assert!((got[axis] - expected[axis]).abs() < 1e-15);
         }
@@ -962,7 +924,7 @@ mod tests {
                     covered += 1;
                     let depth = *scene.depth_gt.at(column, row);
                     assert!((depth - t).abs() < 1e-9, "{depth} vs {t}");
-                    let r = t * norm(d);
+                    let r = t * d.length();
                     let expected = s * 2.0 / (1.25f64.sqrt() * r.powi(3));
                     let intensity = *scene.image.at(column, row);
                     assert!((intensity - expected).abs() < 1e-9 * expected.max(1.0));
@@ -996,7 +958,7 @@ mod tests {
         for row in 0..50 {
             for column in 0..70 {
                 let d = ray(&scene, column, row);
-                let t = 3.0 * n[2] / dot(n, d);
+                let t = 3.0 * n[2] / DVec3::from_array(n).dot(d);
                 let hit = [
                     [corners[0], corners[1], corners[2]],
                     [corners[0], corners[2], corners[3]],
@@ -1077,13 +1039,13 @@ mod tests {
                 covered += 1;
                 let d = ray(&scene, column, row);
                 // |t d - (0, 0, 2)|^2 = 0.25, nearer root.
-                let (a, b, c) = (dot(d, d), -4.0, 4.0 - 0.25);
+                let (a, b, c) = (d.length_squared(), -4.0, 4.0 - 0.25);
                 let disc = (b * b - 4.0 * a * c).max(0.0);
                 let t = (-b - disc.sqrt()) / (2.0 * a);
                 // The inscribed polyhedron lies inside the sphere: never nearer
                 // than it, and close to it away from the silhouette.
                 assert!(depth >= t - 1e-9 && depth < 2.0, "{depth} vs {t}");
-                let axis_distance = 2.0 * d[0].hypot(d[1]) / norm(d);
+                let axis_distance = 2.0 * d.x.hypot(d.y) / d.length();
                 if axis_distance < 0.4 {
                     assert!(depth - t < 2e-3, "{depth} vs {t}");
                 }
@@ -1214,7 +1176,10 @@ mod tests {
         let quad: Vec<[[f64; 3]; 3]> = (3..5).map(coords).collect();
         let area: f64 = quad
             .iter()
-            .map(|&[a, b, c]| 0.5 * norm(cross(sub(b, a), sub(c, a))))
+            .map(|tri| {
+                let [a, b, c] = tri.map(DVec3::from_array);
+                0.5 * (b - a).cross(c - a).length()
+            })
             .sum();
         assert!((area - 1.0).abs() < 1e-12);
         assert_eq!(

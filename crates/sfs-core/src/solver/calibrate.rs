@@ -8,6 +8,7 @@
 //! renders to the image's median brightness) lets the solver explain the
 //! image best, on a small working copy of the problem.
 
+use glam::DVec3;
 use serde::Serialize;
 
 use crate::cancel::{Cancel, Uncancelled};
@@ -163,7 +164,7 @@ pub fn estimate_intensity_scale(
     let reach = problem
         .lights
         .iter()
-        .map(|l| l.position.iter().map(|v| v * v).sum::<f64>().sqrt())
+        .map(|l| DVec3::from_array(l.position).length())
         .fold(0.0, f64::max);
     let nearest = super::prepare::nearest_object_depth(&problem.lights).max(0.5 * reach);
     let (lo, hi) = (nearest.ln(), (20.0 * reach).ln());
