@@ -568,7 +568,9 @@ impl Panels {
                 *initial = InitialChoice::Constant(1.0);
             }
             if let InitialChoice::Constant(z) = initial {
-                ui.add(egui::DragValue::new(z).range(1e-3..=1e6).speed(0.01));
+                let label = ui.label("depth").id;
+                ui.add(egui::DragValue::new(z).range(1e-3..=1e6).speed(0.01))
+                    .labelled_by(label);
             }
         });
         if *initial != before {
@@ -696,12 +698,14 @@ impl Panels {
             c.horizontal_fov_deg(w)
         ));
         ui.horizontal(|ui| {
-            ui.label("principal point");
+            let label = ui.label("principal point").id;
             changed |= ui
-                .add(egui::DragValue::new(&mut c.cx_px).speed(0.5))
+                .add(egui::DragValue::new(&mut c.cx_px).speed(0.5).prefix("x "))
+                .labelled_by(label)
                 .changed();
             changed |= ui
-                .add(egui::DragValue::new(&mut c.cy_px).speed(0.5))
+                .add(egui::DragValue::new(&mut c.cy_px).speed(0.5).prefix("y "))
+                .labelled_by(label)
                 .changed();
         });
         let scale_changed = ui
