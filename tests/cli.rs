@@ -485,6 +485,49 @@ fn help_of_every_subcommand() {
 }
 
 #[test]
+fn bench_holes_measures_every_hole_against_the_harmonic_fill() {
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("holes");
+    let run = sfs([
+        "bench",
+        "--part",
+        "holes",
+        "--quick",
+        "--scenes",
+        "sombrero",
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "bench --part holes");
+    let report = read_json(&out.join("holes.json"));
+    let rows = report["rows"].as_array().expect("rows");
+    let holes: BTreeSet<&str> = rows.iter().map(|r| r["hole"].as_str().unwrap()).collect();
+    assert_eq!(
+        holes,
+        BTreeSet::from(["band", "blobs", "disc", "silhouette"])
+    );
+    assert_eq!(rows.len(), 8, "four holes, clean and noisy");
+    for row in rows {
+        let value = |key: &str| row[key].as_f64().unwrap();
+        let (without, fill) = (value("rse_no_hole"), value("rse_harmonic_fill"));
+        assert!(
+            without > 0.0 && fill > 0.0 && value("rse_hole") > 0.0,
+            "{row}"
+        );
+        assert!(
+            (value("target") - 1.2 * without.hypot(fill)).abs() < 1e-12,
+            "{row}"
+        );
+        assert!(
+            value("hole_share") > 0.02 && value("hole_share") < 0.5,
+            "{row}"
+        );
+    }
+    let md = std::fs::read_to_string(out.join("holes.md")).expect("holes.md");
+    assert!(md.contains("| sombrero | 128x128 | 0 | disc |"), "{md}");
+}
+
+#[test]
 fn bench_speed_reports_every_method_side_by_side() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("speed");

@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 
+mod holes;
 mod lights;
 mod paper_figures;
 mod report;
@@ -44,7 +45,9 @@ pub struct BenchArgs {
     pub explicit_seconds: Option<f64>,
     /// Which part to run: `paper` (the paper's tables and figures in its own
     /// units), `robustness` (the defaults over scenes, sizes, noise and
-    /// exposure), `lights`, `all` (these four) or `speed` (time, memory and
+    /// exposure), `lights`, `all` (these four), `holes` (holes of confidence
+    /// 0 against the harmonic fill of the true depth; holes.md, holes.json)
+    /// or `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
     #[arg(long, value_enum, default_value = "all")]
@@ -70,6 +73,9 @@ pub enum Part {
     Lights,
     /// Time, memory, RSE over time and responsiveness at several sizes.
     Speed,
+    /// Holes of confidence 0 (disc, band, silhouette band, blobs) against
+    /// the harmonic fill of the true depth (holes.md, holes.json).
+    Holes,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -158,6 +164,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let written = if args.part == Part::Speed {
         speed::run(args, args.large)?;
         args.out.join("speed.md")
+    } else if args.part == Part::Holes {
+        holes::run(args)?;
+        args.out.join("holes.md")
     } else {
         run::run(args, started)?;
         args.out.join("report.md")
