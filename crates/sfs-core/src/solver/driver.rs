@@ -58,6 +58,8 @@ fn solve_on_worker<M: Reflectance>(
     let start = Instant::now();
     let mut prepared = prepare(problem, params, Some(start), observer)?;
     let initial = prepared.take_depth();
+    let alternatives = std::mem::take(&mut prepared.alternatives);
+    let initial = pick_start(initial, alternatives, model, params, &prepared, observer)?;
     let mut scheme = GaussNewton {
         model,
         params,
@@ -99,6 +101,72 @@ fn solve_on_worker<M: Reflectance>(
         scales: prepared.scales,
     }
     .checked()
+}
+
+/// Of several full-resolution starts (holes leave fast marching's start
+/// ambiguous), the one whose first Gauss-Newton step on the full image ends
+/// at the lowest energy: the model's own energy decides. A start's energy
+/// alone misleads (a start marched on a denoised image fits the data
+/// unevenly until a step has evened it out). The steps are not shown to
+/// `observer`; cancellation is polled as in the solve.
+fn pick_start<M: Reflectance>(
+    start: Grid<f64>,
+    alternatives: Vec<Grid<f64>>,
+    model: &M,
+    params: &SolverParams,
+    prepared: &Prepared<'_>,
+    observer: &mut dyn SolveObserver,
+) -> Result<Grid<f64>, SolveError> {
+    let Some(finest) = prepared.levels.last() else {
+        return Ok(start);
+    };
+    if alternatives.is_empty() {
+        return Ok(start);
+    }
+    /// Forwards only cancellation.
+    struct Quiet<'a>(&'a dyn SolveObserver);
+    impl SolveObserver for Quiet<'_> {
+        fn is_cancelled(&self) -> bool {
+            self.0.is_cancelled()
+        }
+    }
+    let trial_params = SolverParams {
+        kappa: 1,
+        kappa_max: 1,
+        ..params.clone()
+    };
+    let mut trial = GaussNewton {
+        model,
+        params: &trial_params,
+        prepared,
+        z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
+        phases: PhaseTimes::default(),
+    };
+    let step = LevelStep {
+        level: finest,
+        index: 0,
+        levels: 1,
+        finest: true,
+        start: Instant::now(),
+        start_energy: None,
+    };
+    let mut best: Option<(f64, Grid<f64>)> = None;
+    for candidate in std::iter::once(start).chain(alternatives) {
+        let mut stepped = candidate.clone();
+        let energy = trial
+            .solve_level(&step, &mut stepped, &mut Quiet(&*observer))?
+            .energy
+            .total;
+        // The first start wins ties and non-finite energies.
+        if best
+            .as_ref()
+            .is_none_or(|(lowest, _)| energy < *lowest || !lowest.is_finite())
+        {
+            best = Some((energy, candidate));
+        }
+    }
+    best.map(|(_, depth)| depth)
+        .ok_or_else(|| SolveError::Input("no start to refine".into()))
 }
 
 /// One level of the linearised scheme: `kappa` (up to `kappa_max`) outer

@@ -12,6 +12,7 @@ pub(crate) mod coarse_to_fine;
 pub mod driver;
 pub mod explicit;
 pub mod fast_marching;
+pub mod holes;
 pub mod multigrid;
 pub mod prepare;
 pub mod preview;

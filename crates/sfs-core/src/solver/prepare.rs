@@ -47,6 +47,10 @@ pub(crate) struct Prepared<'a> {
     /// on the full image alone, instead of walking the pyramid up from a
     /// constant.
     pub refines_warm_start: bool,
+    /// Other full-resolution starts that compete with `depth` where holes
+    /// leave the start ambiguous (see `fast_marching_start`); empty
+    /// otherwise.
+    pub alternatives: Vec<Grid<f64>>,
 }
 
 impl Prepared<'_> {
@@ -112,6 +116,35 @@ pub(crate) fn prepare<'a>(
         &scales,
         Cancel::new(&|| observer.is_cancelled()),
     )?;
+    let alpha_used = match params.alpha {
+        Alpha::Value(alpha) => alpha,
+        Alpha::Auto => {
+            let relative = super::auto_alpha::choose(relative_noise);
+            match params.units {
+                Units::Relative => relative,
+                Units::Paper => scales.alpha_px(relative),
+            }
+        }
+    };
+    let (alpha, lambda, crop, derivatives) = match params.units {
+        Units::Relative => (
+            scales.alpha_px(alpha_used),
+            scales.lambda_px(params.lambda),
+            Crop::Relative(params.dz_limit),
+            match params.derivatives {
+                Derivatives::Numeric { h_z } => Derivatives::Numeric {
+                    h_z: h_z * scales.depth,
+                },
+                exact => exact,
+            },
+        ),
+        Units::Paper => (
+            alpha_used,
+            params.lambda,
+            Crop::Absolute(params.dz_limit),
+            params.derivatives,
+        ),
+    };
     // Fast marching knows only the centred light; with lights elsewhere the
     // default start is the plane that best explains the image, refined
     // through the whole pyramid (the paper's path).
@@ -126,15 +159,27 @@ pub(crate) fn prepare<'a>(
     };
     let cancelled = || observer.is_cancelled();
     let cancel = Cancel::new(&cancelled);
-    let fast_marching = match fast_marching_start_wanted {
-        true => Some(fast_marching_start(
-            problem,
-            &finest,
-            relative_noise * scales.intensity,
-            relative_noise > FAST_MARCHING_DENOISE_ABOVE,
-            cancel,
-        )?),
-        _ => None,
+    // With holes, fast marching offers more than one start (see
+    // `fast_marching_start`): the first is the start, the others are
+    // alternatives the scheme may pick by energy.
+    let (fast_marching, alternatives) = match fast_marching_start_wanted {
+        true => {
+            let mut candidates = fast_marching_start(
+                problem,
+                &finest,
+                relative_noise * scales.intensity,
+                relative_noise > FAST_MARCHING_DENOISE_ABOVE,
+                cancel,
+            )?
+            .into_iter();
+            let first = candidates.next();
+            let mut alternatives = Vec::new();
+            for candidate in candidates {
+                alternatives.push(fill_warm_start(&candidate, cancel)?.0);
+            }
+            (first, alternatives)
+        }
+        _ => (None, Vec::new()),
     };
     let warm = match &params.initial_depth {
         InitialDepth::Map(map) => Some(map),
@@ -206,35 +251,6 @@ pub(crate) fn prepare<'a>(
             )
         }
     };
-    let alpha_used = match params.alpha {
-        Alpha::Value(alpha) => alpha,
-        Alpha::Auto => {
-            let relative = super::auto_alpha::choose(relative_noise);
-            match params.units {
-                Units::Relative => relative,
-                Units::Paper => scales.alpha_px(relative),
-            }
-        }
-    };
-    let (alpha, lambda, crop, derivatives) = match params.units {
-        Units::Relative => (
-            scales.alpha_px(alpha_used),
-            scales.lambda_px(params.lambda),
-            Crop::Relative(params.dz_limit),
-            match params.derivatives {
-                Derivatives::Numeric { h_z } => Derivatives::Numeric {
-                    h_z: h_z * scales.depth,
-                },
-                exact => exact,
-            },
-        ),
-        Units::Paper => (
-            alpha_used,
-            params.lambda,
-            Crop::Absolute(params.dz_limit),
-            params.derivatives,
-        ),
-    };
     Ok(Prepared {
         levels,
         shown,
@@ -247,20 +263,25 @@ pub(crate) fn prepare<'a>(
         crop,
         derivatives,
         refines_warm_start: warm.is_some(),
+        alternatives,
     })
 }
 
-/// The fast-marching start of [`InitialDepth::FastMarching`]: untrusted
-/// object pixels filled by diffusion from trusted ones (fast marching has no
-/// confidence), the image TV-denoised with weight `noise_sigma` when
-/// `denoise`, then fast marching on the object. NaN off the object.
+/// The fast-marching starts of [`InitialDepth::FastMarching`] (NaN off the
+/// object): untrusted object pixels filled by diffusion from trusted ones
+/// (fast marching has no confidence), the image TV-denoised with weight
+/// `noise_sigma` when `denoise`, then fast marching on the object. With
+/// holes (untrusted object pixels, confidence below
+/// [`super::holes::HOLE_CONFIDENCE`]) a second start follows, marched on
+/// the trusted pixels alone, and both take the thin-plate fill of their
+/// trusted depth across the holes; the scheme picks one by energy.
 fn fast_marching_start(
     problem: &Problem,
     finest: &PyramidLevel,
     noise_sigma: f64,
     denoise: bool,
     cancel: Cancel<'_>,
-) -> Result<Grid<f64>, SolveError> {
+) -> Result<Vec<Grid<f64>>, SolveError> {
     // Fast marching reads only the object, so only untrusted object pixels
     // need filling; with denoising the background is filled too, so that
     // TV does not pull the silhouette towards the (black) background. At
@@ -320,24 +341,80 @@ fn fast_marching_start(
         }
     };
     let settings = super::fast_marching::FastMarchingParams::default();
-    let (mut solved, _) = super::fast_marching::march(
-        &image,
-        problem.camera,
-        object,
-        problem.intensity_scale,
-        &settings,
-        cancel,
-    )?;
+    let march = |image: &Grid<f64>, object: &Grid<bool>| {
+        super::fast_marching::march(
+            image,
+            problem.camera,
+            object,
+            problem.intensity_scale,
+            &settings,
+            cancel,
+        )
+        .map(|(depth, _)| depth)
+    };
+    let mut candidates = vec![march(&image, object)?];
+    // What the image cannot tell is filled in depth: the smoothest surface
+    // that continues the trusted one. Two starts compete (the lower energy
+    // after one step wins, see the driver's `pick_start`): marched across the image diffused into the
+    // holes (a region beyond a hole inherits the surface marched through
+    // it, right where the hole hides no turn of the surface), and marched
+    // on the trusted pixels alone (each region beyond a hole from its own
+    // brightest points, right where the diffused image misleads; slivers
+    // too small to hold a point facing the light are filled instead).
+    // Holes are untrusted object pixels (the background is no hole: its
+    // start is the mean, as without holes).
+    let on_object = Grid::from_fn(w, h, |c, r| *finest.domain.at(c, r) && *object.at(c, r));
+    let trusted = Grid::from_fn(w, h, |c, r| {
+        *on_object.at(c, r) && finest.confidence.weight(r * w + c) >= super::holes::HOLE_CONFIDENCE
+    });
+    let holes = on_object
+        .as_slice()
+        .iter()
+        .zip(trusted.as_slice())
+        .any(|(&d, &t)| d && !t);
+    if holes {
+        let mut separate = march(&image, &trusted)?;
+        let mut anchored = trusted.clone();
+        super::holes::drop_small_regions(&mut anchored, super::holes::MIN_REGION_SHARE);
+        super::holes::thin_plate_fill(&mut separate, &on_object, &anchored, cancel)?;
+        super::holes::thin_plate_fill(&mut candidates[0], &on_object, &trusted, cancel)?;
+        // A third start marches on the image the filled surface would show
+        // in the holes: where a hole hides the point that faces the light
+        // (a dome's top, a plane's foot point), the first two start from the
+        // rim as if it faced the light; the continued surface turns inside
+        // the hole, and its image gives fast marching that point back.
+        let shown = crate::model::reproject(
+            &problem.model(),
+            &finest.geometry,
+            &on_object,
+            &candidates[0],
+            cancel,
+        )?;
+        let continued_image = Grid::from_fn(w, h, |c, r| match *trusted.at(c, r) {
+            false if *on_object.at(c, r) => *shown.at(c, r),
+            _ => *image.at(c, r),
+        });
+        drop(shown);
+        let mut continued = march(&continued_image, object)?;
+        drop(continued_image);
+        super::holes::thin_plate_fill(&mut continued, &on_object, &trusted, cancel)?;
+        candidates.push(separate);
+        candidates.push(continued);
+    }
     drop(image);
-    // NaN off the object, in place.
-    crate::grid::for_rows(solved.as_mut_slice(), w, cancel, |r, depth| {
-        for (c, z) in depth.iter_mut().enumerate() {
-            if !object.at(c, r) {
-                *z = f64::NAN;
+    drop(trusted);
+    drop(on_object);
+    for solved in &mut candidates {
+        // NaN off the object, in place.
+        crate::grid::for_rows(solved.as_mut_slice(), w, cancel, |r, depth| {
+            for (c, z) in depth.iter_mut().enumerate() {
+                if !object.at(c, r) {
+                    *z = f64::NAN;
+                }
             }
-        }
-    })?;
-    Ok(solved)
+        })?;
+    }
+    Ok(candidates)
 }
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.

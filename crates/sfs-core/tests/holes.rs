@@ -1,0 +1,185 @@
+//! What the image cannot tell: analytic surfaces with holes of confidence 0
+//! come back within the bound the holes bench uses, against the harmonic
+//! fill of the true depth across the same hole (a plain smooth
+//! continuation): `RSE with the hole <= 1.2 sqrt(RSE without^2 + RSE of the
+//! fill^2)`. The known misses are here too, ignored with their reasons.
+
+use sfs_core::camera::Intrinsics;
+use sfs_core::grid::Grid;
+use sfs_core::light::LightModel;
+use sfs_core::metrics;
+use sfs_core::model::{PixelRay, Reflectance};
+use sfs_core::params::SolverParams;
+use sfs_core::scene::{self, Scene, sombrero::sombrero};
+use sfs_core::solver::{Problem, Solution, solve};
+
+const SIZE: usize = 128;
+
+/// An exact image of the surface `depth(x_px, y_px) -> (z, dz/dx, dz/dy)`
+/// (image-plane pixels from the principal point), lit from the optical
+/// centre with `s = 1`, on the pixels where `on_object` holds.
+fn analytic(
+    name: &str,
+    depth: impl Fn(f64, f64) -> (f64, f64, f64),
+    on_object: impl Fn(f64, f64) -> bool,
+) -> Scene {
+    let camera = Intrinsics::centred(SIZE as f64, SIZE, SIZE);
+    let model = LightModel::new(1.0, &[]);
+    let mut depth_gt = Grid::filled(SIZE, SIZE, f64::NAN);
+    let mut object_mask = Grid::filled(SIZE, SIZE, false);
+    let image = Grid::from_fn(SIZE, SIZE, |c, r| {
+        let (x_px, y_px) = camera.image_xy(c as f64, r as f64);
+        if !on_object(x_px, y_px) {
+            return 0.0;
+        }
+        let (z, zx, zy) = depth(x_px, y_px);
+        *depth_gt.at_mut(c, r) = z;
+        *object_mask.at_mut(c, r) = true;
+        let ray = PixelRay {
+            x_px,
+            y_px,
+            focal_px: camera.focal_px,
+        };
+        model.radiance(&ray, z, zx, zy)
+    });
+    // Exposed so that the brightest pixel is 0.9, as scenes are rendered.
+    let brightest = image.as_slice().iter().copied().fold(0.0, f64::max);
+    let k = 0.9 / brightest;
+    Scene {
+        name: name.into(),
+        camera,
+        intensity_scale: k,
+        image: image.map(|v| v * k),
+        depth_gt,
+        object_mask,
+        lights: Vec::new(),
+    }
+}
+
+fn plane() -> Scene {
+    analytic(
+        "plane",
+        |x, y| (2.0 + 0.003 * x + 0.002 * y, 0.003, 0.002),
+        |_, _| true,
+    )
+}
+
+/// A dome: the cap of an ellipsoid of revolution, 0.8 deep, 90 px wide.
+fn dome() -> Scene {
+    const RADIUS_PX: f64 = 90.0;
+    analytic(
+        "dome",
+        |x, y| {
+            let root = (1.0 - (x * x + y * y) / (RADIUS_PX * RADIUS_PX)).sqrt();
+            let slope = 0.8 / (RADIUS_PX * RADIUS_PX * root);
+            (2.6 - 0.8 * root, slope * x, slope * y)
+        },
+        |x, y| x.hypot(y) < 0.85 * RADIUS_PX,
+    )
+}
+
+fn solve_with(scene: &Scene, confidence: Option<Grid<f64>>, params: &SolverParams) -> Solution {
+    let problem = Problem {
+        image: scene.image.clone(),
+        camera: scene.camera,
+        intensity_scale: scene.intensity_scale,
+        object_mask: Some(scene.object_mask.clone()),
+        confidence,
+        lights: Vec::new(),
+    };
+    solve(&problem, params, &mut ()).expect("an exact image solves")
+}
+
+/// `(RSE with the hole, the bound)`.
+fn with_and_bound(scene: &Scene, hole: &Grid<f64>) -> (f64, f64) {
+    let params = SolverParams::default();
+    let rse =
+        |solution: &Solution| metrics::rse(&solution.depth, &scene.depth_gt).expect("same size");
+    let without = rse(&solve_with(scene, None, &params));
+    let with = rse(&solve_with(scene, Some(hole.clone()), &params));
+    let known = hole.map(|&c| c > 0.5);
+    let fill = metrics::rse(
+        &scene::harmonic_fill(&scene.depth_gt, &known),
+        &scene.depth_gt,
+    )
+    .expect("same size");
+    (with, 1.2 * without.hypot(fill))
+}
+
+fn disc() -> Grid<f64> {
+    scene::disc_confidence(SIZE, SIZE, 0.5, 0.45, 0.14)
+}
+
+fn band() -> Grid<f64> {
+    scene::band_confidence(SIZE, SIZE, 0.45, 0.1)
+}
+
+#[test]
+#[ignore = "known miss (issue 21): the dome's RSE 0.0039 against a bound of 0.0024 at 128x128, the plane's 0.0013 against 0.0007"]
+fn a_plane_and_a_dome_with_a_band_missing_come_back_as_well_as_their_fill() {
+    for scene in [plane(), dome()] {
+        let (with, bound) = with_and_bound(&scene, &band());
+        assert!(with <= bound, "{}: RSE {with} above {bound}", scene.name);
+    }
+}
+
+#[test]
+#[ignore = "known miss (issue 21): the dome's hidden top comes back 0.06 deeper than its rim (a dent), the plane 0.002 beyond its range"]
+fn a_disc_hiding_the_point_that_faces_the_light_is_filled_without_spikes() {
+    // The disc hides the plane's foot point and the dome's top: fast
+    // marching has no point facing the light there (the bench's misses are
+    // of this kind, see README). The fill still stays within the depths
+    // the truth spans over the hole: no spike, no cliff, no drift.
+    for scene in [plane(), dome()] {
+        let hole = disc();
+        let solution = solve_with(&scene, Some(hole.clone()), &SolverParams::default());
+        let inside: Vec<(f64, f64)> = solution
+            .depth
+            .as_slice()
+            .iter()
+            .zip(scene.depth_gt.as_slice())
+            .zip(hole.as_slice())
+            .filter(|((_, t), c)| t.is_finite() && **c < 0.5)
+            .map(|((z, t), _)| (*z, *t))
+            .collect();
+        assert!(
+            inside.len() > 500,
+            "{}: the disc is on the object",
+            scene.name
+        );
+        let low = inside.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+        let high = inside.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
+        for &(z, _) in &inside {
+            assert!(
+                z.is_finite() && z >= low && z <= high,
+                "{}: depth {z} outside the truth's {low}..{high} over the hole",
+                scene.name
+            );
+        }
+    }
+}
+
+#[test]
+fn the_sombrero_with_a_band_missing_comes_back_as_well_as_its_fill() {
+    let scene = sombrero(SIZE, SIZE);
+    let (with, bound) = with_and_bound(&scene, &band());
+    assert!(with <= bound, "RSE {with} above {bound}");
+}
+
+#[test]
+#[ignore = "known miss (issue 21): a plane with a hole comes back 2-4x the bound; the full-resolution refinement leaves a smooth error of ~0.2 % of depth on the trusted pixels (the energy differs from the truth's by 1e-4 of itself)"]
+fn a_plane_with_a_disc_or_a_band_missing_comes_back_as_well_as_its_fill() {
+    let scene = plane();
+    for (name, hole) in [("disc", disc()), ("band", band())] {
+        let (with, bound) = with_and_bound(&scene, &hole);
+        assert!(with <= bound, "{name}: RSE {with} above {bound}");
+    }
+}
+
+#[test]
+#[ignore = "known miss (issue 21): the disc hides the Sombrero's peak, the only point of the central region facing the light; every start recovers a bowl there (RSE 0.097 at 256x256)"]
+fn the_sombrero_with_its_peak_missing_comes_back_as_well_as_its_fill() {
+    let scene = sombrero(SIZE, SIZE);
+    let (with, bound) = with_and_bound(&scene, &disc());
+    assert!(with <= bound, "RSE {with} above {bound}");
+}
