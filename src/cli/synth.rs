@@ -8,7 +8,9 @@ use clap::Args;
 use crate::output::OutputStage;
 use sfs_core::camera_file::CameraFile;
 use sfs_core::camera_file::LightEntry;
+use sfs_core::grid::Grid;
 use sfs_core::io;
+use sfs_core::light::PointLight;
 use sfs_core::scene::{self, Scene, mesh, sombrero};
 
 /// Arguments of `synth`.
@@ -36,6 +38,11 @@ pub struct SynthArgs {
     /// Mesh distance from the camera, in units of the mesh's largest side.
     #[arg(long, default_value_t = 2.0)]
     pub distance: f64,
+    /// Trace cast shadows: each light is hidden where the surface lies
+    /// between it and the point (a ray march through the depth map); writes
+    /// shadow.png (255 where no light reaches the object).
+    #[arg(long)]
+    pub shadows: bool,
     /// Lights (camera frame, in units of depth: the Sombrero's, or the
     /// mesh's largest side = 1) [default: one at the optical centre].
     #[command(flatten)]
@@ -45,30 +52,40 @@ pub struct SynthArgs {
     pub out: PathBuf,
 }
 
-/// Renders the scene named by the arguments.
-pub fn render_scene(args: &SynthArgs) -> Result<Scene> {
+/// Renders the scene named by the arguments; with `--shadows`, also the
+/// pixels no light reaches (cast or attached shadow).
+pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
     let (width, height) = args.size;
     if !args.lights.indices.is_empty() {
         anyhow::bail!("--light-index picks lights of a camera file; synth takes --light X,Y,Z");
     }
     let lights = args.lights.lights()?.unwrap_or_default();
-    if args.scene == "sombrero" {
-        return Ok(sombrero::sombrero_lit(width, height, &lights));
-    }
-    let path = Path::new(&args.scene);
-    let mesh = mesh::load_obj(path)?;
-    let placement = mesh::Placement {
-        rotation_deg: args.rotation,
-        distance: args.distance,
-        ..Default::default()
+    let render: Box<dyn Fn(&[PointLight]) -> Result<Scene>> = if args.scene == "sombrero" {
+        Box::new(move |lights: &[PointLight]| Ok(sombrero::sombrero_lit(width, height, lights)))
+    } else {
+        let path = Path::new(&args.scene);
+        let mesh = mesh::load_obj(path)?;
+        let placement = mesh::Placement {
+            rotation_deg: args.rotation,
+            distance: args.distance,
+            ..Default::default()
+        };
+        let name = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "mesh".into());
+        Box::new(move |lights: &[PointLight]| {
+            Ok(mesh::render_lit(
+                &mesh, width, height, &placement, lights, &name,
+            )?)
+        })
     };
-    let name = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "mesh".into());
-    Ok(mesh::render_lit(
-        &mesh, width, height, &placement, &lights, &name,
-    )?)
+    if args.shadows {
+        let (scene, shadow) = scene::shadow::with_cast_shadows(render, &lights)?;
+        Ok((scene, Some(shadow)))
+    } else {
+        Ok((render(&lights)?, None))
+    }
 }
 
 /// Every file `synth` can write into `--out`: those a run does not write
@@ -78,6 +95,7 @@ const SYNTH_OUTPUTS: &[&str] = &[
     "image8.png",
     "noisy8.png",
     "confidence.png",
+    "shadow.png",
     "mask.png",
     "depth_gt.npy",
     "scene.json",
@@ -105,7 +123,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     )?;
     // The destination is locked and checked writable before any work.
     let mut stage = OutputStage::new(&args.out, SYNTH_OUTPUTS)?;
-    let scene = render_scene(args)?;
+    let (scene, shadow) = render_scene(args)?;
     let (w, h) = scene.image.size();
     io::write_png16(&stage.path("image16.png"), &scene.image)?;
     io::write_png8(&stage.path("image8.png"), &scene.image)?;
@@ -118,6 +136,9 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         io::write_png8(&stage.path("confidence.png"), &confidence)?;
     }
     io::write_mask_png(&stage.path("mask.png"), &scene.object_mask)?;
+    if let Some(shadow) = &shadow {
+        io::write_mask_png(&stage.path("shadow.png"), shadow)?;
+    }
     io::write_npy_f64(&stage.path("depth_gt.npy"), &scene.depth_gt)?;
     let camera = CameraFile {
         name: Some(scene.name.clone()),

@@ -6,6 +6,7 @@ use crate::camera::Intrinsics;
 use crate::grid::Grid;
 
 pub mod mesh;
+pub mod shadow;
 pub mod sombrero;
 
 /// A synthetic scene: a noise-free linear image with its exact depth.
