@@ -528,6 +528,62 @@ fn bench_holes_measures_every_hole_against_the_harmonic_fill() {
 }
 
 #[test]
+fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
+    let dir = tempdir().expect("temp dir");
+    let scene = dir.path().join("scene");
+    let run = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "96x96",
+        "--light",
+        "1.29,0,0.47",
+        "--shadows",
+        "--out",
+        &s(&scene),
+    ]);
+    assert_success(&run, "synth --shadows");
+    let truth = image::open(scene.join("shadow.png"))
+        .expect("shadow.png")
+        .to_luma8();
+    let in_shadow = truth.pixels().filter(|p| p.0[0] > 127).count();
+    assert!(
+        in_shadow > 100,
+        "the light 40 degrees off casts a shadow: {in_shadow}"
+    );
+    let out = dir.path().join("solved");
+    let run = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--camera",
+        &s(&scene.join("scene.json")),
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "solve of the shadowed render");
+    assert!(
+        stderr(&run).contains("taken out of the data term"),
+        "{}",
+        stderr(&run)
+    );
+    let found = image::open(out.join("shadow.png"))
+        .expect("solve writes shadow.png")
+        .to_luma8();
+    let agree = found
+        .pixels()
+        .zip(truth.pixels())
+        .filter(|(a, b)| (a.0[0] > 127) == (b.0[0] > 127))
+        .count();
+    assert!(
+        agree as f64 >= 0.99 * (96.0 * 96.0),
+        "the solve's shadow is the render's: {agree} of 9216 agree"
+    );
+    let report = read_json(&out.join("report.json"));
+    let share = report["shadow_share"].as_f64().expect("shadow_share");
+    assert!((share - in_shadow as f64 / 9216.0).abs() < 0.01, "{share}");
+}
+
+#[test]
 fn bench_speed_reports_every_method_side_by_side() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("speed");

@@ -266,6 +266,7 @@ const SOLVE_OUTPUTS: &[&str] = &[
     "input_linear.png",
     "residual.png",
     "confidence_used.png",
+    "shadow.png",
     "depth16.png",
     "mesh.ply",
     "report.json",
@@ -372,6 +373,9 @@ struct SolveReport<'a> {
     final_energy: &'a sfs_core::model::Energy,
     seconds: f64,
     model_fit: &'a model_fit::ModelFit,
+    /// Share of the object taken out of the data term as shadow (lights off
+    /// the optical centre only; shadow.png marks it).
+    shadow_share: Option<f64>,
     warnings: &'a [String],
     depth16_png_range: Option<DepthRange>,
     rse: Option<f64>,
@@ -576,6 +580,18 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     {
         io::write_png8(&stage.path("confidence_used.png"), c)?;
     }
+    if let Some(shadow) = &solution.shadow {
+        io::write_mask_png(&stage.path("shadow.png"), shadow)?;
+    }
+    let object_pixels = problem
+        .object_mask
+        .as_ref()
+        .map_or(problem.image.len(), |m| {
+            m.as_slice().iter().filter(|&&o| o).count()
+        });
+    let shadow_share = solution.shadow.as_ref().map(|shadow| {
+        shadow.as_slice().iter().filter(|&&s| s).count() as f64 / object_pixels.max(1) as f64
+    });
     let depth_range = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
     io::write_depth_ply(
         &stage.path("mesh.ply"),
@@ -609,6 +625,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         final_energy: &solution.final_energy,
         seconds: solution.seconds,
         model_fit: &model_fit,
+        shadow_share,
         warnings: &warnings,
         depth16_png_range: depth_range.map(|(near_white, far_black)| DepthRange {
             near_white,
@@ -663,6 +680,12 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             100.0 * model_fit.near_black_share,
             100.0 * model_fit.saturated_share
         );
+        if let Some(share) = shadow_share {
+            eprintln!(
+                "shadow: {:.1} % of the object taken out of the data term (no light reaches it; shadow.png)",
+                100.0 * share
+            );
+        }
         for warning in &warnings {
             eprintln!("warning: {warning}");
         }

@@ -52,6 +52,9 @@ pub struct SynthArgs {
     pub out: PathBuf,
 }
 
+/// Renders a scene lit by the lights given.
+type Renderer = dyn Fn(&[PointLight]) -> Result<Scene>;
+
 /// Renders the scene named by the arguments; with `--shadows`, also the
 /// pixels no light reaches (cast or attached shadow).
 pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
@@ -60,7 +63,7 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
         anyhow::bail!("--light-index picks lights of a camera file; synth takes --light X,Y,Z");
     }
     let lights = args.lights.lights()?.unwrap_or_default();
-    let render: Box<dyn Fn(&[PointLight]) -> Result<Scene>> = if args.scene == "sombrero" {
+    let render: Box<Renderer> = if args.scene == "sombrero" {
         Box::new(move |lights: &[PointLight]| Ok(sombrero::sombrero_lit(width, height, lights)))
     } else {
         let path = Path::new(&args.scene);

@@ -25,6 +25,7 @@ pub mod memory;
 pub mod metrics;
 pub mod model;
 pub mod model_fit;
+pub mod occlusion;
 pub mod params;
 pub mod photo;
 pub mod resample;

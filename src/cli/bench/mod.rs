@@ -19,6 +19,7 @@ mod paper_figures;
 mod report;
 mod robustness;
 mod run;
+mod shadows;
 mod speed;
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
@@ -46,8 +47,9 @@ pub struct BenchArgs {
     /// Which part to run: `paper` (the paper's tables and figures in its own
     /// units), `robustness` (the defaults over scenes, sizes, noise and
     /// exposure), `lights`, `all` (these four), `holes` (holes of confidence
-    /// 0 against the harmonic fill of the true depth; holes.md, holes.json)
-    /// or `speed` (time, memory and
+    /// 0 against the harmonic fill of the true depth; holes.md, holes.json),
+    /// `shadows` (a light off the axis with cast shadows; shadows.md,
+    /// shadows.json) or `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
     #[arg(long, value_enum, default_value = "all")]
@@ -76,6 +78,10 @@ pub enum Part {
     /// Holes of confidence 0 (disc, band, silhouette band, blobs) against
     /// the harmonic fill of the true depth (holes.md, holes.json).
     Holes,
+    /// A light 30 and 45 degrees off the axis with cast shadows, against an
+    /// exact hand mask and the same light without shadows (shadows.md,
+    /// shadows.json).
+    Shadows,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -167,6 +173,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else if args.part == Part::Holes {
         holes::run(args)?;
         args.out.join("holes.md")
+    } else if args.part == Part::Shadows {
+        shadows::run(args)?;
+        args.out.join("shadows.md")
     } else {
         run::run(args, started)?;
         args.out.join("report.md")

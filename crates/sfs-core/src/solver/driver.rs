@@ -59,6 +59,7 @@ fn solve_on_worker<M: Reflectance>(
     let mut prepared = prepare(problem, params, Some(start), observer)?;
     let initial = prepared.take_depth();
     let alternatives = std::mem::take(&mut prepared.alternatives);
+    let shadow = prepared.shadow.take();
     let initial = pick_start(initial, alternatives, model, params, &prepared, observer)?;
     let mut scheme = GaussNewton {
         model,
@@ -95,6 +96,7 @@ fn solve_on_worker<M: Reflectance>(
         seconds: start.elapsed().as_secs_f64(),
         iterations,
         budget_exhausted: false,
+        shadow,
         alpha: prepared.alpha_used,
         alpha_px: prepared.alpha,
         lambda_px: prepared.lambda,

@@ -414,6 +414,7 @@ fn run<M: Reflectance>(
         seconds: start.elapsed().as_secs_f64(),
         iterations: scheme.total_steps,
         budget_exhausted: walk.budget_exhausted,
+        shadow: prepared.shadow.take(),
         alpha: prepared.alpha_used,
         alpha_px: prepared.alpha,
         lambda_px: prepared.lambda,

@@ -695,6 +695,7 @@ pub fn solve_fast_marching(
         seconds: start.elapsed().as_secs_f64(),
         iterations: 1,
         budget_exhausted: false,
+        shadow: None,
         alpha: f64::NAN,
         alpha_px: f64::NAN,
         lambda_px: f64::NAN,

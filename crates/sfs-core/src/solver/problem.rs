@@ -180,6 +180,11 @@ pub struct Solution {
     pub iterations: usize,
     /// True when a time or iteration budget stopped the scheme early.
     pub budget_exhausted: bool,
+    /// With lights off the optical centre, the object pixels the solve took
+    /// out of the data term as shadow (no light reaches them: near-black
+    /// against the image's reference brightness and its noise); `None`
+    /// with the light at the optical centre or for fast marching.
+    pub shadow: Option<Grid<bool>>,
     /// The smoothness weight used, in the parameters' units (the chosen one
     /// when alpha was `auto`); NaN for methods without one.
     pub alpha: f64,
