@@ -300,7 +300,11 @@ pub fn read_mask_at(
         return Ok(mask);
     }
     if mask.size() == full {
-        return Ok(resize_area(&mask, working.0, working.1, Cancel::NEVER).uncancelled());
+        // Averaging weights sum to 1 up to rounding: 1.0000000000000002 is
+        // not a confidence, so the average is clamped to [0, 1].
+        return Ok(resize_area(&mask, working.0, working.1, Cancel::NEVER)
+            .uncancelled()
+            .map(|v| v.clamp(0.0, 1.0)));
     }
     let working_too = if working == full {
         String::new()
@@ -489,6 +493,18 @@ mod tests {
             e.contains("odd.png") && e.contains("confidence") && e.contains("5x5"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_confidence_averaged_to_the_working_size_stays_in_0_1() {
+        // 1296 -> 600 columns: weights of 2.16 pixels whose sum rounds above
+        // 1 (a painted disc on the face photograph was refused for it).
+        let dir = tempdir().unwrap();
+        let full = dir.path().join("confidence.png");
+        write_mask_png(&full, &Grid::from_fn(1296, 8, |c, _| c % 7 != 0)).unwrap();
+        let read = read_mask_at(&full, "confidence", (1296, 8), (600, 4)).unwrap();
+        assert!(read.as_slice().iter().all(|v| (0.0..=1.0).contains(v)));
+        assert!(read.as_slice().iter().any(|&v| v == 1.0 || v > 0.8));
     }
 
     #[test]

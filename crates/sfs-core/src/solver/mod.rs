@@ -18,6 +18,7 @@ pub mod prepare;
 pub mod preview;
 pub mod problem;
 pub mod pyramid;
+pub mod shadows;
 pub mod sor;
 pub mod system;
 

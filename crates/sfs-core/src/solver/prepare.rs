@@ -115,43 +115,12 @@ pub(crate) fn prepare<'a>(
         confidence: Confidence::from_grid(confidence, Cancel::new(&|| observer.is_cancelled()))?,
         domain,
     };
-    // Shadows are information, not brightness: with a light off the
-    // optical centre, what no light reaches is taken out of the data term
-    // (the fill continues the lit surface there). A light at the optical
-    // centre sees every point it lights: no shadow to take out. Black
-    // pixels go before the noise is estimated (a black region reads as
-    // noise-free and would lower the automatic alpha), pixels within the
-    // noise of black after.
-    let shadows = !problem.light_is_centred();
-    let mut shadow = shadows.then(|| Grid::filled(w, h, false));
-    if let Some(shadow) = &mut shadow {
-        take_out_shadows(
-            problem,
-            &mut finest,
-            shadow,
-            shadow_threshold(scales.intensity),
-            Cancel::new(&|| observer.is_cancelled()),
-        )?;
-    }
-    let relative_noise = super::auto_alpha::relative_noise(
-        &finest,
+    let (shadow, relative_noise) = super::shadows::take_out(
+        problem,
+        &mut finest,
         &scales,
         Cancel::new(&|| observer.is_cancelled()),
     )?;
-    if let Some(shadow) = &mut shadow
-        && SHADOW_NOISE_SIGMAS * relative_noise > SHADOW_BLACK
-    {
-        // In noise a black region is a region whose local mean is within
-        // the noise of black (single pixels would catch every dark lit one).
-        take_out_noisy_shadows(
-            problem,
-            &mut finest,
-            shadow,
-            scales.intensity * SHADOW_NOISE_SIGMAS * relative_noise,
-            scales.intensity * SHADOW_MEAN_SIGMAS * relative_noise,
-            Cancel::new(&|| observer.is_cancelled()),
-        )?;
-    }
     let alpha_used = match params.alpha {
         Alpha::Value(alpha) => alpha,
         Alpha::Auto => {
@@ -452,127 +421,6 @@ fn fast_marching_start(
         })?;
     }
     Ok(candidates)
-}
-
-/// Below this share of the image's reference brightness (a patch facing
-/// the light at the median depth) a pixel is black: the light does not
-/// reach it (`N . L` of 0.02 is 89 degrees).
-pub const SHADOW_BLACK: f64 = 0.02;
-/// In noise, a shadow pixel is at most this many noise levels bright...
-pub const SHADOW_NOISE_SIGMAS: f64 = 3.0;
-/// ... and the mean of its 5x5 neighbourhood on the object at most this
-/// many: black clipped at 0 has a mean of 0.4 noise levels, and 25 pixels
-/// average its spread (0.58) down to 0.12.
-pub const SHADOW_MEAN_SIGMAS: f64 = 0.6;
-/// Half the side of that neighbourhood.
-const SHADOW_MEAN_RADIUS: usize = 2;
-
-/// The brightness at or below which an object pixel is black, from the
-/// reference brightness `intensity_ref` (as `auto_alpha` reads it):
-/// [`SHADOW_BLACK`] of it. Scales with the exposure, so the same pixels are
-/// shadow at every exposure.
-pub fn shadow_threshold(intensity_ref: f64) -> f64 {
-    intensity_ref * SHADOW_BLACK
-}
-
-/// [`take_out_shadows`] in noise: trusted object pixels at most `pixel_max`
-/// bright whose 5x5 object neighbourhood averages at most `mean_max`.
-fn take_out_noisy_shadows(
-    problem: &Problem,
-    level: &mut PyramidLevel,
-    shadow: &mut Grid<bool>,
-    pixel_max: f64,
-    mean_max: f64,
-    cancel: Cancel<'_>,
-) -> Result<usize, Cancelled> {
-    let (w, h) = problem.image.size();
-    let object = problem.object_mask.as_ref();
-    let on = |c: usize, r: usize| object.is_none_or(|m| *m.at(c, r));
-    // Integral images of the object's brightness and pixel count.
-    let mut sum = vec![0.0; (w + 1) * (h + 1)];
-    let mut count = vec![0.0; (w + 1) * (h + 1)];
-    for r in 0..h {
-        if r % 64 == 0 {
-            cancel.check()?;
-        }
-        for c in 0..w {
-            let (v, n) = if on(c, r) {
-                (*problem.image.at(c, r), 1.0)
-            } else {
-                (0.0, 0.0)
-            };
-            let q = (r + 1) * (w + 1) + c + 1;
-            sum[q] = v + sum[q - 1] + sum[q - (w + 1)] - sum[q - (w + 1) - 1];
-            count[q] = n + count[q - 1] + count[q - (w + 1)] - count[q - (w + 1) - 1];
-        }
-    }
-    let boxed = |table: &[f64], c: usize, r: usize| {
-        let (c0, r0) = (
-            c.saturating_sub(SHADOW_MEAN_RADIUS),
-            r.saturating_sub(SHADOW_MEAN_RADIUS),
-        );
-        let (c1, r1) = (
-            (c + SHADOW_MEAN_RADIUS + 1).min(w),
-            (r + SHADOW_MEAN_RADIUS + 1).min(h),
-        );
-        table[r1 * (w + 1) + c1] - table[r0 * (w + 1) + c1] - table[r1 * (w + 1) + c0]
-            + table[r0 * (w + 1) + c0]
-    };
-    take_out_where(problem, level, shadow, cancel, |c, r| {
-        *problem.image.at(c, r) <= pixel_max && boxed(&sum, c, r) <= mean_max * boxed(&count, c, r)
-    })
-}
-
-/// Sets the confidence of the trusted object pixels of `level` whose
-/// brightness is at most `threshold` to 0 (shadow: no light reaches them,
-/// so there is no brightness to match), marks them in `shadow` and returns
-/// how many.
-pub(crate) fn take_out_shadows(
-    problem: &Problem,
-    level: &mut PyramidLevel,
-    shadow: &mut Grid<bool>,
-    threshold: f64,
-    cancel: Cancel<'_>,
-) -> Result<usize, Cancelled> {
-    take_out_where(problem, level, shadow, cancel, |c, r| {
-        *problem.image.at(c, r) <= threshold
-    })
-}
-
-/// Sets the confidence of the trusted object pixels of `level` where
-/// `dark(column, row)` to 0, marks them in `shadow`, returns how many.
-fn take_out_where(
-    problem: &Problem,
-    level: &mut PyramidLevel,
-    shadow: &mut Grid<bool>,
-    cancel: Cancel<'_>,
-    dark: impl Fn(usize, usize) -> bool,
-) -> Result<usize, Cancelled> {
-    let (w, h) = problem.image.size();
-    let object = problem.object_mask.as_ref();
-    let mut count = 0;
-    let mut confidence = Grid::filled(w, h, 0.0);
-    for r in 0..h {
-        if r % 64 == 0 {
-            cancel.check()?;
-        }
-        for c in 0..w {
-            let q = r * w + c;
-            let weight = level.confidence.weight(q);
-            let on_object = object.is_none_or(|m| *m.at(c, r));
-            // (pixels already taken out have weight 0: not counted again)
-            let taken = weight > 0.0 && on_object && dark(c, r);
-            count += usize::from(taken);
-            if taken {
-                *shadow.at_mut(c, r) = true;
-            }
-            *confidence.at_mut(c, r) = if taken { 0.0 } else { weight };
-        }
-    }
-    if count > 0 {
-        level.confidence = Confidence::from_grid(confidence, cancel)?;
-    }
-    Ok(count)
 }
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.

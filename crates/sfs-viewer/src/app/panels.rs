@@ -88,6 +88,8 @@ struct Textures {
     /// The input as shown, with the display mapping it was built with.
     input: Option<(images::DisplayMapping, egui::TextureHandle)>,
     overlay: Option<(u64, egui::TextureHandle)>,
+    /// What the last solve took out as shadow, keyed by its job's count.
+    shadows: Option<(usize, egui::TextureHandle)>,
     reprojection: Option<egui::TextureHandle>,
     difference: Option<(egui::TextureHandle, [f64; 2])>,
     depth: Option<(egui::TextureHandle, [f64; 2])>,
@@ -461,6 +463,20 @@ impl Panels {
                 ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
             }
         }
+        if let Some(shadow) = s.finished.as_ref().and_then(|f| f.shadow.as_ref()) {
+            let taken = shadow.as_slice().iter().filter(|&&t| t).count();
+            let object = object_pixels(shadow, s.finished.as_deref());
+            ui.label(format!(
+                "shadow: {:.1} % of the object taken out of the data term",
+                100.0 * taken as f64 / object.max(1) as f64
+            ))
+            .on_hover_text(
+                "no light reaches these pixels (near-black against the image's reference \
+                 brightness and its noise): they say the surface is turned away or hidden, \
+                 not how bright it is; the fill continues the lit surface there. \
+                 Mask > shadows shows them in violet.",
+            );
+        }
         if let Some(s_used) = s.intensity_scale_used {
             ui.weak(format!("intensity scale used: {s_used:.4e}"));
         }
@@ -622,6 +638,8 @@ impl Panels {
         ui.add(egui::Slider::new(&mut b.hardness, 0.0..=1.0).text("hardness"));
         ui.add(egui::Slider::new(&mut b.flood_tolerance, 0.0..=0.5).text("flood tolerance"));
         ui.add(egui::Slider::new(&mut b.overlay_opacity, 0.0..=1.0).text("overlay opacity"));
+        ui.checkbox(&mut b.show_shadows, "shadows")
+            .on_hover_text("show in violet what the last solve took out of the data term as shadow (no light reaches it)");
         let layer = b.layer;
         let threshold = &mut b.threshold;
         let Some(doc) = &mut cx.session.document else {
@@ -1061,6 +1079,12 @@ impl Panels {
             if let Some((_, overlay)) = &self.textures.overlay {
                 painter.image(overlay.id(), image_rect, uv, egui::Color32::WHITE);
             }
+            if cx.settings.brush.show_shadows {
+                self.update_shadows(ui.ctx(), cx);
+                if let Some((_, shadows)) = &self.textures.shadows {
+                    painter.image(shadows.id(), image_rect, uv, egui::Color32::WHITE);
+                }
+            }
             self.paint_input(ui, cx, &response, &to_image, scale, origin);
         }
         if let Some(range) = range {
@@ -1075,6 +1099,44 @@ impl Panels {
             (x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h)
                 .then(|| describe_pixel(cx.session, x as usize, y as usize))
         });
+    }
+
+    /// The shadow texture of the finished solve (violet where it took the
+    /// object out of the data term as shadow); none without one.
+    fn update_shadows(&mut self, ctx: &egui::Context, cx: &UiContext<'_>) {
+        let solve = &cx.session.solve;
+        let shadow = solve.finished.as_ref().and_then(|s| s.shadow.as_ref());
+        let Some(shadow) = shadow else {
+            self.textures.shadows = None;
+            return;
+        };
+        let key = solve.completed_jobs;
+        if self
+            .textures
+            .shadows
+            .as_ref()
+            .is_some_and(|(k, _)| *k == key)
+        {
+            return;
+        }
+        let (w, h) = shadow.size();
+        let alpha = (cx.settings.brush.overlay_opacity.clamp(0.0, 1.0) * 255.0) as u8;
+        let rgba: Vec<u8> = shadow
+            .as_slice()
+            .iter()
+            .flat_map(|&s| {
+                if s {
+                    [150, 60, 220, alpha]
+                } else {
+                    [0, 0, 0, 0]
+                }
+            })
+            .collect();
+        let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
+        self.textures.shadows = Some((
+            key,
+            images::load_texture(ctx, "shadows", image, egui::TextureOptions::NEAREST),
+        ));
     }
 
     fn update_overlay(&mut self, ctx: &egui::Context, cx: &UiContext<'_>) {
@@ -1319,4 +1381,12 @@ fn slider_number(value: f64) -> String {
     } else {
         format!("{}", (value * 1e4).round() / 1e4)
     }
+}
+
+/// The object's pixel count for a shares' denominator: the finished
+/// solve's finite depth pixels (its object), else the whole grid.
+fn object_pixels(shadow: &Grid<bool>, finished: Option<&sfs_core::solver::Solution>) -> usize {
+    finished.map_or(shadow.len(), |f| {
+        f.depth.as_slice().iter().filter(|z| z.is_finite()).count()
+    })
 }

@@ -207,8 +207,10 @@ impl Session {
 
     /// Lowers the confidence layer where the model cannot hold
     /// ([`sfs_core::model_fit::suggest_confidence`]; cast shadows from the last
-    /// result's reprojection when there is one); returns a sentence for the
-    /// status line.
+    /// result's reprojection when there is one; with lights off the optical
+    /// centre, the shadow the solve takes out,
+    /// [`sfs_core::solver::shadows::shadow_mask`]); returns a sentence for
+    /// the status line.
     pub fn suggest_confidence(&mut self) -> String {
         let reprojection = self.solve.finished.as_ref().map(|s| s.reprojection.clone());
         let Some(doc) = &mut self.document else {
@@ -219,8 +221,31 @@ impl Session {
             .object_for_solver()
             .unwrap_or_else(|| Grid::filled(doc.image.width(), doc.image.height(), true));
         let reprojection = reprojection.filter(|r| r.size() == doc.image.size());
-        let (proposal, count) =
+        let (proposal, mut count) =
             sfs_core::model_fit::suggest_confidence(&doc.image, &object, reprojection.as_ref());
+        // With lights off the optical centre, the shadow the solve takes out
+        // (the same detection): proposed at 0 too, so the painted layer
+        // shows it and the user can edit it.
+        let shadow = sfs_core::solver::shadows::shadow_mask(
+            &doc.problem(),
+            sfs_core::params::DomainMode::default(),
+            sfs_core::cancel::Cancel::NEVER,
+        )
+        .ok()
+        .flatten();
+        let proposal = match &shadow {
+            Some(shadow) => Grid::from_fn(proposal.width(), proposal.height(), |c, r| {
+                if *shadow.at(c, r) {
+                    if *proposal.at(c, r) > 0.0 {
+                        count.shadow += 1;
+                    }
+                    0.0
+                } else {
+                    *proposal.at(c, r)
+                }
+            }),
+            None => proposal,
+        };
         // Off the object the confidence does not matter: keep what is there.
         let proposal = Grid::from_fn(proposal.width(), proposal.height(), |c, r| {
             if *object.at(c, r) {

@@ -120,6 +120,8 @@ pub struct BrushSettings {
     pub threshold: f64,
     /// Overlay opacity in [0, 1].
     pub overlay_opacity: f32,
+    /// Shows over the input what the last solve took out as shadow.
+    pub show_shadows: bool,
 }
 
 impl Default for BrushSettings {
@@ -133,6 +135,7 @@ impl Default for BrushSettings {
             flood_tolerance: 0.05,
             threshold: 0.02,
             overlay_opacity: 0.5,
+            show_shadows: true,
         }
     }
 }
