@@ -357,3 +357,69 @@ fn the_start_selector_says_what_is_used_with_lights_off_the_centre() {
     harness.get_by_label("fast marching");
     assert!(harness.query_by_label(plane).is_none());
 }
+
+#[test]
+fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
+    // A Sombrero lit 40 degrees off the axis with cast shadows, its camera
+    // file (with the light) beside it, as `synth --shadows` writes them.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let a = 40f64.to_radians();
+    let light = sfs_core::light::PointLight {
+        position: [2.0 * a.sin(), 0.0, 2.0 * (1.0 - a.cos())],
+        ..sfs_core::light::PointLight::CENTRED
+    };
+    let (scene, truth) = sfs_core::scene::shadow::with_cast_shadows(
+        |lights: &[sfs_core::light::PointLight]| {
+            Ok::<_, ()>(sfs_core::scene::sombrero::sombrero_lit(96, 96, lights))
+        },
+        &[light],
+    )
+    .expect("renders");
+    let image = dir.path().join("image16.png");
+    sfs_core::io::write_png16(&image, &scene.image).expect("write");
+    std::fs::write(
+        dir.path().join("scene.json"),
+        format!(
+            r#"{{"width": 96, "height": 96, "focal": 96.0, "cx": 47.5, "cy": 47.5,
+                "intensity_scale": {}, "lights": [{{"position": {:?}}}]}}"#,
+            scene.intensity_scale, light.position
+        ),
+    )
+    .expect("write");
+    let mut harness = harness(ViewerOptions {
+        image: Some(image.clone()),
+        ..options(dir.path())
+    });
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    let shadow = harness
+        .state()
+        .solve_state()
+        .finished
+        .as_ref()
+        .and_then(|s| s.shadow.clone())
+        .expect("a light off the axis: the solve reports its shadow");
+    let found = shadow.as_slice().iter().filter(|&&s| s).count();
+    let agree = shadow
+        .as_slice()
+        .iter()
+        .zip(truth.as_slice())
+        .filter(|(a, b)| a == b)
+        .count();
+    assert!(found > 100, "the shadow is found: {found} pixels");
+    assert!(
+        agree as f64 >= 0.99 * (96.0 * 96.0),
+        "{agree} of 9216 agree"
+    );
+    harness.get_by_label_contains("of the object taken out of the data term");
+    harness.get_by_label("shadows");
+    // Suggest confidence proposes the same pixels at 0.
+    harness.get_by_label("suggest confidence").click_accesskit();
+    harness.step();
+    harness.step();
+    let suggested = confidence(&harness);
+    for (q, &s) in shadow.as_slice().iter().enumerate() {
+        if s {
+            assert_eq!(suggested.as_slice()[q], 0.0, "pixel {q} is shadow");
+        }
+    }
+}
