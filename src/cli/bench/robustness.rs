@@ -78,17 +78,25 @@ const DIM: f64 = 0.1;
 
 /// The scene `name` rendered at `width` x `height`.
 pub(super) fn render(name: &str, meshes: &Path, width: usize, height: usize) -> Result<Scene> {
-    let file = match name {
-        "sombrero" => return Ok(sombrero(width, height)),
-        "bunny" => "stanford-bunny.obj",
-        "dragon" => "dragon.obj",
-        "suzanne" => "suzanne.obj",
-        other => anyhow::bail!("no scene called {other}"),
+    let Some(file) = mesh_file(name)? else {
+        return Ok(sombrero(width, height));
     };
     let path = meshes.join(file);
     mesh::load_obj(&path)
         .and_then(|m| mesh::render(&m, width, height, &mesh::Placement::default(), name))
         .with_context(|| format!("{name}: {}", path.display()))
+}
+
+/// The mesh file of the bench's scene `name` in the meshes folder (`None`
+/// for the analytic Sombrero).
+pub(super) fn mesh_file(name: &str) -> Result<Option<&'static str>> {
+    Ok(Some(match name {
+        "sombrero" => return Ok(None),
+        "bunny" => "stanford-bunny.obj",
+        "dragon" => "dragon.obj",
+        "suzanne" => "suzanne.obj",
+        other => anyhow::bail!("no scene called {other}"),
+    }))
 }
 
 pub(super) fn problem(scene: &Scene, image: Grid<f64>) -> Problem {

@@ -96,13 +96,7 @@ fn render(
     light: &PointLight,
     shadows: bool,
 ) -> Result<(Scene, Option<Grid<bool>>)> {
-    let file = match name {
-        "sombrero" => None,
-        "bunny" => Some("stanford-bunny.obj"),
-        "dragon" => Some("dragon.obj"),
-        "suzanne" => Some("suzanne.obj"),
-        other => anyhow::bail!("no scene called {other}"),
-    };
+    let file = super::robustness::mesh_file(name)?;
     let loaded = match file {
         Some(file) => {
             let path = meshes.join(file);

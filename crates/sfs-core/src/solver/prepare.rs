@@ -368,17 +368,17 @@ fn fast_marching_start(
     // brightest points, right where the diffused image misleads; slivers
     // too small to hold a point facing the light are filled instead).
     // Holes are untrusted object pixels (the background is no hole: its
-    // start is the mean, as without holes).
-    let on_object = Grid::from_fn(w, h, |c, r| *finest.domain.at(c, r) && *object.at(c, r));
-    let trusted = Grid::from_fn(w, h, |c, r| {
-        *on_object.at(c, r) && finest.confidence.weight(r * w + c) >= super::holes::HOLE_CONFIDENCE
-    });
-    let holes = on_object
-        .as_slice()
-        .iter()
-        .zip(trusted.as_slice())
-        .any(|(&d, &t)| d && !t);
+    // start is the mean, as without holes). Without any, nothing more is
+    // allocated or computed.
+    let on_object_at = |q: usize| finest.domain.as_slice()[q] && object.as_slice()[q];
+    let holes = (0..w * h)
+        .any(|q| on_object_at(q) && finest.confidence.weight(q) < super::holes::HOLE_CONFIDENCE);
     if holes {
+        let on_object = Grid::from_fn(w, h, |c, r| on_object_at(r * w + c));
+        let trusted = Grid::from_fn(w, h, |c, r| {
+            *on_object.at(c, r)
+                && finest.confidence.weight(r * w + c) >= super::holes::HOLE_CONFIDENCE
+        });
         let mut separate = march(&image, &trusted)?;
         let mut anchored = trusted.clone();
         super::holes::drop_small_regions(&mut anchored, super::holes::MIN_REGION_SHARE);
@@ -408,8 +408,6 @@ fn fast_marching_start(
         candidates.push(continued);
     }
     drop(image);
-    drop(trusted);
-    drop(on_object);
     for solved in &mut candidates {
         // NaN off the object, in place.
         crate::grid::for_rows(solved.as_mut_slice(), w, cancel, |r, depth| {

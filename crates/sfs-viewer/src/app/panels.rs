@@ -463,12 +463,10 @@ impl Panels {
                 ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
             }
         }
-        if let Some(shadow) = s.finished.as_ref().and_then(|f| f.shadow.as_ref()) {
-            let taken = shadow.as_slice().iter().filter(|&&t| t).count();
-            let object = object_pixels(shadow, s.finished.as_deref());
+        if let Some(share) = s.shadow_share {
             ui.label(format!(
                 "shadow: {:.1} % of the object taken out of the data term",
-                100.0 * taken as f64 / object.max(1) as f64
+                100.0 * share
             ))
             .on_hover_text(
                 "no light reaches these pixels (near-black against the image's reference \
@@ -1381,12 +1379,4 @@ fn slider_number(value: f64) -> String {
     } else {
         format!("{}", (value * 1e4).round() / 1e4)
     }
-}
-
-/// The object's pixel count for a shares' denominator: the finished
-/// solve's finite depth pixels (its object), else the whole grid.
-fn object_pixels(shadow: &Grid<bool>, finished: Option<&sfs_core::solver::Solution>) -> usize {
-    finished.map_or(shadow.len(), |f| {
-        f.depth.as_slice().iter().filter(|z| z.is_finite()).count()
-    })
 }

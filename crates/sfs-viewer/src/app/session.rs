@@ -101,6 +101,9 @@ pub struct SolveState {
     pub errors: Option<(f64, f64)>,
     /// How well the final result explains the image.
     pub fit: Option<sfs_core::model_fit::ModelFit>,
+    /// Share of the object the final result took out as shadow (lights off
+    /// the optical centre).
+    pub shadow_share: Option<f64>,
     /// The intensity scale the final result used (estimated or given).
     pub intensity_scale_used: Option<f64>,
     /// Why the last job failed.
@@ -347,6 +350,7 @@ impl Session {
                 worker.cancel(job);
             }
             self.solve.finished = None;
+            self.solve.shadow_share = None;
             self.solve.failure = Some(reason);
             self.solve.running = false;
             self.solve.completed_jobs += 1;
@@ -375,6 +379,7 @@ impl Session {
         solve.failure = None;
         solve.finished = None;
         solve.errors = None;
+        solve.shadow_share = None;
     }
 
     /// Drains the worker's events (a few milliseconds at most) into the
@@ -454,6 +459,12 @@ impl Session {
                                 solution.scales.intensity,
                             )
                         })
+                    });
+                    // Once per result, not per frame: a pass over the image.
+                    self.solve.shadow_share = solution.shadow.as_ref().map(|shadow| {
+                        let object = solution.depth.as_slice().iter().filter(|z| z.is_finite());
+                        let taken = shadow.as_slice().iter().filter(|&&t| t).count();
+                        taken as f64 / object.count().max(1) as f64
                     });
                     self.solve.finished = Some(solution);
                     self.solve.running = false;
