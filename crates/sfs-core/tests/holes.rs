@@ -115,8 +115,11 @@ fn band() -> Grid<f64> {
 }
 
 #[test]
-#[ignore = "known miss (issue 21): the dome's RSE 0.0039 against a bound of 0.0024 at 128x128, the plane's 0.0013 against 0.0007"]
 fn a_plane_and_a_dome_with_a_band_missing_come_back_as_well_as_their_fill() {
+    // The refinement across holes runs multigrid and kappa-holes
+    // iterations: with the SOR sweeps and kappa of a start without holes
+    // the plane came back at 0.0013 (bound 0.0007) and the dome at 0.0039
+    // (bound 0.0024), a smooth error left on the trusted pixels.
     for scene in [plane(), dome()] {
         let (with, bound) = with_and_bound(&scene, &band());
         assert!(with <= bound, "{}: RSE {with} above {bound}", scene.name);
@@ -124,12 +127,14 @@ fn a_plane_and_a_dome_with_a_band_missing_come_back_as_well_as_their_fill() {
 }
 
 #[test]
-#[ignore = "known miss (issue 21): the dome's hidden top comes back 0.06 deeper than its rim (a dent), the plane 0.002 beyond its range"]
+#[ignore = "known miss (issue 21): the dome's hidden top comes back 0.060 beyond the truth's range over the hole (a dent), the plane 0.018"]
 fn a_disc_hiding_the_point_that_faces_the_light_is_filled_without_spikes() {
     // The disc hides the plane's foot point and the dome's top: fast
     // marching has no point facing the light there (the bench's misses are
     // of this kind, see README). The fill still stays within the depths
-    // the truth spans over the hole: no spike, no cliff, no drift.
+    // the truth spans over the hole: no spike, no cliff, no drift. Every
+    // scene's worst excursion is reported together.
+    let mut misses = Vec::new();
     for scene in [plane(), dome()] {
         let hole = disc();
         let solution = solve_with(&scene, Some(hole.clone()), &SolverParams::default());
@@ -149,14 +154,23 @@ fn a_disc_hiding_the_point_that_faces_the_light_is_filled_without_spikes() {
         );
         let low = inside.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
         let high = inside.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max);
-        for &(z, _) in &inside {
-            assert!(
-                z.is_finite() && z >= low && z <= high,
-                "{}: depth {z} outside the truth's {low}..{high} over the hole",
+        assert!(
+            inside.iter().all(|p| p.0.is_finite()),
+            "{}: a depth in the hole is not finite",
+            scene.name
+        );
+        let beyond = inside
+            .iter()
+            .map(|&(z, _)| (low - z).max(z - high))
+            .fold(0.0, f64::max);
+        if beyond > 0.0 {
+            misses.push(format!(
+                "{}: a depth {beyond:.4} outside the truth's {low:.4}..{high:.4} over the hole",
                 scene.name
-            );
+            ));
         }
     }
+    assert!(misses.is_empty(), "{}", misses.join("; "));
 }
 
 #[test]
@@ -167,13 +181,10 @@ fn the_sombrero_with_a_band_missing_comes_back_as_well_as_its_fill() {
 }
 
 #[test]
-#[ignore = "known miss (issue 21): a plane with a hole comes back 2-4x the bound; the full-resolution refinement leaves a smooth error of ~0.2 % of depth on the trusted pixels (the energy differs from the truth's by 1e-4 of itself)"]
-fn a_plane_with_a_disc_or_a_band_missing_comes_back_as_well_as_its_fill() {
-    let scene = plane();
-    for (name, hole) in [("disc", disc()), ("band", band())] {
-        let (with, bound) = with_and_bound(&scene, &hole);
-        assert!(with <= bound, "{name}: RSE {with} above {bound}");
-    }
+#[ignore = "known miss (issue 21): the disc hides the plane's foot point, the only point facing the light; RSE 0.0018 against a bound of 0.0006"]
+fn a_plane_with_its_foot_point_missing_comes_back_as_well_as_its_fill() {
+    let (with, bound) = with_and_bound(&plane(), &disc());
+    assert!(with <= bound, "RSE {with} above {bound}");
 }
 
 #[test]

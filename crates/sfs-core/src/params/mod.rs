@@ -153,13 +153,30 @@ impl ProblemScales {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum LinearSolver {
+    /// The default: multigrid where a full-resolution start is refined
+    /// across holes (object pixels of confidence below 0.5), whose fill is
+    /// smooth error as wide as the hole; SOR everywhere else, where it was
+    /// measured as accurate and faster.
+    #[default]
+    Auto,
     /// The paper's: SOR sweeps (`sor_iterations` at most).
     Sor,
     /// Geometric multigrid V-cycles (Galerkin coarse levels, SOR smoothing;
     /// `cycles` at most): moves smooth error that SOR needs hundreds of
     /// sweeps for.
-    #[default]
     Multigrid,
+}
+
+impl LinearSolver {
+    /// The solver a level runs: [`LinearSolver::Auto`] resolved for a level
+    /// that refines a start across holes (`refines_holes`) or not.
+    pub fn resolved(self, refines_holes: bool) -> Self {
+        match self {
+            Self::Auto if refines_holes => Self::Multigrid,
+            Self::Auto => Self::Sor,
+            chosen => chosen,
+        }
+    }
 }
 
 /// How each Gauss-Newton update is controlled.
@@ -221,12 +238,18 @@ pub struct SolverParams {
     /// Relative energy decrease per outer iteration below which a level stops
     /// (after `kappa` iterations).
     pub level_tolerance: f64,
+    /// Outer iterations at least refining a full-resolution start across
+    /// holes (object pixels of confidence below 0.5; `kappa_max` rises to
+    /// it there): the fill travels farther than a start without holes, and
+    /// each step is cropped. Default 10.
+    pub kappa_holes: usize,
     /// Inner fixed-point iterations `l_max` on Psi'; paper 9.
     pub inner_iterations: usize,
     /// SOR sweeps per inner iteration (at most, with `linear_tolerance`);
     /// paper 10. With multigrid, the smoothing sweeps are `smoothing_sweeps`.
     pub sor_iterations: usize,
-    /// The linear solver of each inner iteration; default multigrid.
+    /// The linear solver of each inner iteration; default
+    /// [`LinearSolver::Auto`] (multigrid across holes, SOR elsewhere).
     pub linear_solver: LinearSolver,
     /// V-cycles per inner iteration at most (multigrid); default 4.
     pub cycles: usize,
@@ -281,9 +304,10 @@ impl Default for SolverParams {
             kappa: 5,
             kappa_max: 5,
             level_tolerance: 1e-3,
+            kappa_holes: 10,
             inner_iterations: 9,
             sor_iterations: 10,
-            linear_solver: LinearSolver::Sor,
+            linear_solver: LinearSolver::Auto,
             cycles: 4,
             smoothing_sweeps: 2,
             linear_tolerance: 0.0,

@@ -297,6 +297,17 @@ pub const PARAMS: &[ParamSpec] = &[
         set: |p, v| p.kappa_max = count(v),
     },
     ParamSpec {
+        name: "kappa-holes",
+        label: "kappa (holes)",
+        help: "Outer iterations refining a full-resolution start across holes (object pixels \
+               of confidence below 0.5), at least; kappa-max rises to it. Default 10: the fill \
+               travels farther than a start without holes, and every step is cropped.",
+        kind: ParamKind::Count { min: 1, max: 1000 },
+        slider: None,
+        get: |p| ParamValue::Count(p.kappa_holes),
+        set: |p, v| p.kappa_holes = count(v),
+    },
+    ParamSpec {
         name: "level-tolerance",
         label: "level tolerance",
         help: "Relative energy decrease per outer iteration below which a level stops \
@@ -333,21 +344,24 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "linear-solver",
         label: "linear solver",
-        help: "'multigrid' (default): V-cycles with Galerkin coarse levels and SOR smoothing; \
-               'sor': the paper's SOR sweeps.",
-        kind: ParamKind::Choice(&["multigrid", "sor"]),
+        help: "'auto' (default): multigrid where a full-resolution start is refined across \
+               holes (object pixels of confidence below 0.5), SOR elsewhere; 'multigrid': \
+               V-cycles with Galerkin coarse levels and SOR smoothing; 'sor': the paper's SOR \
+               sweeps.",
+        kind: ParamKind::Choice(&["auto", "multigrid", "sor"]),
         slider: None,
         get: |p| {
             ParamValue::Choice(match p.linear_solver {
+                LinearSolver::Auto => "auto",
                 LinearSolver::Multigrid => "multigrid",
                 LinearSolver::Sor => "sor",
             })
         },
         set: |p, v| {
-            p.linear_solver = if word(v) == "sor" {
-                LinearSolver::Sor
-            } else {
-                LinearSolver::Multigrid
+            p.linear_solver = match word(v) {
+                "sor" => LinearSolver::Sor,
+                "multigrid" => LinearSolver::Multigrid,
+                _ => LinearSolver::Auto,
             }
         },
     },

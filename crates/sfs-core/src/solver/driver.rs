@@ -64,6 +64,7 @@ fn solve_on_worker<M: Reflectance>(
     let mut scheme = GaussNewton {
         model,
         params,
+        schedule: Schedule::new(params, prepared.refines_holes),
         prepared: &prepared,
         // Relative to the depth's own scale: any unit of depth works.
         z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
@@ -132,14 +133,17 @@ fn pick_start<M: Reflectance>(
             self.0.is_cancelled()
         }
     }
-    let trial_params = SolverParams {
-        kappa: 1,
-        kappa_max: 1,
-        ..params.clone()
-    };
     let mut trial = GaussNewton {
         model,
-        params: &trial_params,
+        params,
+        // One step of the schedule without holes (SOR by default): a cheap
+        // probe of each start, the full-size multigrid's setup thrice
+        // costs more than it tells.
+        schedule: Schedule {
+            kappa: 1,
+            kappa_max: 1,
+            ..Schedule::new(params, false)
+        },
         prepared,
         z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         phases: PhaseTimes::default(),
@@ -178,9 +182,34 @@ fn pick_start<M: Reflectance>(
 struct GaussNewton<'a, M> {
     model: &'a M,
     params: &'a SolverParams,
+    schedule: Schedule,
     prepared: &'a Prepared<'a>,
     z_floor: f64,
     phases: PhaseTimes,
+}
+
+/// What each level of the scheme runs, resolved for the problem: the
+/// outer iterations (`kappa_holes` where a start is refined across holes)
+/// and the linear solver ([`LinearSolver::Auto`] resolved).
+#[derive(Clone, Copy, Debug)]
+struct Schedule {
+    kappa: usize,
+    kappa_max: usize,
+    linear_solver: LinearSolver,
+}
+
+impl Schedule {
+    fn new(params: &SolverParams, refines_holes: bool) -> Self {
+        let kappa = match refines_holes {
+            true => params.kappa.max(params.kappa_holes),
+            false => params.kappa,
+        };
+        Self {
+            kappa,
+            kappa_max: params.kappa_max.max(kappa),
+            linear_solver: params.linear_solver.resolved(refines_holes),
+        }
+    }
 }
 
 impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
@@ -212,11 +241,12 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             )
         };
         let mut system = LinearSystem::new(level, Cancel::new(&|| observer.is_cancelled()))?;
-        let mut energies = Vec::with_capacity(params.kappa_max);
+        let schedule = self.schedule;
+        let mut energies = Vec::with_capacity(schedule.kappa_max);
         // Energy of the current depth on this level, once known.
         let mut current: Option<Energy> = step.start_energy;
-        for iteration in 0..params.kappa_max {
-            if iteration >= params.kappa
+        for iteration in 0..schedule.kappa_max {
+            if iteration >= schedule.kappa
                 && let [.., before, after] = energies[..]
                 && before - after <= params.level_tolerance * before
             {
@@ -376,8 +406,8 @@ impl<M> GaussNewton<'_, M> {
     ) -> Result<(), SolveError> {
         let params = self.params;
         let t0 = Instant::now();
-        match params.linear_solver {
-            LinearSolver::Sor => {
+        match self.schedule.linear_solver {
+            LinearSolver::Sor | LinearSolver::Auto => {
                 for _ in 0..params.sor_iterations {
                     sor::sweep(
                         system,

@@ -47,6 +47,12 @@ pub(crate) struct Prepared<'a> {
     /// on the full image alone, instead of walking the pyramid up from a
     /// constant.
     pub refines_warm_start: bool,
+    /// That full-resolution start is refined across holes (object pixels of
+    /// confidence below [`super::holes::HOLE_CONFIDENCE`]): the level runs
+    /// `kappa_holes` iterations and [`LinearSolver::Auto`] is multigrid.
+    ///
+    /// [`LinearSolver::Auto`]: crate::params::LinearSolver::Auto
+    pub refines_holes: bool,
     /// Other full-resolution starts that compete with `depth` where holes
     /// leave the start ambiguous (see `fast_marching_start`); empty
     /// otherwise.
@@ -256,6 +262,8 @@ pub(crate) fn prepare<'a>(
             )
         }
     };
+    // A warm start is refined on the full image alone (the only level).
+    let refines_holes = warm.is_some() && levels.last().is_some_and(|l| has_holes(problem, l));
     Ok(Prepared {
         levels,
         shown,
@@ -268,6 +276,7 @@ pub(crate) fn prepare<'a>(
         crop,
         derivatives,
         refines_warm_start: warm.is_some(),
+        refines_holes,
         alternatives,
         shadow,
     })
@@ -371,9 +380,7 @@ fn fast_marching_start(
     // start is the mean, as without holes). Without any, nothing more is
     // allocated or computed.
     let on_object_at = |q: usize| finest.domain.as_slice()[q] && object.as_slice()[q];
-    let holes = (0..w * h)
-        .any(|q| on_object_at(q) && finest.confidence.weight(q) < super::holes::HOLE_CONFIDENCE);
-    if holes {
+    if has_holes(problem, finest) {
         let on_object = Grid::from_fn(w, h, |c, r| on_object_at(r * w + c));
         let trusted = Grid::from_fn(w, h, |c, r| {
             *on_object.at(c, r)
@@ -419,6 +426,24 @@ fn fast_marching_start(
         })?;
     }
     Ok(candidates)
+}
+
+/// Whether `level` (the full image of `problem`) has holes: object pixels
+/// of its domain whose confidence is below
+/// [`super::holes::HOLE_CONFIDENCE`] (the background is no hole). Stops at
+/// the first.
+fn has_holes(problem: &Problem, level: &PyramidLevel) -> bool {
+    let object = problem.object_mask.as_ref();
+    level
+        .domain
+        .as_slice()
+        .iter()
+        .enumerate()
+        .any(|(q, &inside)| {
+            inside
+                && object.is_none_or(|m| m.as_slice()[q])
+                && level.confidence.weight(q) < super::holes::HOLE_CONFIDENCE
+        })
 }
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.
