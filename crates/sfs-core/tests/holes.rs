@@ -9,7 +9,7 @@ use sfs_core::grid::Grid;
 use sfs_core::light::LightModel;
 use sfs_core::metrics;
 use sfs_core::model::{PixelRay, Reflectance};
-use sfs_core::params::SolverParams;
+use sfs_core::params::{LinearSolver, SolverParams};
 use sfs_core::scene::{self, Scene, sombrero::sombrero};
 use sfs_core::solver::{Problem, Solution, solve};
 
@@ -193,4 +193,52 @@ fn the_sombrero_with_its_peak_missing_comes_back_as_well_as_its_fill() {
     let scene = sombrero(SIZE, SIZE);
     let (with, bound) = with_and_bound(&scene, &disc());
     assert!(with <= bound, "RSE {with} above {bound}");
+}
+
+/// The defaults' depth and the depth with the schedule of a problem
+/// without holes (SOR, `kappa` iterations) on the same problem.
+fn defaults_and_plain_schedule(
+    scene: &Scene,
+    image: Grid<f64>,
+    hole: Grid<f64>,
+) -> (Grid<f64>, Grid<f64>) {
+    let problem = Problem {
+        image,
+        camera: scene.camera,
+        intensity_scale: scene.intensity_scale,
+        object_mask: Some(scene.object_mask.clone()),
+        confidence: Some(hole),
+        lights: Vec::new(),
+    };
+    let defaults = SolverParams::default();
+    let plain = SolverParams {
+        linear_solver: LinearSolver::Sor,
+        kappa_holes: defaults.kappa,
+        ..SolverParams::default()
+    };
+    let solved = |params: &SolverParams| solve(&problem, params, &mut ()).expect("solves").depth;
+    (solved(&defaults), solved(&plain))
+}
+
+#[test]
+fn only_a_wide_hole_in_a_clean_image_gets_the_schedule_for_holes() {
+    let scene = sombrero(SIZE, SIZE);
+    // Specks: single untrusted pixels (as clipped pixels of a noisy
+    // image are) are no holes: the solve is the one without holes.
+    let specks = Grid::from_fn(SIZE, SIZE, |c, r| match (c % 9 == 4) && (r % 9 == 4) {
+        true => 0.0,
+        false => 1.0,
+    });
+    let (defaults, plain) = defaults_and_plain_schedule(&scene, scene.image.clone(), specks);
+    assert_eq!(defaults, plain, "specks took the schedule for holes");
+    // A band is a hole: multigrid and kappa-holes iterations run.
+    let (defaults, plain) = defaults_and_plain_schedule(&scene, scene.image.clone(), band());
+    assert_ne!(
+        defaults, plain,
+        "a band did not take the schedule for holes"
+    );
+    // In noise the schedule is the one without holes, band or not.
+    let noisy = scene::add_noise(&scene.image, 20.0, 1);
+    let (defaults, plain) = defaults_and_plain_schedule(&scene, noisy, band());
+    assert_eq!(defaults, plain, "a noisy image took the schedule for holes");
 }

@@ -308,6 +308,18 @@ pub const PARAMS: &[ParamSpec] = &[
         set: |p, v| p.kappa_holes = count(v),
     },
     ParamSpec {
+        name: "shadow-bound",
+        label: "shadow bound",
+        help: "With lights off the optical centre: 'on' holds the full-resolution surface \
+               behind what its shadow says (a shadow pixel the surface would light goes back \
+               onto the ray from the light that grazes its occluder); 'off' (default: measured \
+               no better on the shadows bench).",
+        kind: ParamKind::Choice(&["off", "on"]),
+        slider: None,
+        get: |p| ParamValue::Choice(if p.shadow_bound { "on" } else { "off" }),
+        set: |p, v| p.shadow_bound = word(v) == "on",
+    },
+    ParamSpec {
         name: "level-tolerance",
         label: "level tolerance",
         help: "Relative energy decrease per outer iteration below which a level stops \

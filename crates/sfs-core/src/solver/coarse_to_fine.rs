@@ -139,7 +139,33 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
             start,
             start_energy: (index == 0).then_some(initial_energy),
         };
-        let end = scheme.solve_level(&step, &mut depth, observer)?;
+        let mut end = scheme.solve_level(&step, &mut depth, observer)?;
+        // With the shadow bound asked for, what the shadow says is checked
+        // against the full-resolution surface: shadow pixels it would light
+        // go back onto the ray that grazes their occluder
+        // (`shadow_bound`), and the level's energy follows.
+        if step.finest
+            && prepared.shadow_bound
+            && let Some(shadow) = &prepared.shadow
+        {
+            let moved = super::shadow_bound::enforce(
+                level,
+                shadow,
+                prepared.lights,
+                &mut depth,
+                Cancel::new(&|| observer.is_cancelled()),
+            )?;
+            if moved > 0 {
+                end.energy = level_energy(
+                    model,
+                    level,
+                    &depth,
+                    alpha,
+                    lambda,
+                    Cancel::new(&|| observer.is_cancelled()),
+                )?;
+            }
+        }
         walk.final_energy = end.energy;
         let result = level_result(
             model,

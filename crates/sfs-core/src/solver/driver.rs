@@ -59,7 +59,6 @@ fn solve_on_worker<M: Reflectance>(
     let mut prepared = prepare(problem, params, Some(start), observer)?;
     let initial = prepared.take_depth();
     let alternatives = std::mem::take(&mut prepared.alternatives);
-    let shadow = prepared.shadow.take();
     let initial = pick_start(initial, alternatives, model, params, &prepared, observer)?;
     let mut scheme = GaussNewton {
         model,
@@ -84,6 +83,7 @@ fn solve_on_worker<M: Reflectance>(
         &mut scheme,
     )?;
     let phases = scheme.phases;
+    let shadow = prepared.shadow.take();
     let (depth, reprojection) = on_object(problem, walk.depth, walk.reprojection);
     let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
     Solution {

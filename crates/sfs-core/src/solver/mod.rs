@@ -18,6 +18,7 @@ pub mod prepare;
 pub mod preview;
 pub mod problem;
 pub mod pyramid;
+pub(crate) mod shadow_bound;
 pub mod shadows;
 pub mod sor;
 pub mod system;

@@ -48,8 +48,10 @@ pub(crate) struct Prepared<'a> {
     /// constant.
     pub refines_warm_start: bool,
     /// That full-resolution start is refined across holes (object pixels of
-    /// confidence below [`super::holes::HOLE_CONFIDENCE`]): the level runs
-    /// `kappa_holes` iterations and [`LinearSolver::Auto`] is multigrid.
+    /// confidence below [`super::holes::HOLE_CONFIDENCE`] wider than a
+    /// speck) in a clean image (noise at most
+    /// [`FAST_MARCHING_DENOISE_ABOVE`]): the level runs `kappa_holes`
+    /// iterations and [`LinearSolver::Auto`] is multigrid.
     ///
     /// [`LinearSolver::Auto`]: crate::params::LinearSolver::Auto
     pub refines_holes: bool,
@@ -61,6 +63,12 @@ pub(crate) struct Prepared<'a> {
     /// the data term as shadow (see [`take_out_shadows`]); `None` with the
     /// light at the optical centre.
     pub shadow: Option<Grid<bool>>,
+    /// The problem's lights (empty: the paper's light at the optical
+    /// centre); the shadow's bound is taken toward them.
+    pub lights: &'a [crate::light::PointLight],
+    /// Whether the full-resolution surface is held behind the shadow's
+    /// bound ([`SolverParams::shadow_bound`]).
+    pub shadow_bound: bool,
 }
 
 impl Prepared<'_> {
@@ -263,7 +271,14 @@ pub(crate) fn prepare<'a>(
         }
     };
     // A warm start is refined on the full image alone (the only level).
-    let refines_holes = warm.is_some() && levels.last().is_some_and(|l| has_holes(problem, l));
+    // Its holes get the longer, multigrid schedule only on a clean image:
+    // in noise (where the start is denoised too) the SOR sweeps' damping is
+    // part of the regularisation the automatic alpha was measured with, and
+    // a converged solve fitted the noise (the noisy Sombrero's band 0.041
+    // against 0.017).
+    let refines_holes = warm.is_some()
+        && relative_noise <= FAST_MARCHING_DENOISE_ABOVE
+        && levels.last().is_some_and(|l| has_wide_holes(problem, l));
     Ok(Prepared {
         levels,
         shown,
@@ -279,6 +294,8 @@ pub(crate) fn prepare<'a>(
         refines_holes,
         alternatives,
         shadow,
+        lights: &problem.lights,
+        shadow_bound: params.shadow_bound,
     })
 }
 
@@ -444,6 +461,31 @@ fn has_holes(problem: &Problem, level: &PyramidLevel) -> bool {
                 && object.is_none_or(|m| m.as_slice()[q])
                 && level.confidence.weight(q) < super::holes::HOLE_CONFIDENCE
         })
+}
+
+/// Whether `level` (the full image of `problem`) has a hole wider than a
+/// speck: an object pixel of its domain below
+/// [`super::holes::HOLE_CONFIDENCE`] whose four neighbours are holes too
+/// (or off the object). Clipped pixels of a noisy image are untrusted
+/// specks, not holes: their neighbours carry the data. Stops at the first.
+fn has_wide_holes(problem: &Problem, level: &PyramidLevel) -> bool {
+    let (w, h) = (level.geometry.width, level.geometry.height);
+    let object = problem.object_mask.as_ref();
+    let trusted_object = |q: usize| {
+        level.domain.as_slice()[q]
+            && object.is_none_or(|m| m.as_slice()[q])
+            && level.confidence.weight(q) >= super::holes::HOLE_CONFIDENCE
+    };
+    (0..w * h).any(|q| {
+        let (c, r) = (q % w, q / w);
+        level.domain.as_slice()[q]
+            && object.is_none_or(|m| m.as_slice()[q])
+            && !trusted_object(q)
+            && !(c > 0 && trusted_object(q - 1))
+            && !(c + 1 < w && trusted_object(q + 1))
+            && !(r > 0 && trusted_object(q - w))
+            && !(r + 1 < h && trusted_object(q + w))
+    })
 }
 
 /// Primal-dual iterations of the TV denoising before the fast-marching start.
