@@ -19,6 +19,12 @@ pub struct ViewArgs {
     /// Camera file (keys of `synth`'s scene.json).
     #[arg(long, value_parser = super::parse_path)]
     pub camera: Option<PathBuf>,
+    /// Confidence PNG (0 = untrusted .. 255 = trusted; at the photograph's
+    /// size or the working size): the confidence layer starts from it, as
+    /// `solve --confidence` (an autosaved painting of this image wins, and
+    /// the status line says so).
+    #[arg(long, value_parser = super::parse_path)]
+    pub confidence: Option<PathBuf>,
     /// Object mask PNG (255 = object).
     #[arg(long, value_parser = super::parse_path)]
     pub mask: Option<PathBuf>,
@@ -86,6 +92,7 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         ambient: args.ambient.clone(),
         vignetting: Vignetting::from_option(args.vignetting.as_deref()),
         albedo: args.albedo.clone(),
+        confidence: args.confidence.clone(),
         srgb: match args.srgb {
             super::solve::SrgbArg::On => Some(true),
             super::solve::SrgbArg::Off => Some(false),
@@ -241,5 +248,85 @@ mod tests {
         );
         assert_eq!(cli.lights.len(), 1, "LED 4 alone");
         assert_same(&cli, &viewer);
+    }
+
+    #[test]
+    fn a_confidence_file_reaches_the_viewer_as_it_reaches_solve() {
+        let sample = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/sombrero");
+        let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
+        // A disc of confidence 0 at the photograph's size; the working
+        // size (200) averages it, as solve does.
+        let confidence = dir.path().join("confidence.png");
+        let disc = Grid::from_fn(256, 256, |c, r| {
+            let (dx, dy) = (c as f64 - 128.0, r as f64 - 115.0);
+            if dx.hypot(dy) < 36.0 { 0.0 } else { 1.0 }
+        });
+        sfs_core::io::write_png8(&confidence, &disc).unwrap_or_else(|e| panic!("{e}"));
+        let image = sample.join("image16.png");
+        let out = dir.path().join("out");
+        let cli = cli_problem(&[
+            text(&image),
+            "--camera",
+            text(&sample.join("scene.json")),
+            "--mask",
+            text(&sample.join("mask.png")),
+            "--confidence",
+            text(&confidence),
+            "--max-side",
+            "200",
+            "--out",
+            text(&out),
+        ]);
+        let viewer = viewer_problem(
+            &image,
+            &OpenOptions {
+                max_side: Some(200),
+                confidence: Some(confidence.clone()),
+                ..OpenOptions::default()
+            },
+        );
+        let held = |p: &Problem| {
+            p.confidence
+                .as_ref()
+                .map_or(0, |c| c.as_slice().iter().filter(|&&v| v < 0.5).count())
+        };
+        assert!(held(&cli) > 1000, "the disc is untrusted");
+        // The viewer's mask layers hold confidence as f32: the same values
+        // to f32's precision, the rest bit for bit.
+        let (mut cli, mut viewer) = (cli, viewer);
+        let (a, b) = (cli.confidence.take(), viewer.confidence.take());
+        assert_same(&cli, &viewer);
+        let (a, b) = (
+            a.unwrap_or_else(|| panic!("solve has the confidence")),
+            b.unwrap_or_else(|| panic!("the viewer has the confidence")),
+        );
+        assert_eq!(a.size(), b.size());
+        let worst = a
+            .as_slice()
+            .iter()
+            .zip(b.as_slice())
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "confidence differs by {worst}");
+        // A confidence file that cannot be read is left out with a note;
+        // the image still opens.
+        let broken = dir.path().join("broken.png");
+        std::fs::write(&broken, b"not a png").unwrap_or_else(|e| panic!("{e}"));
+        let doc = Document::open(
+            &image,
+            &OpenOptions {
+                confidence: Some(broken),
+                ..OpenOptions::default()
+            },
+        )
+        .unwrap_or_else(|e| panic!("{e:#}"));
+        assert!(
+            doc.notes
+                .iter()
+                .any(|n| n.contains("ignored") && n.contains("broken.png")),
+            "{:?}",
+            doc.notes
+        );
+        assert_eq!(doc.input.confidence, None);
     }
 }

@@ -279,7 +279,8 @@ pub const PARAMS: &[ParamSpec] = &[
     ParamSpec {
         name: "kappa",
         label: "kappa",
-        help: "Outer (Gauss-Newton) iterations per level, at least (paper 5).",
+        help: "Outer (Gauss-Newton) iterations per level, at least (paper 5); refining a start \
+               across holes, kappa-holes.",
         kind: ParamKind::Count { min: 1, max: 1000 },
         slider: Some((1.0, 20.0)),
         get: |p| ParamValue::Count(p.kappa),

@@ -148,6 +148,10 @@ pub struct OpenOptions {
     pub vignetting: Vignetting,
     /// A known albedo map, divided out.
     pub albedo: Option<PathBuf>,
+    /// A confidence mask (grey PNG, 0 = untrusted .. 255 = trusted, at the
+    /// photograph's size or the working size), the confidence layer's
+    /// start (`None`: all trusted).
+    pub confidence: Option<PathBuf>,
 }
 
 /// An open image with its camera, masks and optional ground truth.
@@ -203,7 +207,7 @@ pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<P
         lights: LightSpec::CameraFileOrCentred,
         intensity_scale: ScaleSpec::FromCamera,
         object_mask: options.mask.clone().or_else(|| mask_beside.clone()),
-        confidence: None,
+        confidence: options.confidence.clone(),
         auto_confidence: false,
         ambient: options.ambient.clone(),
         vignetting: options.vignetting.clone(),
@@ -243,6 +247,8 @@ fn prepare_lenient(
             };
         } else if let Some(mask) = input.object_mask.take_if(|m| names(m)) {
             ignored(&mask);
+        } else if let Some(confidence) = input.confidence.take_if(|c| names(c)) {
+            ignored(&confidence);
         } else if let Some(ambient) = input.ambient.take_if(|a| names(a)) {
             ignored(&ambient);
         } else if let Vignetting::FlatField(flat) = &input.vignetting

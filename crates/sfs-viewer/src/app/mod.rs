@@ -53,6 +53,9 @@ pub struct ViewerOptions {
     pub vignetting: sfs_core::photo::Vignetting,
     /// A known albedo map, divided out of the image.
     pub albedo: Option<PathBuf>,
+    /// A confidence mask: the confidence layer's start (`None`: all
+    /// trusted).
+    pub confidence: Option<PathBuf>,
     /// Read the image as sRGB (`None`: decide from the file).
     pub srgb: Option<bool>,
     /// Alpha override.
@@ -165,6 +168,7 @@ impl ViewerApp {
                     ambient: options.ambient.clone(),
                     vignetting: options.vignetting.clone(),
                     albedo: options.albedo.clone(),
+                    confidence: options.confidence.clone(),
                     ..app.open_options()
                 };
                 app.open_with(&cc.egui_ctx, &path, &open);

@@ -188,6 +188,13 @@ impl Session {
                 Ok(Some(masks)) => {
                     doc.masks = masks;
                     notes.push("restored your painted masks from the autosave".into());
+                    // Painted work is never dropped for a file: say which won.
+                    if let Some(file) = &options.confidence {
+                        notes.push(format!(
+                            "the autosaved painting replaces the confidence in {} (File > Load confidence mask… reads the file)",
+                            file.display()
+                        ));
+                    }
                 }
                 Ok(None) => {}
                 Err(e) => notes.push(format!("autosave not restored: {e}")),
