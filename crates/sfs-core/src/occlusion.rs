@@ -2,7 +2,10 @@
 //! point light: a ray march through the depth map toward the light (the
 //! object taken as solid behind what the camera sees). Used to render cast
 //! shadows (`scene::shadow`) and to check the solver's shadows against its
-//! own surface. Depends on the grid and the camera only.
+//! own surface (`march` is the one ray march, shared with the solver's
+//! shadow bound). Depends on the grid, the camera and glam only.
+
+use glam::DVec3;
 
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
@@ -38,13 +41,7 @@ pub fn cast_shadow_where(
 ) -> Grid<bool> {
     use rayon::prelude::*;
     let (w, h) = depth.size();
-    let f = camera.focal_px;
-    let project = |p: [f64; 3]| {
-        (
-            f * p[0] / p[2] + camera.principal_x_px,
-            f * p[1] / p[2] + camera.principal_y_px,
-        )
-    };
+    let light = DVec3::from_array(light);
     let max_steps = 8 * (w + h);
     let rows: Vec<Vec<bool>> = (0..h)
         .into_par_iter()
@@ -56,55 +53,17 @@ pub fn cast_shadow_where(
                         return false;
                     }
                     let (x, y) = camera.image_xy(c as f64, r as f64);
-                    let start = camera.back_project(x, y, z);
-                    let towards = [
-                        light[0] - start[0],
-                        light[1] - start[1],
-                        light[2] - start[2],
-                    ];
-                    let mut t = 0.0;
-                    for _ in 0..max_steps {
-                        let at = |t: f64| {
-                            [
-                                start[0] + t * towards[0],
-                                start[1] + t * towards[1],
-                                start[2] + t * towards[2],
-                            ]
-                        };
-                        let p = at(t);
-                        if p[2] <= 0.0 {
-                            return false;
-                        }
-                        // The image speed of the march, pixels per unit t.
-                        let speed_x = f * (towards[0] * p[2] - p[0] * towards[2]) / (p[2] * p[2]);
-                        let speed_y = f * (towards[1] * p[2] - p[1] * towards[2]) / (p[2] * p[2]);
-                        let speed = speed_x.hypot(speed_y);
-                        // Along the viewing ray the image stands still: no
-                        // surface can come between (a light behind the
-                        // camera's own ray); step in depth instead.
-                        let dt = if speed > 1e-12 {
-                            (STEP_PX / speed).min(MAX_DT)
-                        } else {
-                            MAX_DT
-                        };
-                        t = (t + dt).min(1.0);
-                        let p = at(t);
-                        if p[2] <= 0.0 {
-                            return false;
-                        }
-                        let (u, v) = project(p);
+                    let start = DVec3::from_array(camera.back_project(x, y, z));
+                    for (p, u, v) in march(start, light, camera, max_steps) {
                         let (cu, cv) = (u.round(), v.round());
                         if cu < 0.0 || cv < 0.0 || cu >= w as f64 || cv >= h as f64 {
                             return false;
                         }
                         if (u - c as f64).hypot(v - r as f64) > SELF_PX {
                             let surface = *depth.at(cu as usize, cv as usize);
-                            if surface.is_finite() && surface < p[2] * (1.0 - OCCLUSION_TOLERANCE) {
+                            if surface.is_finite() && surface < p.z * (1.0 - OCCLUSION_TOLERANCE) {
                                 return true;
                             }
-                        }
-                        if t >= 1.0 {
-                            return false;
                         }
                     }
                     false
@@ -119,4 +78,56 @@ pub fn cast_shadow_where(
         }
     }
     out
+}
+
+/// The samples of a march along the segment from `start` toward `light`
+/// (camera frame, units of depth): each sample's point and its image
+/// position (full-resolution column and row), about every [`STEP_PX`]
+/// pixels of the segment's image and at least every 1/32 of the segment.
+/// Ends with the sample at the light, where the segment reaches the
+/// camera's plane, or after `max_steps` samples. The one march of
+/// [`cast_shadow`] and of the solver's shadow bound.
+pub(crate) fn march(
+    start: DVec3,
+    light: DVec3,
+    camera: Intrinsics,
+    max_steps: usize,
+) -> impl Iterator<Item = (DVec3, f64, f64)> {
+    let f = camera.focal_px;
+    let towards = light - start;
+    let at = move |t: f64| start + towards * t;
+    let (mut t, mut steps) = (0.0, 0);
+    std::iter::from_fn(move || {
+        if t >= 1.0 || steps >= max_steps {
+            return None;
+        }
+        steps += 1;
+        let p = at(t);
+        if p.z <= 0.0 {
+            return None;
+        }
+        // The image speed of the march, pixels per unit t.
+        let speed_x = f * (towards.x * p.z - p.x * towards.z) / (p.z * p.z);
+        let speed_y = f * (towards.y * p.z - p.y * towards.z) / (p.z * p.z);
+        let speed = speed_x.hypot(speed_y);
+        // Along the viewing ray the image stands still: no surface can
+        // come between (a light behind the camera's own ray); step in
+        // depth instead.
+        let dt = if speed > 1e-12 {
+            (STEP_PX / speed).min(MAX_DT)
+        } else {
+            MAX_DT
+        };
+        t = (t + dt).min(1.0);
+        let p = at(t);
+        if p.z <= 0.0 {
+            t = 1.0;
+            return None;
+        }
+        Some((
+            p,
+            f * p.x / p.z + camera.principal_x_px,
+            f * p.y / p.z + camera.principal_y_px,
+        ))
+    })
 }

@@ -445,46 +445,36 @@ fn fast_marching_start(
     Ok(candidates)
 }
 
-/// Whether `level` (the full image of `problem`) has holes: object pixels
-/// of its domain whose confidence is below
-/// [`super::holes::HOLE_CONFIDENCE`] (the background is no hole). Stops at
-/// the first.
+/// Pixel `q` of `level` (the full image of `problem`) is an object pixel
+/// of its domain: `Some(true)` where its confidence is below
+/// [`super::holes::HOLE_CONFIDENCE`] (a hole), `Some(false)` where it is
+/// trusted, `None` off the object (the background is no hole).
+fn hole_at(problem: &Problem, level: &PyramidLevel, q: usize) -> Option<bool> {
+    let on_object =
+        level.domain.as_slice()[q] && problem.object_mask.as_ref().is_none_or(|m| m.as_slice()[q]);
+    on_object.then(|| level.confidence.weight(q) < super::holes::HOLE_CONFIDENCE)
+}
+
+/// Whether `level` (the full image of `problem`) has a hole pixel. Stops
+/// at the first.
 fn has_holes(problem: &Problem, level: &PyramidLevel) -> bool {
-    let object = problem.object_mask.as_ref();
-    level
-        .domain
-        .as_slice()
-        .iter()
-        .enumerate()
-        .any(|(q, &inside)| {
-            inside
-                && object.is_none_or(|m| m.as_slice()[q])
-                && level.confidence.weight(q) < super::holes::HOLE_CONFIDENCE
-        })
+    (0..level.domain.as_slice().len()).any(|q| hole_at(problem, level, q) == Some(true))
 }
 
 /// Whether `level` (the full image of `problem`) has a hole wider than a
-/// speck: an object pixel of its domain below
-/// [`super::holes::HOLE_CONFIDENCE`] whose four neighbours are holes too
-/// (or off the object). Clipped pixels of a noisy image are untrusted
-/// specks, not holes: their neighbours carry the data. Stops at the first.
+/// speck: a hole pixel none of whose four neighbours is a trusted object
+/// pixel. Clipped pixels of a noisy image are untrusted specks, not holes:
+/// their neighbours carry the data. Stops at the first.
 fn has_wide_holes(problem: &Problem, level: &PyramidLevel) -> bool {
     let (w, h) = (level.geometry.width, level.geometry.height);
-    let object = problem.object_mask.as_ref();
-    let trusted_object = |q: usize| {
-        level.domain.as_slice()[q]
-            && object.is_none_or(|m| m.as_slice()[q])
-            && level.confidence.weight(q) >= super::holes::HOLE_CONFIDENCE
-    };
+    let trusted = |q: usize| hole_at(problem, level, q) == Some(false);
     (0..w * h).any(|q| {
         let (c, r) = (q % w, q / w);
-        level.domain.as_slice()[q]
-            && object.is_none_or(|m| m.as_slice()[q])
-            && !trusted_object(q)
-            && !(c > 0 && trusted_object(q - 1))
-            && !(c + 1 < w && trusted_object(q + 1))
-            && !(r > 0 && trusted_object(q - w))
-            && !(r + 1 < h && trusted_object(q + w))
+        hole_at(problem, level, q) == Some(true)
+            && !(c > 0 && trusted(q - 1))
+            && !(c + 1 < w && trusted(q + 1))
+            && !(r > 0 && trusted(q - w))
+            && !(r + 1 < h && trusted(q + w))
     })
 }
 

@@ -9,7 +9,8 @@
 //! `shadow_bound` on, the shadow pixels that the full-resolution surface
 //! would light are pushed back onto that ray, checked against the surface
 //! the solve ended with. Off by default: measured no better (README,
-//! "Shadows"). Depends on the grid, the lights, glam and the pyramid only.
+//! "Shadows"). Depends on the grid, the lights, `occlusion::march`, glam
+//! and the pyramid only.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -27,9 +28,6 @@ const BOUND_TOLERANCE: f64 = 2e-3;
 /// A bound farther than this multiple of the level's deepest point is no
 /// bound (a ray grazing the viewing ray meets it far away).
 const BOUND_REACH: f64 = 1.5;
-/// The march toward the light advances about this many level pixels per
-/// sample.
-const STEP_PX: f64 = 0.5;
 /// Samples within this many level pixels of the shadow pixel are its own
 /// neighbourhood, not an occluder.
 const SELF_PX: f64 = 1.5;
@@ -126,10 +124,10 @@ pub(crate) fn enforce(
 /// The least depth at which level pixel `(c, r)` is hidden from `light` by
 /// an occluder between it and the light: the segment from the pixel's
 /// surface point (at its current depth `z`) toward the light is marched
-/// through the image, and every occluder it passes over gives the depth at
-/// which the pixel's viewing ray meets the ray from the light through that
-/// occluder's surface point. `None` where no occluder lies on the way (or
-/// every bound is beyond `reach`).
+/// through the image (`occlusion::march`), and every occluder it passes
+/// over gives the depth at which the pixel's viewing ray meets the ray from
+/// the light through that occluder's surface point. `None` where no
+/// occluder lies on the way (or every bound is beyond `reach`).
 #[allow(clippy::too_many_arguments)]
 fn bound_toward(
     level: &PyramidLevel,
@@ -143,75 +141,40 @@ fn bound_toward(
 ) -> Option<f64> {
     let geometry = level.geometry;
     let (w, h) = (geometry.width, geometry.height);
-    let camera = geometry.camera;
-    let f = camera.focal_px;
-    let ray = geometry.ray(c, r);
-    let direction = DVec3::new(ray.x_px / f, ray.y_px / f, 1.0);
-    let start = direction * z;
-    let towards = light - start;
-    // Level pixel coordinates of a camera-space point.
-    let to_level = |p: DVec3| {
-        let x = f * p.x / p.z + camera.principal_x_px;
-        let y = f * p.y / p.z + camera.principal_y_px;
-        (
-            (x + 0.5) / geometry.spacing.x - 0.5,
-            (y + 0.5) / geometry.spacing.y - 0.5,
-        )
+    let f = geometry.camera.focal_px;
+    let viewing = |column: usize, row: usize| {
+        let ray = geometry.ray(column, row);
+        DVec3::new(ray.x_px / f, ray.y_px / f, 1.0)
     };
+    let direction = viewing(c, r);
     let mut best: Option<f64> = None;
-    let mut t = 0.0;
-    for _ in 0..8 * (w + h) {
-        let p = start + towards * t;
-        if p.z <= 0.0 {
-            break;
-        }
-        // The image speed of the march, level pixels per unit t.
-        let speed = {
-            let ahead = start + towards * (t + 1e-6);
-            if ahead.z <= 0.0 {
-                break;
-            }
-            let (u0, v0) = to_level(p);
-            let (u1, v1) = to_level(ahead);
-            (u1 - u0).hypot(v1 - v0) / 1e-6
-        };
-        let dt = if speed > 1e-9 {
-            (STEP_PX / speed).min(1.0 / 32.0)
-        } else {
-            1.0 / 32.0
-        };
-        t = (t + dt).min(1.0);
-        let p = start + towards * t;
-        if p.z <= 0.0 {
-            break;
-        }
-        let (u, v) = to_level(p);
+    for (_, u, v) in crate::occlusion::march(direction * z, light, geometry.camera, 8 * (w + h)) {
+        // Full-resolution image position to level pixels.
+        let u = (u + 0.5) / geometry.spacing.x - 0.5;
+        let v = (v + 0.5) / geometry.spacing.y - 0.5;
         let (cu, cv) = (u.round(), v.round());
         if cu < 0.0 || cv < 0.0 || cu >= w as f64 || cv >= h as f64 {
             break;
         }
         let (cu, cv) = (cu as usize, cv as usize);
-        if (u - c as f64).hypot(v - r as f64) > SELF_PX && *occluder.at(cu, cv) {
-            let depth_at = *surface.at(cu, cv);
-            if depth_at.is_finite() && depth_at > 0.0 {
-                let occluder_ray = geometry.ray(cu, cv);
-                let point =
-                    DVec3::new(occluder_ray.x_px / f, occluder_ray.y_px / f, 1.0) * depth_at;
-                // Where the line from the light through `point` meets the
-                // pixel's viewing ray `s direction` (least squares: the two
-                // are coplanar up to the nearest pixel).
-                let normal = direction.cross(point - light);
-                let norm2 = normal.length_squared();
-                if norm2 > 0.0 {
-                    let s = light.cross(point).dot(normal) / norm2;
-                    if s.is_finite() && s > 0.0 && s <= reach {
-                        best = Some(best.map_or(s, |b: f64| b.min(s)));
-                    }
-                }
-            }
+        if (u - c as f64).hypot(v - r as f64) <= SELF_PX || !*occluder.at(cu, cv) {
+            continue;
         }
-        if t >= 1.0 {
-            break;
+        let depth_at = *surface.at(cu, cv);
+        if !(depth_at.is_finite() && depth_at > 0.0) {
+            continue;
+        }
+        let point = viewing(cu, cv) * depth_at;
+        // Where the line from the light through `point` meets the pixel's
+        // viewing ray `s direction` (least squares: the two are coplanar up
+        // to the nearest pixel).
+        let normal = direction.cross(point - light);
+        let norm2 = normal.length_squared();
+        if norm2 > 0.0 {
+            let s = light.cross(point).dot(normal) / norm2;
+            if s.is_finite() && s > 0.0 && s <= reach {
+                best = Some(best.map_or(s, |b: f64| b.min(s)));
+            }
         }
     }
     best
