@@ -52,11 +52,13 @@ pub struct SolveArgs {
     /// fixes the depth unit [default: the camera file's, else auto].
     #[arg(long, value_name = "S|auto")]
     pub intensity_scale: Option<String>,
-    /// A known distance: pixel X,Y (of the photograph as given) is Z depth
-    /// units away; sets the depth scale (and s) with a centred light, and s
-    /// with lights anywhere.
+    /// A known distance: the surface at pixel X,Y (of the photograph as
+    /// given) is Z depth units away. Sets the depth scale (and s) with a
+    /// centred light, and s with lights anywhere. Repeatable: several
+    /// points are met in relative least squares, each one's residual
+    /// reported.
     #[arg(long, value_name = "X,Y,Z", value_parser = super::parse_floats::<3>)]
-    pub known_depth: Option<[f64; 3]>,
+    pub known_depth: Vec<[f64; 3]>,
     /// Where the lights are.
     #[command(flatten)]
     pub lights: super::LightArgs,
@@ -352,8 +354,8 @@ struct DepthRange {
 struct SolveInput {
     #[serde(flatten)]
     photo: PhotoReport,
-    /// `--known-depth` as given.
-    known_depth: Option<[f64; 3]>,
+    /// `--known-depth` as given (pixels of the photograph as given).
+    known_depth: Vec<[f64; 3]>,
 }
 
 /// `report.json`: everything a solve decided and measured.
@@ -361,6 +363,8 @@ struct SolveInput {
 struct SolveReport<'a> {
     input: SolveInput,
     intensity_scale_search: Option<solver::calibrate::ScaleEstimate>,
+    /// How the solve met `--known-depth` (working-size pixels).
+    known_depth_fit: Option<solver::calibrate::KnownDepthFit>,
     notes: &'a [String],
     parameters: serde_json::Value,
     alpha_used: f64,
@@ -451,28 +455,41 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     // The intensity scale: estimated with lights off the centre; a known
     // distance fixes it (and the depth unit).
-    let known_pixel = args.known_depth.map(|[x, y, z]| {
-        let kx = size.0 as f64 / full_size.0 as f64;
-        let ky = size.1 as f64 / full_size.1 as f64;
-        (
-            ((x + 0.5) * kx - 0.5).round(),
-            ((y + 0.5) * ky - 0.5).round(),
-            z,
-        )
-    });
-    if let Some((x, y, z)) = known_pixel
-        && !(x >= 0.0
-            && y >= 0.0
-            && (x as usize) < size.0
-            && (y as usize) < size.1
-            && z > 0.0
-            && z.is_finite())
-    {
-        bail!("--known-depth: the pixel must lie in the image and the distance be positive");
+    let known_points: Vec<solver::calibrate::KnownDepth> = args
+        .known_depth
+        .iter()
+        .map(|&[x, y, z]| {
+            let kx = size.0 as f64 / full_size.0 as f64;
+            let ky = size.1 as f64 / full_size.1 as f64;
+            solver::calibrate::KnownDepth {
+                column_px: ((x + 0.5) * kx - 0.5).round(),
+                row_px: ((y + 0.5) * ky - 0.5).round(),
+                depth: z,
+            }
+        })
+        .collect();
+    for (given, p) in args.known_depth.iter().zip(&known_points) {
+        if !(p.column_px >= 0.0
+            && p.row_px >= 0.0
+            && (p.column_px as usize) < size.0
+            && (p.row_px as usize) < size.1
+            && p.depth > 0.0
+            && p.depth.is_finite())
+        {
+            bail!(
+                "--known-depth {},{},{}: the pixel must lie in the {}x{} image and the distance \
+                 be positive",
+                given[0],
+                given[1],
+                given[2],
+                full_size.0,
+                full_size.1
+            );
+        }
     }
     let mut scale_estimate = None;
     let centred = problem.light_is_centred();
-    if !intensity_scale_given && !centred && known_pixel.is_none() {
+    if !intensity_scale_given && !centred && known_points.is_empty() {
         let estimate =
             solver::calibrate::estimate_intensity_scale(&problem, &params, &mut progress)
                 .with_context(
@@ -493,48 +510,47 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         scale_estimate = Some(estimate);
     }
     let method = args.method.method();
-    let mut solution = solver::solve_method(&problem, &params, &method, &mut progress);
-    if let (Ok(first), Some((x, y, z))) = (&solution, known_pixel) {
-        let (c, r) = (x as usize, y as usize);
-        let Some(k) = solver::calibrate::scale_to_known_depth(&first.depth, c, r, z) else {
-            bail!("--known-depth: pixel {c},{r} (working size) is not on the solved surface");
-        };
-        if centred {
-            // Exact: depth times k, s times k^2 (the invariance tests).
-            problem.intensity_scale *= k * k;
-            let mut scaled = solver::solve_method(&problem, &params, &method, &mut progress);
-            if let Ok(ref mut s) = scaled {
-                // One more solve reproduces the first up to round-off; take
-                // the exact rescaling of the depth to meet the measurement.
-                if let Some(k2) = solver::calibrate::scale_to_known_depth(&s.depth, c, r, z) {
-                    s.depth = s.depth.map(|v| v * k2);
-                }
+    let mut known_depth_fit = None;
+    let solution = if known_points.is_empty() {
+        solver::solve_method(&problem, &params, &method, &mut progress)
+    } else {
+        solver::calibrate::solve_with_known_depths(
+            &mut problem,
+            &params,
+            &method,
+            &known_points,
+            &mut progress,
+        )
+        .map(|(solution, fit)| {
+            notes.push(format!(
+                "depth scale from --known-depth: s = {:.4e} after {} solve{}; {}",
+                fit.intensity_scale,
+                fit.solves,
+                if fit.solves == 1 { "" } else { "s" },
+                fit.points
+                    .iter()
+                    .map(|p| format!(
+                        "pixel {},{} given {:.4} solved {:.4} ({:+.2} %)",
+                        p.column_px,
+                        p.row_px,
+                        p.given,
+                        p.solved,
+                        100.0 * p.relative_residual
+                    ))
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            ));
+            if !fit.converged {
+                notes.push(
+                    "warning: the scale search for --known-depth did not settle; the residuals \
+                     above say how far off it stopped"
+                        .into(),
+                );
             }
-            solution = scaled;
-        } else {
-            // Lights anywhere: search s so the pixel lands at the distance
-            // (depth grows with s; a few secant steps in log space).
-            let mut s = problem.intensity_scale;
-            let mut current = first.clone();
-            for _ in 0..8 {
-                let Some(k) = solver::calibrate::scale_to_known_depth(&current.depth, c, r, z)
-                else {
-                    break;
-                };
-                if (k - 1.0).abs() < 1e-3 {
-                    break;
-                }
-                s *= k * k;
-                problem.intensity_scale = s;
-                current = solver::solve_method(&problem, &params, &method, &mut progress)?;
-            }
-            solution = Ok(current);
-        }
-        notes.push(format!(
-            "depth scale from --known-depth: s = {:.4e}",
-            problem.intensity_scale
-        ));
-    }
+            known_depth_fit = Some(fit);
+            solution
+        })
+    };
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
@@ -610,9 +626,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let report = SolveReport {
         input: SolveInput {
             photo: photo_report,
-            known_depth: args.known_depth,
+            known_depth: args.known_depth.clone(),
         },
         intensity_scale_search: scale_estimate,
+        known_depth_fit,
         notes: &notes,
         parameters: params_json(&params, args),
         alpha_used: solution.alpha,

@@ -248,3 +248,202 @@ pub fn scale_to_known_depth(
     let z = *depth.at(column, row);
     (z.is_finite() && z > 0.0 && distance.is_finite() && distance > 0.0).then(|| distance / z)
 }
+
+/// A distance the user knows: the surface at pixel `(column_px, row_px)` of
+/// the solved image lies at depth `depth` (the camera's depth unit).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
+pub struct KnownDepth {
+    /// Pixel column in the solved image.
+    pub column_px: f64,
+    /// Pixel row in the solved image.
+    pub row_px: f64,
+    /// Its known depth.
+    pub depth: f64,
+}
+
+/// How a solve met its known depths.
+#[derive(Clone, Debug, Serialize)]
+pub struct KnownDepthFit {
+    /// The intensity scale the solve ended with.
+    pub intensity_scale: f64,
+    /// Each known point: where it is, the given and the solved depth and
+    /// the relative residual `(solved - given) / given`.
+    pub points: Vec<KnownDepthResidual>,
+    /// Root mean square of the relative residuals.
+    pub rms_relative_residual: f64,
+    /// Solves it took.
+    pub solves: usize,
+    /// False when the scale search stopped before the least-squares factor
+    /// settled within [`KNOWN_DEPTH_TOLERANCE`].
+    pub converged: bool,
+}
+
+/// One known point after the solve.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct KnownDepthResidual {
+    /// Pixel column in the solved image.
+    pub column_px: f64,
+    /// Pixel row in the solved image.
+    pub row_px: f64,
+    /// The depth given.
+    pub given: f64,
+    /// The solved depth there.
+    pub solved: f64,
+    /// `(solved - given) / given`.
+    pub relative_residual: f64,
+}
+
+/// The least-squares factor settles when it is within this of 1.
+pub const KNOWN_DEPTH_TOLERANCE: f64 = 2e-3;
+/// At most this many solves search the scale with lights off the centre.
+const KNOWN_DEPTH_SOLVES: usize = 12;
+
+/// Solved depth at each known point (`None` where a point is off the solved
+/// surface or outside the image).
+fn depths_at(depth: &Grid<f64>, points: &[KnownDepth]) -> Option<Vec<f64>> {
+    points
+        .iter()
+        .map(|p| {
+            let (c, r) = (p.column_px.round(), p.row_px.round());
+            if !(c >= 0.0 && r >= 0.0) {
+                return None;
+            }
+            let (c, r) = (c as usize, r as usize);
+            (c < depth.width() && r < depth.height())
+                .then(|| *depth.at(c, r))
+                .filter(|z| z.is_finite() && *z > 0.0)
+        })
+        .collect()
+}
+
+/// The factor `k` that scales `solved` onto `given` in relative least
+/// squares: `min sum ((k z_i - Z_i) / Z_i)^2`.
+fn least_squares_factor(solved: &[f64], points: &[KnownDepth]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (z, p) in solved.iter().zip(points) {
+        let ratio = z / p.depth;
+        num += ratio;
+        den += ratio * ratio;
+    }
+    num / den.max(f64::MIN_POSITIVE)
+}
+
+/// Solves `problem` so that its depth meets `points` in relative least
+/// squares, by moving the intensity scale (`problem.intensity_scale` ends as
+/// the one used). With every light at the optical centre `s` only scales the
+/// depth (depth times `k`, `s` times `k^2`): one more solve and the exact
+/// rescaling. With lights elsewhere the depth is metric and `s` is searched
+/// (secant steps on `log s` against `log k`) until the least-squares factor
+/// is within [`KNOWN_DEPTH_TOLERANCE`] of 1.
+///
+/// # Errors
+/// As [`super::solve_method`]; `SolveError::Input` when there is no point,
+/// a given depth is not positive and finite, or a point is not on the
+/// solved surface.
+pub fn solve_with_known_depths(
+    problem: &mut Problem,
+    params: &SolverParams,
+    method: &super::Method,
+    points: &[KnownDepth],
+    observer: &mut dyn SolveObserver,
+) -> Result<(super::Solution, KnownDepthFit), SolveError> {
+    if points.is_empty() {
+        return Err(SolveError::Input("no known depth given".into()));
+    }
+    if let Some(p) = points
+        .iter()
+        .find(|p| !(p.depth.is_finite() && p.depth > 0.0))
+    {
+        return Err(SolveError::Input(format!(
+            "known depth at pixel {},{}: the distance must be positive, not {}",
+            p.column_px, p.row_px, p.depth
+        )));
+    }
+    let off_surface = |p: &[KnownDepth]| {
+        SolveError::Input(format!(
+            "known depth: a pixel ({}) is not on the solved surface (inside the object mask \
+             and the image)",
+            p.iter()
+                .map(|p| format!("{},{}", p.column_px, p.row_px))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))
+    };
+    if !problem.light_is_centred() {
+        // With lights off the centre the depth is metric: the search starts
+        // from the scale at which a plane at the known points' mean depth
+        // shows the image's median brightness.
+        let mean = points.iter().map(|p| p.depth).sum::<f64>() / points.len() as f64;
+        if let Some(s) = plane_ratio(problem, mean).filter(|s| s.is_finite() && *s > 0.0) {
+            problem.intensity_scale = s;
+        }
+    }
+    let mut solution = super::solve_method(problem, params, method, observer)?;
+    let mut solves = 1;
+    let mut solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+    let mut k = least_squares_factor(&solved, points);
+    let mut converged = (k - 1.0).abs() < KNOWN_DEPTH_TOLERANCE;
+    if problem.light_is_centred() {
+        if !converged {
+            problem.intensity_scale *= k * k;
+            solution = super::solve_method(problem, params, method, observer)?;
+            solves += 1;
+        }
+        // Exact up to round-off: the last factor is applied to the depth.
+        solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+        let k = least_squares_factor(&solved, points);
+        solution.depth = solution.depth.map(|z| z * k);
+        converged = true;
+    } else {
+        // (log s, log k) of the last two solves: the secant's line.
+        let mut previous: Option<(f64, f64)> = None;
+        while !converged && solves < KNOWN_DEPTH_SOLVES {
+            let (log_s, log_k) = (problem.intensity_scale.ln(), k.ln());
+            // Depth grows about as sqrt(s): log k = -slope (log s - log s*).
+            let slope = match previous {
+                Some((s0, k0)) if (log_s - s0).abs() > 1e-12 => {
+                    let slope = (log_k - k0) / (log_s - s0);
+                    if slope < -0.05 { slope } else { -0.5 }
+                }
+                _ => -0.5,
+            };
+            previous = Some((log_s, log_k));
+            // A step of at most a factor 4 in s.
+            let step = (-log_k / slope).clamp(-4f64.ln(), 4f64.ln());
+            problem.intensity_scale = (log_s + step).exp();
+            solution = super::solve_method(problem, params, method, observer)?;
+            solves += 1;
+            solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+            k = least_squares_factor(&solved, points);
+            converged = (k - 1.0).abs() < KNOWN_DEPTH_TOLERANCE;
+        }
+    }
+    let solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+    let residuals: Vec<KnownDepthResidual> = solved
+        .iter()
+        .zip(points)
+        .map(|(&z, p)| KnownDepthResidual {
+            column_px: p.column_px,
+            row_px: p.row_px,
+            given: p.depth,
+            solved: z,
+            relative_residual: (z - p.depth) / p.depth,
+        })
+        .collect();
+    let rms = (residuals
+        .iter()
+        .map(|r| r.relative_residual * r.relative_residual)
+        .sum::<f64>()
+        / residuals.len() as f64)
+        .sqrt();
+    Ok((
+        solution,
+        KnownDepthFit {
+            intensity_scale: problem.intensity_scale,
+            points: residuals,
+            rms_relative_residual: rms,
+            solves,
+            converged,
+        },
+    ))
+}

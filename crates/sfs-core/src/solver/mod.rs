@@ -13,6 +13,7 @@ pub mod driver;
 pub mod explicit;
 pub mod fast_marching;
 pub mod holes;
+pub(crate) mod light_frame;
 pub mod multigrid;
 pub mod prepare;
 pub mod preview;

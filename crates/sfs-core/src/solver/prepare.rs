@@ -164,14 +164,18 @@ pub(crate) fn prepare<'a>(
             params.derivatives,
         ),
     };
-    // Fast marching knows only the centred light; with lights elsewhere the
-    // default start is the plane that best explains the image, refined
-    // through the whole pyramid (the paper's path).
-    let fast_marching_start_wanted =
-        matches!(params.initial_depth, InitialDepth::FastMarching) && problem.light_is_centred();
+    // Fast marching knows only the centred light. Lights beside the lens
+    // (within `light_frame::MAX_FRAME_ANGLE_DEG` of the camera, seen from
+    // the object) are centred in their own frame, where the start is
+    // marched (`light_frame`); lights farther off start from the plane that
+    // best explains the image, refined through the whole pyramid (the
+    // paper's path).
+    let fast_marching_start_wanted = matches!(params.initial_depth, InitialDepth::FastMarching)
+        && (problem.light_is_centred()
+            || super::light_frame::serves(problem, &finest, scales.depth));
     // That start takes seconds on a photograph: its preview goes out first.
     let shown = match preview {
-        Some(start) if fast_marching_start_wanted => {
+        Some(start) if fast_marching_start_wanted && problem.light_is_centred() => {
             usize::from(super::preview::send_preview(problem, 3, start, observer)?)
         }
         _ => 0,
@@ -188,6 +192,7 @@ pub(crate) fn prepare<'a>(
                 &finest,
                 relative_noise * scales.intensity,
                 relative_noise > FAST_MARCHING_DENOISE_ABOVE,
+                shadow.as_ref(),
                 cancel,
             )?
             .into_iter();
@@ -278,7 +283,9 @@ pub(crate) fn prepare<'a>(
     // against 0.017).
     let refines_holes = warm.is_some()
         && relative_noise <= FAST_MARCHING_DENOISE_ABOVE
-        && levels.last().is_some_and(|l| has_wide_holes(problem, l));
+        && levels
+            .last()
+            .is_some_and(|l| has_wide_holes(problem, l, shadow.as_ref()));
     Ok(Prepared {
         levels,
         shown,
@@ -312,6 +319,7 @@ fn fast_marching_start(
     finest: &PyramidLevel,
     noise_sigma: f64,
     denoise: bool,
+    shadow: Option<&Grid<bool>>,
     cancel: Cancel<'_>,
 ) -> Result<Vec<Grid<f64>>, SolveError> {
     // Fast marching reads only the object, so only untrusted object pixels
@@ -373,7 +381,20 @@ fn fast_marching_start(
         }
     };
     let settings = super::fast_marching::FastMarchingParams::default();
-    let march = |image: &Grid<f64>, object: &Grid<bool>| {
+    let march = |image: &Grid<f64>, object: &Grid<bool>| -> Result<Grid<f64>, SolveError> {
+        if !problem.light_is_centred()
+            && let Some(depth) = super::light_frame::march_from_the_light(
+                image,
+                object,
+                problem.camera,
+                problem.intensity_scale,
+                &problem.lights,
+                &settings,
+                cancel,
+            )?
+        {
+            return Ok(depth);
+        }
         super::fast_marching::march(
             image,
             problem.camera,
@@ -397,7 +418,7 @@ fn fast_marching_start(
     // start is the mean, as without holes). Without any, nothing more is
     // allocated or computed.
     let on_object_at = |q: usize| finest.domain.as_slice()[q] && object.as_slice()[q];
-    if has_holes(problem, finest) {
+    if has_holes(problem, finest, shadow) {
         let on_object = Grid::from_fn(w, h, |c, r| on_object_at(r * w + c));
         let trusted = Grid::from_fn(w, h, |c, r| {
             *on_object.at(c, r)
@@ -448,29 +469,36 @@ fn fast_marching_start(
 /// Pixel `q` of `level` (the full image of `problem`) is an object pixel
 /// of its domain: `Some(true)` where its confidence is below
 /// [`super::holes::HOLE_CONFIDENCE`] (a hole), `Some(false)` where it is
-/// trusted, `None` off the object (the background is no hole).
-fn hole_at(problem: &Problem, level: &PyramidLevel, q: usize) -> Option<bool> {
-    let on_object =
-        level.domain.as_slice()[q] && problem.object_mask.as_ref().is_none_or(|m| m.as_slice()[q]);
+/// trusted, `None` off the object (the background is no hole) and on
+/// `shadow` (no light reaches it: the image says no more there).
+fn hole_at(
+    problem: &Problem,
+    level: &PyramidLevel,
+    shadow: Option<&Grid<bool>>,
+    q: usize,
+) -> Option<bool> {
+    let on_object = level.domain.as_slice()[q]
+        && problem.object_mask.as_ref().is_none_or(|m| m.as_slice()[q])
+        && !shadow.is_some_and(|s| s.as_slice()[q]);
     on_object.then(|| level.confidence.weight(q) < super::holes::HOLE_CONFIDENCE)
 }
 
 /// Whether `level` (the full image of `problem`) has a hole pixel. Stops
 /// at the first.
-fn has_holes(problem: &Problem, level: &PyramidLevel) -> bool {
-    (0..level.domain.as_slice().len()).any(|q| hole_at(problem, level, q) == Some(true))
+fn has_holes(problem: &Problem, level: &PyramidLevel, shadow: Option<&Grid<bool>>) -> bool {
+    (0..level.domain.as_slice().len()).any(|q| hole_at(problem, level, shadow, q) == Some(true))
 }
 
 /// Whether `level` (the full image of `problem`) has a hole wider than a
 /// speck: a hole pixel none of whose four neighbours is a trusted object
 /// pixel. Clipped pixels of a noisy image are untrusted specks, not holes:
 /// their neighbours carry the data. Stops at the first.
-fn has_wide_holes(problem: &Problem, level: &PyramidLevel) -> bool {
+fn has_wide_holes(problem: &Problem, level: &PyramidLevel, shadow: Option<&Grid<bool>>) -> bool {
     let (w, h) = (level.geometry.width, level.geometry.height);
-    let trusted = |q: usize| hole_at(problem, level, q) == Some(false);
+    let trusted = |q: usize| hole_at(problem, level, shadow, q) == Some(false);
     (0..w * h).any(|q| {
         let (c, r) = (q % w, q / w);
-        hole_at(problem, level, q) == Some(true)
+        hole_at(problem, level, shadow, q) == Some(true)
             && !(c > 0 && trusted(q - 1))
             && !(c + 1 < w && trusted(q + 1))
             && !(r > 0 && trusted(q - w))
@@ -515,6 +543,19 @@ pub fn initial_depth_plane_fit<M: Reflectance>(
         .filter(|&(c, r)| *level.domain.at(c, r) && level.confidence.at(c, r) > 0.0)
         .map(|(c, r)| (level.geometry.ray(c, r), *level.image.at(c, r)))
         .collect();
+    plane_fit(&pixels, model, guess, nearest)
+}
+
+/// The depth `z0 >= nearest` of the fronto-parallel plane whose rendering
+/// under `model` best fits `pixels` (ray and brightness) in least squares:
+/// a scan over six decades around `guess`, refined by golden sections on
+/// `log z0`.
+pub(crate) fn plane_fit<M: Reflectance>(
+    pixels: &[(model::PixelRay, f64)],
+    model: &M,
+    guess: f64,
+    nearest: f64,
+) -> f64 {
     let floor = nearest.max(0.0);
     let cost = |log_z: f64| -> f64 {
         let z = log_z.exp();
