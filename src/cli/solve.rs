@@ -377,6 +377,10 @@ struct SolveReport<'a> {
     final_energy: &'a sfs_core::model::Energy,
     seconds: f64,
     model_fit: &'a model_fit::ModelFit,
+    /// Several photographs, each with its own light: the fit of the depth
+    /// to each one alone under its light.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    model_fit_per_photo: &'a [photo::PhotoFit],
     /// Share of the object taken out of the data term as shadow (lights off
     /// the optical centre only; shadow.png marks it).
     shadow_share: Option<f64>,
@@ -488,6 +492,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         }
     }
     let mut scale_estimate = None;
+    let mut scale_warning = None;
     let centred = problem.light_is_centred();
     if !intensity_scale_given && !centred && known_points.is_empty() {
         let estimate =
@@ -496,17 +501,25 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                     || "cannot estimate the intensity scale (give --intensity-scale S)",
                 )?;
         problem.intensity_scale = estimate.intensity_scale;
+        let unit = units.as_deref().unwrap_or("depth units");
         notes.push(format!(
-            "intensity scale estimated: s = {:.4e} (object about {:.1} {} away){}",
+            "intensity scale estimated: s = {:.4e} (object about {:.1} {unit} away){}",
             estimate.intensity_scale,
             estimate.depth,
-            units.as_deref().unwrap_or("depth units"),
             if estimate.well_determined {
-                ""
+                "; determined by this image within 15 %"
             } else {
-                "; poorly determined by this image: give --intensity-scale or --known-depth"
+                ""
             }
         ));
+        if !estimate.well_determined {
+            scale_warning = Some(format!(
+                "this image does not determine the intensity scale, so the depth unit is a guess \
+                 (the object about {:.0} {unit} away could be much nearer or farther): give \
+                 --known-depth X,Y,Z (a pixel's distance) or a measured --intensity-scale",
+                estimate.depth
+            ));
+        }
         scale_estimate = Some(estimate);
     }
     let method = args.method.method();
@@ -569,12 +582,28 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     let domain = solution.depth.map(|z| z.is_finite());
     let fit_confidence = problem.confidence.clone();
-    let model_fit = model_fit::measure(
+    // A sum of photographs is saturated where one of them was, not where
+    // its value is.
+    let sum_divisor = prepared.report.sum_divisor.unwrap_or(1.0);
+    let model_fit = model_fit::measure_photographs(
         &problem.image,
         &solution.reprojection,
         &domain,
         fit_confidence.as_ref(),
         solution.scales.intensity,
+        model_fit::Photographs {
+            saturated: prepared.clipped.as_ref(),
+            scale: sum_divisor,
+        },
+    );
+    let model_fit_per_photo = photo::fit_per_photo(
+        &prepared.photos,
+        &solution.depth,
+        camera,
+        problem.intensity_scale,
+        fit_confidence.as_ref(),
+        solution.scales.intensity,
+        sum_divisor,
     );
     let residual = model_fit::residual_map(
         &problem.image,
@@ -616,6 +645,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         Some(&solution.reprojection),
     )?;
     let mut warnings: Vec<String> = model_fit.warnings.clone();
+    if let Some(w) = scale_warning {
+        warnings.insert(0, w);
+    }
     if let Some(d) = dark
         && !warnings.iter().any(|w| w.contains("too dark"))
     {
@@ -642,6 +674,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         final_energy: &solution.final_energy,
         seconds: solution.seconds,
         model_fit: &model_fit,
+        model_fit_per_photo: &model_fit_per_photo,
         shadow_share,
         warnings: &warnings,
         depth16_png_range: depth_range.map(|(near_white, far_black)| DepthRange {
@@ -697,6 +730,20 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             100.0 * model_fit.near_black_share,
             100.0 * model_fit.saturated_share
         );
+        for each in &model_fit_per_photo {
+            let name = each.image.file_name().map_or_else(
+                || each.image.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            eprintln!(
+                "  {name} alone, its own light: RIE {:.3}, {:.0} % badly explained, {:.0} % \
+                 near-black, {:.1} % saturated",
+                each.fit.rie_trusted,
+                100.0 * each.fit.poor_share,
+                100.0 * each.fit.near_black_share,
+                100.0 * each.fit.saturated_share
+            );
+        }
         if let Some(share) = shadow_share {
             eprintln!(
                 "shadow: {:.1} % of the object taken out of the data term (no light reaches it; shadow.png)",

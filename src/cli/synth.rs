@@ -146,6 +146,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     let camera = CameraFile {
         name: Some(scene.name.clone()),
         intensity_scale: Some(scene.intensity_scale),
+        intensity_scale_measured: true,
         lights: scene
             .lights
             .iter()

@@ -104,6 +104,12 @@ pub struct CameraFile {
     /// absent: estimated (`--intensity-scale auto`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub intensity_scale: Option<f64>,
+    /// Whether `intensity_scale` was measured (a render's truth, a
+    /// radiometric calibration). With lights off the optical centre `s`
+    /// decides the depth unit, and an unmeasured one (a placeholder 1.0) is
+    /// treated as unknown; default false.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub intensity_scale_measured: bool,
     /// The unit of depth and of light positions (e.g. `mm`), for reports.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub units: Option<String>,

@@ -18,6 +18,12 @@
 //!   that is itself waiting in [`Worker::submit`].
 //! - Dropping the [`Worker`] requests shutdown, cancels the running solve and
 //!   joins the thread. If the UI side is gone the thread ends.
+//! - A job with known depths ([`SolveRequest::known_depths`]) runs
+//!   [`calibrate::solve_with_known_depths`] (linearised scheme) instead of
+//!   the [`SolveFn`]: every solve of its scale search streams its levels
+//!   (level indices start again at 0 with each solve), and where the search
+//!   rescaled the last solve's depth a last `Level` event carries the
+//!   rescaled depth; `Finished` then holds the [`KnownDepthFit`].
 
 use std::any::Any;
 use std::fmt;
@@ -33,9 +39,10 @@ use crossbeam_channel::{
 };
 
 use sfs_core::params::{InitialDepth, SolverParams};
+use sfs_core::solver::calibrate::{self, KnownDepth, KnownDepthFit};
 use sfs_core::solver::pyramid;
 use sfs_core::solver::{
-    IterationReport, LevelResult, Problem, Solution, SolveError, SolveObserver,
+    IterationReport, LevelResult, Method, Problem, Solution, SolveError, SolveObserver,
 };
 
 /// Commands queued while the worker is busy (submits beyond this wait).
@@ -65,12 +72,20 @@ pub struct SolveRequest {
     /// Solver parameters (validated by the solver: bad ones end in `Failed`).
     pub params: SolverParams,
     /// Estimate the intensity scale first (lights off the centre and no
-    /// scale given; see [`sfs_core::solver::calibrate`]).
+    /// scale given; see [`sfs_core::solver::calibrate`]). Ignored when
+    /// [`Self::known_depths`] is not empty: they set the scale.
     pub estimate_scale: bool,
+    /// Distances the user knows, in pixels of `problem.image` (the working
+    /// size). Not empty: the job runs
+    /// [`calibrate::solve_with_known_depths`] with the linearised scheme,
+    /// which moves the intensity scale until the depth meets them, instead
+    /// of the [`SolveFn`] (and of the scale estimate).
+    pub known_depths: Vec<KnownDepth>,
 }
 
-/// The function a worker runs for each job ([`Worker::spawn`] uses
-/// [`sfs_core::solver::solve`]; tests inject failures through it).
+/// The function a worker runs for each job without known depths
+/// ([`Worker::spawn`] uses [`sfs_core::solver::solve`]; tests inject
+/// failures through it).
 pub type SolveFn = Arc<
     dyn Fn(&Problem, &SolverParams, &mut dyn SolveObserver) -> Result<Solution, SolveError>
         + Send
@@ -93,7 +108,8 @@ pub enum Event {
         /// invalid). The solver stops coarsening early where the object
         /// vanishes, dropping the coarsest planned sizes; the reports'
         /// `levels` count is then smaller, and `LevelResult::level` indexes
-        /// the last `levels` entries of this list.
+        /// the last `levels` entries of this list. With known depths each
+        /// solve of the scale search runs through these levels again.
         level_sizes: Vec<(usize, usize)>,
     },
     /// After each outer iteration; dropped when the UI lags behind.
@@ -116,6 +132,9 @@ pub enum Event {
         job: JobId,
         /// The full-resolution result.
         solution: Box<Solution>,
+        /// How the depth met the request's known depths (`None` without
+        /// known depths).
+        known_depth_fit: Option<KnownDepthFit>,
     },
     /// The solver rejected the input or parameters, or panicked.
     Failed {
@@ -241,6 +260,8 @@ struct ChannelObserver<'a> {
     outbox: &'a Outbox,
     /// Set when the thread must end: stops the solve too.
     stopped: bool,
+    /// The last level forwarded (its grids are shared, not copied).
+    last_level: Option<LevelResult>,
 }
 
 impl SolveObserver for ChannelObserver<'_> {
@@ -255,6 +276,7 @@ impl SolveObserver for ChannelObserver<'_> {
     }
 
     fn on_level(&mut self, result: &LevelResult) {
+        self.last_level = Some(result.clone());
         let event = Event::Level {
             job: self.job,
             result: result.clone(),
@@ -326,10 +348,22 @@ impl Runner {
             job,
             outbox: &self.outbox,
             stopped: false,
+            last_level: None,
         };
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
+            if !request.known_depths.is_empty() {
+                let mut problem = request.problem.clone();
+                let (solution, fit) = calibrate::solve_with_known_depths(
+                    &mut problem,
+                    &request.params,
+                    &Method::Linearised,
+                    &request.known_depths,
+                    &mut observer,
+                )?;
+                return Ok((solution, Some(fit)));
+            }
             if request.estimate_scale && !request.problem.light_is_centred() {
-                let estimate = sfs_core::solver::calibrate::estimate_intensity_scale(
+                let estimate = calibrate::estimate_intensity_scale(
                     &request.problem,
                     &request.params,
                     &mut observer,
@@ -338,17 +372,26 @@ impl Runner {
                     intensity_scale: estimate.intensity_scale,
                     ..request.problem.clone()
                 };
-                return (self.solve_fn)(&problem, &request.params, &mut observer);
+                return (self.solve_fn)(&problem, &request.params, &mut observer)
+                    .map(|s| (s, None));
             }
-            (self.solve_fn)(&request.problem, &request.params, &mut observer)
+            (self.solve_fn)(&request.problem, &request.params, &mut observer).map(|s| (s, None))
         }));
         if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
             return Err(Stop);
         }
+        if let Ok(Ok((solution, Some(_)))) = &outcome
+            && let Some(level) = rescaled_level(observer.last_level.take(), solution)
+        {
+            // The search scaled the last solve's depth onto the known
+            // distances: the UI shows what `Finished` holds.
+            self.outbox.deliver(Event::Level { job, result: level })?;
+        }
         let event = match outcome {
-            Ok(Ok(solution)) => Event::Finished {
+            Ok(Ok((solution, known_depth_fit))) => Event::Finished {
                 job,
                 solution: Box::new(solution),
+                known_depth_fit,
             },
             Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
             Ok(Err(error)) => Event::Failed {
@@ -362,6 +405,24 @@ impl Runner {
         };
         self.outbox.deliver(event)
     }
+}
+
+/// The last level sent with the finished depth in place of its own, when
+/// the two are of one size and differ (a known-depth search rescales the
+/// last solve's depth after it was sent); `None` otherwise.
+fn rescaled_level(last: Option<LevelResult>, solution: &Solution) -> Option<LevelResult> {
+    let last = last?;
+    let same = last.depth.size() == solution.depth.size()
+        && last
+            .depth
+            .as_slice()
+            .iter()
+            .zip(solution.depth.as_slice())
+            .all(|(a, b)| a == b || (a.is_nan() && b.is_nan()));
+    (last.depth.size() == solution.depth.size() && !same).then(|| LevelResult {
+        depth: Arc::new(solution.depth.clone()),
+        ..last
+    })
 }
 
 /// The level sizes the solver will plan, coarse to fine (see
@@ -618,7 +679,35 @@ mod tests {
             problem,
             params,
             estimate_scale: false,
+            known_depths: Vec::new(),
         }
+    }
+
+    /// The 64x64 Sombrero (light at the optical centre, default parameters)
+    /// with one known distance at its pixel (40, 24): 1.5 times the true
+    /// depth there, so the scale must move.
+    fn known_depth_request(distance_factor: f64) -> (SolveRequest, KnownDepth) {
+        let scene = sfs_core::scene::sombrero::sombrero_lit(64, 64, &[]);
+        let (column, row) = (40, 24);
+        let point = KnownDepth {
+            column_px: column as f64,
+            row_px: row as f64,
+            depth: distance_factor * scene.depth_gt.at(column, row),
+        };
+        let request = SolveRequest {
+            problem: Problem {
+                image: scene.image,
+                camera: scene.camera,
+                intensity_scale: scene.intensity_scale,
+                object_mask: Some(scene.object_mask),
+                confidence: None,
+                lights: Vec::new(),
+            },
+            params: SolverParams::default(),
+            estimate_scale: true,
+            known_depths: vec![point],
+        };
+        (request, point)
     }
 
     /// A 1x1 image: the solver rejects it.
@@ -747,6 +836,81 @@ mod tests {
             thread::sleep(Duration::from_millis(1));
         }
         assert!(worker.drain(Duration::from_secs(1)).next().is_none());
+    }
+
+    #[test]
+    fn a_known_depth_sets_the_scale_and_the_fit_reaches_the_ui() {
+        let (mut worker, _) = spawn_counting();
+        let (request, point) = known_depth_request(1.5);
+        let job = worker.submit(request);
+        let events = events_until_end(&mut worker, job);
+        let Some(Event::Finished {
+            solution,
+            known_depth_fit,
+            ..
+        }) = events.last()
+        else {
+            panic!("last event is {}", kind(events.last()));
+        };
+        let (c, r) = (point.column_px as usize, point.row_px as usize);
+        let solved = *solution.depth.at(c, r);
+        assert!(
+            ((solved - point.depth) / point.depth).abs() < 5e-3,
+            "solved {solved}, given {}",
+            point.depth
+        );
+        let fit = known_depth_fit.as_ref().expect("the fit is reported");
+        assert_eq!(fit.points.len(), 1);
+        assert!(fit.converged && fit.solves >= 1, "{fit:?}");
+        assert!(fit.points[0].relative_residual.abs() < 5e-3, "{fit:?}");
+        // Depth goes as sqrt(s): 1.5 times the depth, about 2.25 times s = 2.
+        assert!(
+            (3.5..5.5).contains(&fit.intensity_scale),
+            "{}",
+            fit.intensity_scale
+        );
+        // The last level on screen is the finished depth.
+        let last_level = events
+            .iter()
+            .rev()
+            .find_map(|e| match e {
+                Event::Level { result, .. } => Some(result),
+                _ => None,
+            })
+            .expect("levels streamed");
+        assert_eq!(*last_level.depth, solution.depth);
+        // Without known depths there is no fit.
+        let job = worker.submit(sombrero_request(32));
+        let events = events_until_end(&mut worker, job);
+        assert!(matches!(
+            events.last(),
+            Some(Event::Finished {
+                known_depth_fit: None,
+                ..
+            })
+        ));
+    }
+
+    #[test]
+    fn a_non_positive_known_depth_fails_the_job_without_a_panic() {
+        let (mut worker, _) = spawn_counting();
+        for distance in [0.0, -1.0, f64::NAN] {
+            let (mut request, _) = known_depth_request(1.0);
+            request.known_depths[0].depth = distance;
+            let job = worker.submit(request);
+            let error = failure(events_until_end(&mut worker, job).last()).to_owned();
+            assert!(error.contains("must be positive"), "{error}");
+            assert!(!error.contains("panicked"), "{error}");
+        }
+        // Off the image: refused by the search, and the worker lives on.
+        let (mut request, _) = known_depth_request(1.0);
+        request.known_depths[0].column_px = 640.0;
+        let job = worker.submit(request);
+        let error = failure(events_until_end(&mut worker, job).last()).to_owned();
+        assert!(error.contains("not on the solved surface"), "{error}");
+        let (request, _) = known_depth_request(1.0);
+        let job = worker.submit(request);
+        assert!(finished(events_until_end(&mut worker, job).last()));
     }
 
     #[test]

@@ -425,3 +425,97 @@ fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
         }
     }
 }
+
+#[test]
+fn a_known_distance_is_picked_typed_solved_to_and_restored() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    // "Set distance", then a click on the object in the input panel.
+    harness.get_by_label("Set distance").click_accesskit();
+    harness.step();
+    let tab = harness.get_by_label("input + mask").rect();
+    let at = egui::pos2(tab.left() + 120.0, tab.bottom() + 250.0);
+    harness.hover_at(at);
+    harness.step();
+    for pressed in [true, false] {
+        harness.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+    harness.step();
+    harness.step();
+    let picked = harness
+        .query_all_by_label_contains("pixel (")
+        .any(|node| node.value().is_some_and(|v| v.starts_with("pixel (")));
+    assert!(picked, "no pixel was picked");
+    // A distance that is not positive is refused, nothing changes.
+    let typed = |harness: &mut Harness<'_, ViewerApp>, text: &str| {
+        harness
+            .get_by_role_and_label(Role::TextInput, "distance")
+            .set_text_value_accesskit(text);
+        harness.step();
+        harness.get_by_label("OK").click_accesskit();
+        harness.step();
+        harness.step();
+    };
+    for bad in ["-5", "0", "NaN", "far"] {
+        typed(&mut harness, bad);
+        let refused = ["must be a positive number", "is not a number"]
+            .iter()
+            .any(|text| harness.query_by_label_contains(text).is_some());
+        assert!(refused, "{bad} was not refused with a message");
+        let doc = harness.state().document().expect("open");
+        assert!(doc.known_depths.is_empty(), "{bad} was taken");
+    }
+    let job_before = harness.state().solve_state().job;
+    typed(&mut harness, "3.0");
+    let doc = harness.state().document().expect("open");
+    assert_eq!(doc.known_depths.len(), 1);
+    let point = doc.known_depths[0];
+    assert_eq!(point.depth, 3.0);
+    let (c, r) = doc.working_pixel(point.column_px, point.row_px);
+    // The change re-solves; the fit comes with the result.
+    step_until(&mut harness, |app| {
+        app.solve_state().job != job_before && app.solve_state().finished.is_some()
+    });
+    let solve = harness.state().solve_state();
+    let fit = solve.known_depth_fit.as_ref().expect("the fit is reported");
+    assert_eq!(fit.points.len(), 1);
+    let solved = *solve
+        .finished
+        .as_ref()
+        .expect("finished")
+        .depth
+        .at(c as usize, r as usize);
+    assert!((solved - 3.0).abs() < 0.005 * 3.0, "solved {solved}");
+    harness.step();
+    harness.get_by_label_contains("from 1 known distance; residuals");
+    harness.get_by_label_contains("3.000 depth units, solved 3.0");
+    // Kept beside the masks' autosave: reopening the image restores it.
+    let ctx = harness.ctx.clone();
+    let sample = sample_image_path().expect("sample");
+    harness.state_mut().open(&ctx, &sample);
+    let app = harness.state();
+    assert_eq!(app.document().expect("open").known_depths, vec![point]);
+    let notice = app.notice().unwrap_or_default();
+    assert!(notice.contains("restored 1 known distance"), "{notice}");
+    // Removed, it is gone, and the next solve has no fit.
+    harness.step();
+    harness.get_by_label("remove").click_accesskit();
+    harness.step();
+    harness.step();
+    assert!(
+        harness
+            .state()
+            .document()
+            .expect("open")
+            .known_depths
+            .is_empty()
+    );
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    assert!(harness.state().solve_state().known_depth_fit.is_none());
+}

@@ -112,7 +112,21 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
             Some(s)
         }
         ScaleSpec::Auto => None,
-        ScaleSpec::FromCamera => file.as_ref().and_then(|(_, f)| f.intensity_scale),
+        ScaleSpec::FromCamera => match file.as_ref() {
+            Some((path, f)) => match f.intensity_scale {
+                Some(s) if !f.intensity_scale_measured && !crate::light::is_centred(&lights) => {
+                    notes.push(format!(
+                        "the intensity scale {s} in {} is not marked measured \
+                         (\"intensity_scale_measured\": true): with lights off the optical \
+                         centre it decides the depth unit, so it is treated as unknown",
+                        path.display()
+                    ));
+                    None
+                }
+                other => other,
+            },
+            None => None,
+        },
     };
     Ok(Decided {
         camera,

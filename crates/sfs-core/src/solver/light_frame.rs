@@ -145,8 +145,13 @@ pub(crate) fn serves(
         sum += DVec3::new(x / camera.focal_px, y / camera.focal_px, 1.0);
         count += 1;
     }
-    let centre = depth * sum / count.max(1) as f64;
-    let (light, _) = centroid(&problem.lights);
+    faces_the_frame(&problem.lights, depth * sum / count.max(1) as f64)
+}
+
+/// Whether the lights' centroid is within [`MAX_FRAME_ANGLE_DEG`] of the
+/// camera as seen from `centre` (a camera-frame point of the object).
+pub(crate) fn faces_the_frame(lights: &[PointLight], centre: DVec3) -> bool {
+    let (light, _) = centroid(lights);
     (-centre).angle_between(light - centre).to_degrees() <= MAX_FRAME_ANGLE_DEG
 }
 

@@ -1,16 +1,19 @@
 //! The open image and everything that belongs to it: what it was read with
 //! (the core's [`PhotoInput`]: camera file, masks, ambient frame,
 //! vignetting, albedo, sRGB, working size), camera (and where it came from),
-//! masks, ground truth. Every read goes through the core's photo pipeline
-//! ([`photo::prepare`]), the command line's too. Loading is all-or-nothing:
-//! a failure leaves the previous document untouched and returns a message
-//! naming the file.
+//! masks, ground truth, and the distances the user knows (pixels of the
+//! photograph, checked and converted to the working size for the solve as
+//! `solve --known-depth` converts them). Every read goes through the
+//! core's photo pipeline ([`photo::prepare`]), the command line's too.
+//! Loading is all-or-nothing: a failure leaves the previous document
+//! untouched and returns a message naming the file.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
+use serde::{Deserialize, Serialize};
 
-use crate::mask_edit::Masks;
+use crate::mask_edit::{ImagePoint, Masks};
 use sfs_core::camera::Intrinsics;
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
@@ -19,6 +22,20 @@ use sfs_core::photo::{
     self, CameraSpec, LightSpec, PhotoInput, PhotoReport, PreparedPhoto, ScaleSpec, Vignetting,
 };
 use sfs_core::solver::Problem;
+use sfs_core::solver::calibrate::KnownDepth;
+
+/// A distance the user knows: the surface seen at pixel
+/// `(column_px, row_px)` of the photograph (its own, full size) lies at
+/// depth `depth` (the camera's depth unit).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct KnownDistance {
+    /// Pixel column in the photograph.
+    pub column_px: f64,
+    /// Pixel row in the photograph.
+    pub row_px: f64,
+    /// The distance (depth along the optical axis).
+    pub depth: f64,
+}
 
 /// Where the camera values came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -179,6 +196,9 @@ pub struct Document {
     pub report: PhotoReport,
     /// Messages about what was found beside the image (for the status line).
     pub notes: Vec<String>,
+    /// Distances the user knows, in pixels of the photograph, in the order
+    /// given (at most one per pixel); not empty, they set the depth scale.
+    pub known_depths: Vec<KnownDistance>,
 }
 
 /// The photo pipeline's input for opening `path` in the viewer, with the
@@ -339,7 +359,96 @@ impl Document {
             input,
             ground_truth,
             notes,
+            known_depths: Vec::new(),
         })
+    }
+
+    /// The unit of depth the camera file names, else `"depth units"`.
+    pub fn depth_units(&self) -> &str {
+        self.report.camera.units.as_deref().unwrap_or("depth units")
+    }
+
+    /// The photograph's pixel under `point` (continuous coordinates of the
+    /// working-size image, as the input panel maps the pointer); `None`
+    /// outside the image.
+    pub fn photo_pixel(&self, point: ImagePoint) -> Option<(usize, usize)> {
+        let (w, h) = self.size();
+        let (fw, fh) = self.full_size;
+        let x = (f64::from(point[0]) * fw as f64 / w as f64).floor();
+        let y = (f64::from(point[1]) * fh as f64 / h as f64).floor();
+        (x >= 0.0 && y >= 0.0 && x < fw as f64 && y < fh as f64).then_some((x as usize, y as usize))
+    }
+
+    /// The working-size pixel of a photograph pixel, as `solve
+    /// --known-depth` converts it: `((x + 0.5) * w / W - 0.5).round()`.
+    pub fn working_pixel(&self, column_px: f64, row_px: f64) -> (f64, f64) {
+        let (w, h) = self.size();
+        let (fw, fh) = self.full_size;
+        (
+            ((column_px + 0.5) * w as f64 / fw as f64 - 0.5).round(),
+            ((row_px + 0.5) * h as f64 / fh as f64 - 0.5).round(),
+        )
+    }
+
+    /// The point as the solver takes it (working-size pixel), or why it
+    /// cannot be used: a distance that is not positive and finite, a pixel
+    /// outside the photograph or off the object mask.
+    pub fn check_known_depth(&self, point: &KnownDistance) -> Result<KnownDepth, String> {
+        let KnownDistance {
+            column_px: x,
+            row_px: y,
+            depth,
+        } = *point;
+        if !(depth.is_finite() && depth > 0.0) {
+            return Err(format!(
+                "the distance at pixel ({x}, {y}) must be a positive number, not {depth}"
+            ));
+        }
+        let (fw, fh) = self.full_size;
+        if !(x >= 0.0 && y >= 0.0 && x < fw as f64 && y < fh as f64) {
+            return Err(format!(
+                "pixel ({x}, {y}) is outside the {fw}x{fh} photograph"
+            ));
+        }
+        let (c, r) = self.working_pixel(x, y);
+        let (w, h) = self.size();
+        let inside = c >= 0.0 && r >= 0.0 && (c as usize) < w && (r as usize) < h;
+        if !inside || !*self.masks.object().at(c as usize, r as usize) {
+            return Err(format!(
+                "pixel ({x}, {y}) is off the object (the object mask): a known distance must \
+                 be a point of the surface"
+            ));
+        }
+        Ok(KnownDepth {
+            column_px: c,
+            row_px: r,
+            depth,
+        })
+    }
+
+    /// Adds a known distance after [`Self::check_known_depth`] (replacing
+    /// the one at the same pixel); a refused point changes nothing.
+    pub fn set_known_depth(&mut self, point: KnownDistance) -> Result<(), String> {
+        self.check_known_depth(&point)?;
+        let same = |p: &KnownDistance| p.column_px == point.column_px && p.row_px == point.row_px;
+        match self.known_depths.iter_mut().find(|p| same(p)) {
+            Some(existing) => *existing = point,
+            None => self.known_depths.push(point),
+        }
+        Ok(())
+    }
+
+    /// The known distances as the solver takes them (working-size pixels),
+    /// or the first reason one cannot be used (the object mask may have
+    /// changed since it was given).
+    pub fn known_depths_for_solver(&self) -> Result<Vec<KnownDepth>, String> {
+        self.known_depths
+            .iter()
+            .map(|p| {
+                self.check_known_depth(p)
+                    .map_err(|e| format!("known distance: {e}; remove it or change the mask"))
+            })
+            .collect()
     }
 
     /// Image size `(width, height)`.
@@ -503,6 +612,72 @@ mod tests {
             matches!(doc.input.camera, CameraSpec::File(_)),
             "the scene.json beside"
         );
+    }
+
+    #[test]
+    fn known_distances_convert_as_the_command_line_does_and_bad_ones_are_refused() {
+        // The 256x256 sample at a working size of 128.
+        let mut doc = open(
+            &sample(),
+            &OpenOptions {
+                max_side: Some(128),
+                ..OpenOptions::default()
+            },
+        );
+        assert_eq!((doc.size(), doc.full_size), ((128, 128), (256, 256)));
+        // A click at working coordinates (50.3, 70.9): photograph pixel
+        // (100, 141), working pixel ((100.5 / 2 - 0.5).round(), ...).
+        assert_eq!(doc.photo_pixel([50.3, 70.9]), Some((100, 141)));
+        assert_eq!(doc.photo_pixel([-0.1, 3.0]), None);
+        assert_eq!(doc.photo_pixel([128.0, 3.0]), None);
+        assert_eq!(doc.working_pixel(100.0, 141.0), (50.0, 70.0));
+        let point = KnownDistance {
+            column_px: 100.0,
+            row_px: 141.0,
+            depth: 2.0,
+        };
+        let solver = doc
+            .check_known_depth(&point)
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            (solver.column_px, solver.row_px, solver.depth),
+            (50.0, 70.0, 2.0)
+        );
+        for depth in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let bad = KnownDistance { depth, ..point };
+            let reason = doc.set_known_depth(bad).err().unwrap_or_default();
+            assert!(reason.contains("positive number"), "{reason}");
+        }
+        let outside = KnownDistance {
+            column_px: 256.0,
+            ..point
+        };
+        let reason = doc.set_known_depth(outside).err().unwrap_or_default();
+        assert!(reason.contains("outside"), "{reason}");
+        assert!(doc.known_depths.is_empty(), "refused points change nothing");
+        doc.set_known_depth(point).unwrap_or_else(|e| panic!("{e}"));
+        // The same pixel again replaces its distance.
+        doc.set_known_depth(KnownDistance {
+            depth: 3.0,
+            ..point
+        })
+        .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(doc.known_depths.len(), 1);
+        assert_eq!(doc.known_depths[0].depth, 3.0);
+        // Off the object (painted as background): refused, and a point
+        // given before the mask changed stops the solve with the reason.
+        doc.masks.clear(crate::mask_edit::Layer::Object);
+        doc.masks.invert(crate::mask_edit::Layer::Object);
+        assert!(doc.masks.object().as_slice().iter().all(|&o| !o));
+        let reason = doc.known_depths_for_solver().err().unwrap_or_default();
+        assert!(reason.contains("off the object"), "{reason}");
+        let other = KnownDistance {
+            column_px: 10.0,
+            ..point
+        };
+        let reason = doc.set_known_depth(other).err().unwrap_or_default();
+        assert!(reason.contains("off the object"), "{reason}");
+        assert_eq!(doc.known_depths.len(), 1);
     }
 
     #[test]

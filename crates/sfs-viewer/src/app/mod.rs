@@ -30,7 +30,9 @@ use crate::mask_edit::Layer;
 use crate::worker::Worker;
 use sfs_core::params::Alpha;
 
-pub use document::{CameraSource, CameraState, Document, OpenOptions, sample_image_path};
+pub use document::{
+    CameraSource, CameraState, Document, KnownDistance, OpenOptions, sample_image_path,
+};
 pub use panels::{Action, Panel2d};
 pub use session::{EnergyPoint, Export, LevelView, Progress, SolveState, per_pixel};
 pub use settings::{InitialChoice, ParamSettings, Settings, Tool};

@@ -1,12 +1,12 @@
 //! The viewer's panels: menu, status line, controls (camera, parameters,
-//! mask tools, progress, export), the 2-D image panels and the 3-D view;
-//! the energy plot is `energy_plot`'s.
+//! mask tools, known distances, progress, export), the 2-D image panels and
+//! the 3-D view; the energy plot is `energy_plot`'s.
 
 use std::path::{Path, PathBuf};
 
 use eframe::egui;
 
-use super::document::{CameraSource, Document};
+use super::document::{CameraSource, Document, KnownDistance};
 use super::images;
 use super::level_prep::BuiltMesh;
 use super::session::{Export, Session};
@@ -96,13 +96,30 @@ struct Textures {
     depth_error: Option<(egui::TextureHandle, [f64; 2])>,
 }
 
+/// The "Known distance" tool: picking a pixel in the input panel, the
+/// photograph's pixel picked and the distance being typed for it, and why
+/// the last pixel or distance was refused.
+#[derive(Default)]
+struct KnownDistanceTool {
+    /// The next click in the input panel picks a pixel (no mask tool).
+    picking: bool,
+    /// The pixel picked (of the photograph), waiting for its distance.
+    pending: Option<(usize, usize)>,
+    /// The distance as typed.
+    text: String,
+    /// Why the last pixel or distance was refused.
+    refused: Option<String>,
+}
+
 /// The panels' own state: which 2-D panel, its zoom and pan, the mask
-/// gesture in progress, the textures, the hover text and the 3-D view.
+/// gesture in progress, the known-distance tool, the textures, the hover
+/// text and the 3-D view.
 pub struct Panels {
     panel: Panel2d,
     zoom: f32,
     pan: egui::Vec2,
     gesture: Option<Gesture>,
+    known: KnownDistanceTool,
     textures: Textures,
     hover: Option<String>,
     surface: SurfaceView,
@@ -149,6 +166,7 @@ impl Panels {
             zoom: 1.0,
             pan: egui::Vec2::ZERO,
             gesture: None,
+            known: KnownDistanceTool::default(),
             textures: Textures::default(),
             hover: None,
             surface: SurfaceView::new(surface_available),
@@ -174,6 +192,7 @@ impl Panels {
     /// input (with the session's display mapping).
     pub fn document_opened(&mut self, ctx: &egui::Context, session: &Session) {
         self.textures = Textures::default();
+        self.known = KnownDistanceTool::default();
         self.surface.clear();
         self.zoom = 1.0;
         self.pan = egui::Vec2::ZERO;
@@ -408,6 +427,9 @@ impl Panels {
         egui::CollapsingHeader::new("Camera")
             .default_open(true)
             .show(ui, |ui| self.camera_ui(ui, cx));
+        egui::CollapsingHeader::new("Known distance")
+            .default_open(true)
+            .show(ui, |ui| self.known_distance_ui(ui, cx));
         egui::CollapsingHeader::new("3-D view")
             .default_open(true)
             .show(ui, |ui| self.view_settings_ui(ui, cx));
@@ -428,6 +450,18 @@ impl Panels {
                     p.size.1,
                     p.iteration + 1
                 ));
+                let searching = cx
+                    .session
+                    .document
+                    .as_ref()
+                    .is_some_and(|d| !d.known_depths.is_empty());
+                if searching && s.search_solve > 0 {
+                    ui.label(format!("(scale search, solve {})", s.search_solve))
+                        .on_hover_text(
+                            "The depth scale is searched until the surface meets the known \
+                             distances: each solve runs through the levels again",
+                        );
+                }
             } else if let Some(done) = &s.finished {
                 ui.label(format!("done in {:.2} s", done.seconds));
             } else if s.failure.is_some() {
@@ -477,6 +511,19 @@ impl Panels {
         }
         if let Some(s_used) = s.intensity_scale_used {
             ui.weak(format!("intensity scale used: {s_used:.4e}"));
+        }
+        if let Some(fit) = &s.known_depth_fit {
+            ui.label(fit_summary(fit)).on_hover_text(
+                "The intensity scale s that puts the surface at the known distances (relative \
+                 least squares); residuals: (solved - given) / given at each point",
+            );
+            if !fit.converged {
+                ui.colored_label(
+                    ui.visuals().warn_fg_color,
+                    "warning: the scale search for the known distances did not settle; the \
+                     residuals say how far off it stopped",
+                );
+            }
         }
         if let Some(failure) = &s.failure {
             ui.colored_label(ui.visuals().error_fg_color, failure.clone());
@@ -692,6 +739,137 @@ impl Panels {
                 cx.actions.push(Action::Notice(e.to_string()));
             }
         });
+    }
+
+    /// The "Known distance" section: "Set distance" picks a pixel of the
+    /// object in the input panel, a typed distance confirms it; the points
+    /// with, after a solve, their solved depth and residual; remove one or
+    /// all. Each change re-solves (the session asks for it).
+    fn known_distance_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let Some(doc) = &cx.session.document else {
+            ui.label("no image");
+            return;
+        };
+        let units = doc.depth_units().to_owned();
+        let points: Vec<(KnownDistance, (f64, f64))> = doc
+            .known_depths
+            .iter()
+            .map(|p| (*p, doc.working_pixel(p.column_px, p.row_px)))
+            .collect();
+        let tool = &mut self.known;
+        ui.horizontal_wrapped(|ui| {
+            if ui
+                .selectable_label(tool.picking, "Set distance")
+                .on_hover_text(
+                    "Then click a pixel of the object in the input panel and type how far it \
+                     is from the camera (depth along the optical axis): the depth scale \
+                     follows the distances you know",
+                )
+                .clicked()
+            {
+                tool.picking = !tool.picking;
+                tool.refused = None;
+                if tool.picking {
+                    self.panel = Panel2d::Input;
+                }
+            }
+            if tool.picking {
+                ui.weak("click a pixel of the object in the input panel");
+            }
+        });
+        let mut confirm = false;
+        if let Some((x, y)) = tool.pending {
+            ui.horizontal(|ui| {
+                ui.label(format!("pixel ({x}, {y})"));
+                let label = ui.label("distance").id;
+                let edit = ui
+                    .add(
+                        egui::TextEdit::singleline(&mut tool.text)
+                            .desired_width(70.0)
+                            .hint_text("e.g. 350"),
+                    )
+                    .labelled_by(label);
+                ui.label(&units);
+                let entered = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+                if ui.button("OK").clicked() || entered {
+                    confirm = true;
+                }
+                if ui.button("Cancel").clicked() {
+                    tool.pending = None;
+                    tool.refused = None;
+                }
+            });
+        }
+        if confirm && let Some((x, y)) = tool.pending {
+            let typed = tool.text.trim();
+            let outcome = match typed.parse::<f64>() {
+                Ok(depth) => cx.session.set_known_depth(x, y, depth),
+                Err(_) => Err(format!(
+                    "\"{typed}\" is not a number: type the distance in {units}"
+                )),
+            };
+            match outcome {
+                Ok(note) => {
+                    tool.pending = None;
+                    tool.text.clear();
+                    tool.refused = None;
+                    if let Some(note) = note {
+                        cx.actions.push(Action::Notice(note));
+                    }
+                }
+                Err(reason) => tool.refused = Some(reason),
+            }
+        }
+        if let Some(reason) = &tool.refused {
+            ui.colored_label(ui.visuals().error_fg_color, reason);
+        }
+        if points.is_empty() {
+            ui.weak("none: the depth scale comes from the camera file or the image");
+            return;
+        }
+        let fit = cx.session.solve.known_depth_fit.as_ref();
+        let mut remove = None;
+        egui::Grid::new("known distances")
+            .num_columns(3)
+            .striped(true)
+            .show(ui, |ui| {
+                for (index, (point, (c, r))) in points.iter().enumerate() {
+                    ui.label(format!("({}, {})", point.column_px, point.row_px));
+                    let solved = fit.and_then(|f| {
+                        f.points
+                            .iter()
+                            .find(|q| q.column_px == *c && q.row_px == *r && q.given == point.depth)
+                    });
+                    let text = match solved {
+                        Some(q) => format!(
+                            "{} {units}, solved {} ({:+.2} %)",
+                            significant(point.depth),
+                            significant(q.solved),
+                            100.0 * q.relative_residual
+                        ),
+                        None => format!("{} {units}", significant(point.depth)),
+                    };
+                    ui.label(text);
+                    if ui
+                        .small_button("remove")
+                        .on_hover_text("Forget this distance")
+                        .clicked()
+                    {
+                        remove = Some(index);
+                    }
+                    ui.end_row();
+                }
+            });
+        let mut note = None;
+        if let Some(index) = remove {
+            note = cx.session.remove_known_depth(index);
+        }
+        if ui.button("clear all").clicked() {
+            note = cx.session.clear_known_depths();
+        }
+        if let Some(note) = note {
+            cx.actions.push(Action::Notice(note));
+        }
     }
 
     fn camera_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
@@ -1083,6 +1261,7 @@ impl Panels {
                     painter.image(shadows.id(), image_rect, uv, egui::Color32::WHITE);
                 }
             }
+            self.draw_known_distances(&painter, cx, scale, origin);
             self.paint_input(ui, cx, &response, &to_image, scale, origin);
         }
         if let Some(range) = range {
@@ -1163,6 +1342,38 @@ impl Panels {
         ));
     }
 
+    /// The known distances (and the pixel waiting for its distance) as
+    /// rings on the input panel, at the centre of their photograph pixel.
+    fn draw_known_distances(
+        &self,
+        painter: &egui::Painter,
+        cx: &UiContext<'_>,
+        scale: f32,
+        origin: egui::Pos2,
+    ) {
+        let Some(doc) = &cx.session.document else {
+            return;
+        };
+        let ((w, h), (fw, fh)) = (doc.size(), doc.full_size);
+        let at = |x: f64, y: f64| {
+            let q = [
+                (x + 0.5) * w as f64 / fw as f64,
+                (y + 0.5) * h as f64 / fh as f64,
+            ];
+            origin + egui::vec2(q[0] as f32, q[1] as f32) * scale
+        };
+        let set = egui::Stroke::new(2.0, egui::Color32::from_rgb(0, 220, 255));
+        for p in &doc.known_depths {
+            let centre = at(p.column_px, p.row_px);
+            painter.circle_stroke(centre, 6.0, set);
+            painter.circle_filled(centre, 1.5, set.color);
+        }
+        if let Some((x, y)) = self.known.pending {
+            let centre = at(x as f64, y as f64);
+            painter.circle_stroke(centre, 6.0, egui::Stroke::new(2.0, egui::Color32::YELLOW));
+        }
+    }
+
     /// Mask tools on the input panel.
     fn paint_input(
         &mut self,
@@ -1179,6 +1390,39 @@ impl Panels {
         };
         let pointer = response.interact_pointer_pos().or(response.hover_pos());
         let primary = egui::PointerButton::Primary;
+        if self.known.picking {
+            // "Set distance": a click picks the pixel; no mask tool.
+            if response.hovered() {
+                ui.ctx().set_cursor_icon(egui::CursorIcon::Crosshair);
+            }
+            if response.clicked_by(primary)
+                && let Some(p) = pointer
+            {
+                let picked = doc
+                    .photo_pixel(to_image(p))
+                    .ok_or_else(|| "that is outside the image: click a pixel of the object".into())
+                    .and_then(|(x, y)| {
+                        let probe = KnownDistance {
+                            column_px: x as f64,
+                            row_px: y as f64,
+                            depth: 1.0,
+                        };
+                        doc.check_known_depth(&probe).map(|_| (x, y))
+                    });
+                match picked {
+                    Ok(pixel) => {
+                        self.known.pending = Some(pixel);
+                        self.known.picking = false;
+                        self.known.refused = None;
+                    }
+                    Err(reason) => {
+                        cx.actions.push(Action::Notice(reason.clone()));
+                        self.known.refused = Some(reason);
+                    }
+                }
+            }
+            return;
+        }
         match b.tool {
             Tool::Brush => {
                 if response.drag_started_by(primary)
@@ -1290,6 +1534,33 @@ impl Panels {
             }
         }
     }
+}
+
+/// The side panel's line on a known-distance fit: the scale and each
+/// point's relative residual.
+fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
+    let n = fit.points.len();
+    let residuals: Vec<String> = fit
+        .points
+        .iter()
+        .map(|p| format!("{:+.2} %", 100.0 * p.relative_residual))
+        .collect();
+    format!(
+        "s = {:.4e} from {n} known distance{}; residuals {}",
+        fit.intensity_scale,
+        if n == 1 { "" } else { "s" },
+        residuals.join(", ")
+    )
+}
+
+/// A distance with four significant digits (no exponent for the sizes
+/// distances have; `NaN` as such).
+fn significant(value: f64) -> String {
+    if !value.is_finite() || value == 0.0 {
+        return format!("{value}");
+    }
+    let decimals = (3 - value.abs().log10().floor() as i32).clamp(0, 12) as usize;
+    format!("{value:.decimals$}")
 }
 
 /// Hover text: image, reprojection and depth at an image pixel.

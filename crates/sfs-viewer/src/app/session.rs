@@ -1,12 +1,15 @@
 //! The document session: the open image with its camera and masks, the
-//! autosave of the masks, and the solve of that document (the worker, the
-//! debounced re-solve, the state of the job on screen). No drawing; uses
-//! `document`, `worker`, `solver`, `metrics`, `mask_edit`, `io`, and
-//! `images` for the display mapping it keeps.
+//! autosave of the masks and of the known distances, and the solve of that
+//! document (the worker, the debounced re-solve, the state of the job on
+//! screen, the fit of the known distances). No drawing; uses `document`,
+//! `worker`, `solver`, `metrics`, `mask_edit`, `io`, and `images` for the
+//! display mapping it keeps.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
 
 use crate::mask_edit::{self, Layer, Masks};
 use crate::worker::{Event, JobId, SolveRequest, Worker};
@@ -14,9 +17,10 @@ use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
+use sfs_core::solver::calibrate::KnownDepthFit;
 use sfs_core::solver::{LevelResult, Solution};
 
-use super::document::{Document, OpenOptions};
+use super::document::{Document, KnownDistance, OpenOptions};
 use super::images::DisplayMapping;
 use super::level_prep::LevelInputs;
 
@@ -26,6 +30,21 @@ const DEBOUNCE: Duration = Duration::from_millis(200);
 const AUTOSAVE_DELAY: Duration = Duration::from_secs(1);
 /// Time per frame for draining worker events.
 const EVENT_BUDGET: Duration = Duration::from_millis(6);
+/// The known distances' file in an image's autosave folder (the one of the
+/// photograph, whatever the working size: the points are in its pixels).
+const KNOWN_DEPTHS_FILE: &str = "known-depths.json";
+const KNOWN_DEPTHS_FORMAT: u32 = 1;
+
+/// Contents of [`KNOWN_DEPTHS_FILE`].
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KnownDepthsFile {
+    format: u32,
+    /// The photograph's size the points belong to.
+    width: usize,
+    height: usize,
+    points: Vec<KnownDistance>,
+}
 
 /// One level as received.
 pub struct LevelView {
@@ -106,6 +125,11 @@ pub struct SolveState {
     pub shadow_share: Option<f64>,
     /// The intensity scale the final result used (estimated or given).
     pub intensity_scale_used: Option<f64>,
+    /// How the final result met the known distances (`None` without them).
+    pub known_depth_fit: Option<KnownDepthFit>,
+    /// With known distances, the solve of the scale search now running
+    /// (from 1; each one streams its levels anew), 0 before its first level.
+    pub search_solve: usize,
     /// Why the last job failed.
     pub failure: Option<String>,
     /// Jobs finished so far (any outcome).
@@ -177,9 +201,9 @@ impl Session {
         }
     }
 
-    /// Opens an image (masks restored from the autosave) and asks for a
-    /// solve; returns notes for the status line. On failure the previous
-    /// document stays and the error is returned.
+    /// Opens an image (masks and known distances restored from the
+    /// autosave) and asks for a solve; returns notes for the status line.
+    /// On failure the previous document stays and the error is returned.
     pub fn open(&mut self, path: &Path, options: &OpenOptions) -> Result<Vec<String>, String> {
         let mut doc = Document::open(path, options).map_err(|e| format!("{e:#}"))?;
         let mut notes = std::mem::take(&mut doc.notes);
@@ -198,6 +222,23 @@ impl Session {
                 }
                 Ok(None) => {}
                 Err(e) => notes.push(format!("autosave not restored: {e}")),
+            }
+        }
+        if let Some(path) = self.known_depths_path(&doc) {
+            match restore_known_depths(&path, &doc) {
+                Ok(points) if points.is_empty() => {}
+                Ok(points) => {
+                    notes.push(format!(
+                        "restored {} known distance{}",
+                        points.len(),
+                        if points.len() == 1 { "" } else { "s" }
+                    ));
+                    doc.known_depths = points;
+                }
+                Err(e) => notes.push(format!(
+                    "known distances not restored from {}: {e}",
+                    path.display()
+                )),
             }
         }
         self.document = Some(doc);
@@ -292,6 +333,88 @@ impl Session {
         })
     }
 
+    /// Where the known distances of `doc` are kept: in the autosave folder
+    /// of the photograph itself (not of the working size).
+    fn known_depths_path(&self, doc: &Document) -> Option<PathBuf> {
+        self.data_dir
+            .as_ref()
+            .map(|d| mask_edit::autosave_dir(&doc.path, d).join(KNOWN_DEPTHS_FILE))
+    }
+
+    /// Writes the open document's known distances now (atomically; an
+    /// empty list too, so that a cleared list stays cleared).
+    pub fn save_known_depths(&self) -> Result<(), String> {
+        let Some(doc) = &self.document else {
+            return Ok(());
+        };
+        let Some(path) = self.known_depths_path(doc) else {
+            return Ok(());
+        };
+        let file = KnownDepthsFile {
+            format: KNOWN_DEPTHS_FORMAT,
+            width: doc.full_size.0,
+            height: doc.full_size.1,
+            points: doc.known_depths.clone(),
+        };
+        let failed = |e: String| format!("cannot save the known distances: {e}");
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| failed(format!("{}: {e}", dir.display())))?;
+        }
+        io::write_atomic(&path, |p| io::write_json(p, &file)).map_err(|e| failed(e.to_string()))
+    }
+
+    /// Adds a known distance at pixel `(column, row)` of the photograph
+    /// (replacing one at the same pixel), saves the list and asks for a
+    /// solve. A distance that is not positive and finite, or a pixel off
+    /// the image or the object, is refused with the reason and changes
+    /// nothing. `Ok` carries a note when the list could not be saved.
+    pub fn set_known_depth(
+        &mut self,
+        column: usize,
+        row: usize,
+        depth: f64,
+    ) -> Result<Option<String>, String> {
+        let Some(doc) = &mut self.document else {
+            return Err("no image is open".into());
+        };
+        doc.set_known_depth(KnownDistance {
+            column_px: column as f64,
+            row_px: row as f64,
+            depth,
+        })?;
+        Ok(self.known_depths_changed())
+    }
+
+    /// Removes the known distance at `index` (nothing if there is none),
+    /// saves the list and asks for a solve; returns a note when saving
+    /// failed.
+    pub fn remove_known_depth(&mut self, index: usize) -> Option<String> {
+        let doc = self.document.as_mut()?;
+        if index >= doc.known_depths.len() {
+            return None;
+        }
+        doc.known_depths.remove(index);
+        self.known_depths_changed()
+    }
+
+    /// Removes every known distance, saves the list and asks for a solve;
+    /// returns a note when saving failed.
+    pub fn clear_known_depths(&mut self) -> Option<String> {
+        let doc = self.document.as_mut()?;
+        if doc.known_depths.is_empty() {
+            return None;
+        }
+        doc.known_depths.clear();
+        self.known_depths_changed()
+    }
+
+    /// After the known distances changed: solve as after a parameter
+    /// change, save them.
+    fn known_depths_changed(&mut self) -> Option<String> {
+        self.request_solve();
+        self.save_known_depths().err()
+    }
+
     /// Applies a camera file to the open image and asks for a solve.
     pub fn load_camera(&mut self, path: &Path) -> Result<(), String> {
         let Some(doc) = &mut self.document else {
@@ -350,19 +473,26 @@ impl Session {
             return;
         };
         let object = doc.masks.object_for_solver();
-        if let Some(reason) = sfs_core::model_fit::too_dark_to_solve(&doc.image, object.as_ref()) {
-            // The running job (of other masks) is stale: no result of it
-            // may appear beside this failure.
-            if let Some(job) = self.solve.job.take() {
-                worker.cancel(job);
+        let refused = sfs_core::model_fit::too_dark_to_solve(&doc.image, object.as_ref())
+            .map(Err)
+            .unwrap_or_else(|| doc.known_depths_for_solver());
+        let known_depths = match refused {
+            Ok(points) => points,
+            Err(reason) => {
+                // The running job (of other masks) is stale: no result of it
+                // may appear beside this failure.
+                if let Some(job) = self.solve.job.take() {
+                    worker.cancel(job);
+                }
+                self.solve.finished = None;
+                self.solve.shadow_share = None;
+                self.solve.known_depth_fit = None;
+                self.solve.failure = Some(reason);
+                self.solve.running = false;
+                self.solve.completed_jobs += 1;
+                return;
             }
-            self.solve.finished = None;
-            self.solve.shadow_share = None;
-            self.solve.failure = Some(reason);
-            self.solve.running = false;
-            self.solve.completed_jobs += 1;
-            return;
-        }
+        };
         let problem = doc.problem();
         self.level_inputs = Some(LevelInputs {
             image: Arc::new(doc.image.clone()),
@@ -376,6 +506,7 @@ impl Session {
             problem,
             params,
             estimate_scale,
+            known_depths,
         });
         let solve = &mut self.solve;
         solve.job = Some(job);
@@ -387,6 +518,8 @@ impl Session {
         solve.finished = None;
         solve.errors = None;
         solve.shadow_share = None;
+        solve.known_depth_fit = None;
+        solve.search_solve = 0;
     }
 
     /// Drains the worker's events (a few milliseconds at most) into the
@@ -406,6 +539,7 @@ impl Session {
             match event {
                 Event::Started { .. } => {}
                 Event::Progress { report, .. } => {
+                    self.next_solve_of_search(report.level);
                     let size = (report.width, report.height);
                     let energy_per_pixel = per_pixel(report.energy.total, size);
                     self.solve.energies.push(EnergyPoint {
@@ -436,11 +570,16 @@ impl Session {
                         });
                     }
                 }
-                Event::Finished { solution, .. } => {
+                Event::Finished {
+                    solution,
+                    known_depth_fit,
+                    ..
+                } => {
                     // s = I_ref Z^2 (the problem's scales), the estimated one
                     // when the worker estimated it.
                     let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
                     self.solve.intensity_scale_used = s_used.is_finite().then_some(s_used);
+                    self.solve.known_depth_fit = known_depth_fit;
                     self.solve.errors = self.document.as_ref().and_then(|doc| {
                         let gt = doc.ground_truth.as_ref()?;
                         let model =
@@ -491,7 +630,19 @@ impl Session {
         levels
     }
 
+    /// With known distances the worker runs several solves, each from
+    /// level 0: a level below the last one plotted starts the next, whose
+    /// energies replace the previous solve's.
+    fn next_solve_of_search(&mut self, level: usize) {
+        let last = self.solve.energies.last().map(|e| e.level);
+        if last.is_none_or(|last| level < last) {
+            self.solve.search_solve += 1;
+            self.solve.energies.clear();
+        }
+    }
+
     fn receive_level(&mut self, result: LevelResult) {
+        self.next_solve_of_search(result.level);
         let size = result.depth.size();
         self.solve.arrived.push(size);
         // A level without outer iterations (a fast-marching start) is a
@@ -588,4 +739,40 @@ impl Session {
             .map(|()| format!("wrote {}", path.display()))
             .map_err(|e| e.to_string())
     }
+}
+
+/// The known distances saved for `doc`'s photograph at `path`: none when
+/// there is no file; an error when it is corrupt or of another photograph
+/// size. Points that cannot be given (not positive, off the photograph)
+/// are left out; points off the object are kept (the mask may change, and
+/// the solve says why it cannot use them).
+fn restore_known_depths(path: &Path, doc: &Document) -> Result<Vec<KnownDistance>, String> {
+    let text = match std::fs::read_to_string(path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e.to_string()),
+    };
+    let file: KnownDepthsFile = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    if file.format != KNOWN_DEPTHS_FORMAT {
+        return Err(format!("unknown format {}", file.format));
+    }
+    let (fw, fh) = doc.full_size;
+    if (file.width, file.height) != (fw, fh) {
+        return Err(format!(
+            "saved for a {}x{} photograph but it is {fw}x{fh}",
+            file.width, file.height
+        ));
+    }
+    Ok(file
+        .points
+        .into_iter()
+        .filter(|p| {
+            p.depth.is_finite()
+                && p.depth > 0.0
+                && p.column_px >= 0.0
+                && p.row_px >= 0.0
+                && p.column_px < fw as f64
+                && p.row_px < fh as f64
+        })
+        .collect())
 }
