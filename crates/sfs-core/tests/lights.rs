@@ -50,8 +50,12 @@ fn a_flash_beside_the_lens_is_solved_nearly_as_well_as_a_centred_light() {
     );
     let lights = [flash_beside_the_lens()];
     let beside = sombrero_lit(side, side, &lights);
-    let solution =
-        solve(&problem(&beside, &lights), &SolverParams::default(), &mut ()).expect("solves");
+    let solution = solve(
+        &problem(&beside, &lights),
+        &SolverParams::default(),
+        &mut (),
+    )
+    .expect("solves");
     let beside_rse = rse(&solution.depth, &beside);
     assert!(
         beside_rse <= 1.5 * centred_rse,
@@ -152,7 +156,10 @@ fn several_known_distances_are_fitted_in_least_squares() {
         &mut (),
     )
     .expect("solves");
-    let [a, b] = [fit.points[0].relative_residual, fit.points[1].relative_residual];
+    let [a, b] = [
+        fit.points[0].relative_residual,
+        fit.points[1].relative_residual,
+    ];
     assert!(a > 0.02 && b < -0.02, "{a} {b}");
     assert!((fit.rms_relative_residual - 0.047).abs() < 0.02, "{fit:?}");
 }
@@ -191,8 +198,9 @@ fn a_bad_known_distance_is_refused_with_the_pixel_named() {
         ),
     ] {
         let mut p = problem(&scene, &[]);
-        let error = solve_with_known_depths(&mut p, &params, &Method::Linearised, &[point], &mut ())
-            .expect_err("refused");
+        let error =
+            solve_with_known_depths(&mut p, &params, &Method::Linearised, &[point], &mut ())
+                .expect_err("refused");
         assert!(error.to_string().contains(says), "{error}");
     }
 }

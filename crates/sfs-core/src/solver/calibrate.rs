@@ -256,9 +256,8 @@ fn determined(trials: &[(f64, f64, f64)], best: f64) -> bool {
     else {
         return false;
     };
-    let beyond = |t: &&(f64, f64, f64)| {
-        t.0 > best * SCALE_TOLERANCE || t.0 < best / SCALE_TOLERANCE
-    };
+    let beyond =
+        |t: &&(f64, f64, f64)| t.0 > best * SCALE_TOLERANCE || t.0 < best / SCALE_TOLERANCE;
     let below = trials.iter().filter(beyond).any(|t| t.0 < best);
     let above = trials.iter().filter(beyond).any(|t| t.0 > best);
     below
