@@ -1248,3 +1248,167 @@ fn a_dark_image_gets_a_plain_warning() {
     assert_success(&out, "solve the lit image");
     assert!(!stderr(&out).contains("too dark"), "{}", stderr(&out));
 }
+
+/// Two photographs of the Sombrero, each under a light of its own that a
+/// camera file ties to it by name, bright enough that their sum passes 1
+/// on most of the object though neither is clipped: the solve trusts the
+/// sum (nothing saturated), and the report has the fit of the depth to
+/// each photograph alone under its light.
+#[test]
+fn two_photographs_get_a_model_fit_each() {
+    use sfs_core::light::PointLight;
+    let tmp = tempdir().unwrap();
+    let lights = [0.1, -0.1].map(|x| PointLight {
+        position: [x, 0.0, 0.0],
+        ..PointLight::CENTRED
+    });
+    let scenes = lights.map(|l| sfs_core::scene::sombrero::sombrero_lit(40, 40, &[l]));
+    // One intensity scale for both, each photograph's brightest at 0.95.
+    let scale = scenes
+        .iter()
+        .map(|scene| scene.intensity_scale)
+        .fold(f64::INFINITY, f64::min)
+        * 0.95
+        / 0.9;
+    let names = ["left.png", "right.png"];
+    for (scene, name) in scenes.iter().zip(names) {
+        let image = scene.image.map(|v| v * scale / scene.intensity_scale);
+        sfs_core::io::write_png16(&tmp.path().join(name), &image).unwrap();
+    }
+    let camera = tmp.path().join("camera.json");
+    let entries: Vec<Value> = lights
+        .iter()
+        .zip(names)
+        .map(|(l, name)| serde_json::json!({"position": l.position, "image": name}))
+        .collect();
+    fs::write(
+        &camera,
+        serde_json::json!({
+            "width": 40, "height": 40, "focal": 40.0, "cx": 19.5, "cy": 19.5,
+            "lights": entries
+        })
+        .to_string(),
+    )
+    .unwrap();
+    let r = tmp.path().join("r");
+    let out = sfs([
+        "solve",
+        &s(&tmp.path().join(names[0])),
+        &s(&tmp.path().join(names[1])),
+        "--camera",
+        &s(&camera),
+        "--intensity-scale",
+        &scale.to_string(),
+        "--out",
+        &s(&r),
+    ]);
+    assert_success(&out, "solve two photographs");
+    let err = stderr(&out);
+    for name in names {
+        assert!(err.contains(&format!("{name} alone")), "{err}");
+    }
+    let report = read_json(&r.join("report.json"));
+    assert_eq!(report["model_fit"]["saturated_share"], 0.0, "{report}");
+    assert_eq!(report["input"]["clipped_share"], 0.0);
+    assert_eq!(report["input"]["sum_divisor"], 2.0);
+    let each = report["model_fit_per_photo"].as_array().unwrap();
+    assert_eq!(each.len(), 2, "{report}");
+    for (k, (fit, name)) in each.iter().zip(names).enumerate() {
+        assert!(fit["image"].as_str().unwrap().ends_with(name), "{fit}");
+        assert_eq!(fit["light_index"], k);
+        let rie = fit["rie_trusted"].as_f64().unwrap();
+        assert!(rie < 0.05, "{name}: {fit}");
+        assert!(fit["poor_share"].is_number());
+    }
+    // One photograph has no fit per photograph.
+    let one = tmp.path().join("one");
+    assert_success(
+        &sfs([
+            "solve",
+            &s(&tmp.path().join(names[0])),
+            "--camera",
+            &s(&camera),
+            "--intensity-scale",
+            &scale.to_string(),
+            "-q",
+            "--out",
+            &s(&one),
+        ]),
+        "solve one photograph",
+    );
+    let report = read_json(&one.join("report.json"));
+    assert!(report.get("model_fit_per_photo").is_none(), "{report}");
+    assert!(report["input"].get("sum_divisor").is_none(), "{report}");
+}
+
+/// With a light beside the lens: without a known distance the solve says
+/// plainly that the image does not determine the depth unit (and the
+/// search's verdict is in the report); with two `--known-depth` points the
+/// report lists each one's residual, and the first lands within 0.5 %.
+#[test]
+fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
+    let dir = tempdir().expect("temp dir");
+    let scene = dir.path().join("scene");
+    let run = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "64x64",
+        "--light",
+        "0.5,0,0",
+        "--out",
+        &s(&scene),
+    ]);
+    assert_success(&run, "synth with a flash beside the lens");
+    let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
+    let out = dir.path().join("auto");
+    let run = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--camera",
+        &s(&scene.join("scene.json")),
+        "--intensity-scale",
+        "auto",
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "solve with s auto");
+    let report = read_json(&out.join("report.json"));
+    let determined = report["intensity_scale_search"]["well_determined"]
+        .as_bool()
+        .expect("the verdict");
+    let warned = report["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .any(|w| w.as_str().is_some_and(|w| w.contains("does not determine")));
+    assert_eq!(warned, !determined, "{}", stderr(&run));
+    let out = dir.path().join("known");
+    let (a, b) = (*truth.at(32, 32), *truth.at(20, 40));
+    let run = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--camera",
+        &s(&scene.join("scene.json")),
+        "--intensity-scale",
+        "auto",
+        "--known-depth",
+        &format!("32,32,{a}"),
+        "--known-depth",
+        &format!("20,40,{b}"),
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "solve with two known distances");
+    let report = read_json(&out.join("report.json"));
+    let points = report["known_depth_fit"]["points"]
+        .as_array()
+        .expect("the fit's points");
+    assert_eq!(points.len(), 2);
+    for point in points {
+        let residual = point["relative_residual"].as_f64().expect("a residual");
+        assert!(residual.abs() < 0.02, "{point}");
+    }
+    assert!(stderr(&run).contains("given"), "{}", stderr(&run));
+    assert!(report["intensity_scale_search"].is_null());
+}

@@ -97,8 +97,10 @@ pub struct SolveArgs {
     pub max_side: usize,
     /// Initial depth: `fast-marching` (default: fast marching on the image,
     /// denoised when noisy, then refined at full resolution; with lights off
-    /// the centre the plane that best fits the image, refined through the
-    /// pyramid), `from-image` (the paper's constant depth from the brightest
+    /// the centre marched in the lights' own frame, or, for lights more than
+    /// 20 degrees off the camera seen from the object, the plane that best
+    /// fits the image, refined through the pyramid), `from-image` (the
+    /// paper's constant depth from the brightest
     /// pixel, then the whole pyramid), a number (a constant depth, depth
     /// units), or a `.npy` depth map of the working size.
     #[arg(long, value_name = "fast-marching|from-image|Z|FILE.npy")]

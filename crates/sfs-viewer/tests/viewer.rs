@@ -332,7 +332,7 @@ fn the_start_selector_says_what_is_used_with_lights_off_the_centre() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
     harness.step();
-    let plane = "fast marching (lights off the centre: best-fitting plane)";
+    let plane = "fast marching (in the lights' frame)";
     harness.get_by_label("fast marching");
     assert!(harness.query_by_label(plane).is_none());
     // The sample's camera with one light beside the camera.

@@ -616,7 +616,7 @@ impl Panels {
         let before = *initial;
         ui.horizontal_wrapped(|ui| {
             ui.label("start")
-                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre the first two start from the best-fitting plane instead");
+                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre fast marching runs in the lights' own frame (within 20 degrees of the camera), else from the best-fitting plane; the paper's start is that plane");
             ui.selectable_value(initial, InitialChoice::FastMarching, fast_marching.0)
                 .on_hover_text(fast_marching.1);
             ui.selectable_value(initial, InitialChoice::FromImage, from_image.0)
@@ -1603,26 +1603,29 @@ fn split(
 }
 
 /// The start selector's `(label, hover text)` for fast marching and for the
-/// paper's start from the image. Both assume the light at the optical
-/// centre: with the solve's lights off the centre the solver starts from
-/// the fronto-parallel plane whose rendering best fits the image, refined
-/// through the whole pyramid (`sfs_core::solver::prepare`), and the labels
-/// say so.
+/// paper's start from the image. With the solve's lights off the centre
+/// fast marching runs in the lights' own frame when they are within 20
+/// degrees of the camera (seen from the object), else the solver starts
+/// from the best-fitting plane (`sfs_core::solver::prepare`); the paper's
+/// start from the image is then that plane; the labels say so.
 fn start_labels(lights_off_centre: bool) -> [(&'static str, &'static str); 2] {
     if lights_off_centre {
         [
             (
-                "fast marching (lights off the centre: best-fitting plane)",
-                "Fast marching needs the light at the optical centre. With these lights the \
-                 solver starts from the constant depth (fronto-parallel plane) whose rendering \
-                 best fits the image, refined through the whole pyramid.",
+                "fast marching (in the lights' frame)",
+                "Fast marching solves the light at the optical centre: with these lights it is \
+                 marched in their own frame (a camera at the lights, where they are centred) \
+                 and refined by the solver at full resolution. Lights more than 20 degrees off \
+                 the camera, seen from the object, start from the constant depth \
+                 (fronto-parallel plane) whose rendering best fits the image, refined through \
+                 the whole pyramid.",
             ),
             (
                 "from image (lights off the centre: best-fitting plane)",
                 "The paper's constant from the brightest pixel assumes the light at the optical \
                  centre. With these lights the solver starts from the constant depth \
                  (fronto-parallel plane) whose rendering best fits the image, refined through \
-                 the whole pyramid: the same start as fast marching here.",
+                 the whole pyramid.",
             ),
         ]
     } else {
