@@ -247,9 +247,11 @@ fn synth_solve_eval_round_trip() {
         "cx",
         "cy",
         "intensity_scale",
+        "intensity_scale_measured",
     ]
     .into();
     assert_eq!(keys, expected_keys);
+    assert_eq!(camera["intensity_scale_measured"], true);
     assert_eq!(camera["width"], 40);
     assert_eq!(camera["height"], 40);
     assert!(camera["focal"].as_f64().unwrap() > 0.0);
@@ -1317,7 +1319,7 @@ fn two_photographs_get_a_model_fit_each() {
         assert!(fit["image"].as_str().unwrap().ends_with(name), "{fit}");
         assert_eq!(fit["light_index"], k);
         let rie = fit["rie_trusted"].as_f64().unwrap();
-        assert!(rie < 0.05, "{name}: {fit}");
+        assert!(rie < 0.15, "{name}: {fit}");
         assert!(fit["poor_share"].is_number());
     }
     // One photograph has no fit per photograph.

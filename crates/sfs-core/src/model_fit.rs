@@ -3,6 +3,10 @@
 //! near-black and saturated pixels, warnings), the residual map, the
 //! darkness check before a solve, and the suggested confidence (saturated
 //! highlights, near-black and cast-shadow pixels, the silhouette band).
+//!
+//! One photograph is saturated where its own value is (nearly) at the top
+//! of the range; a sum of photographs is saturated exactly where one of
+//! them was ([`Photographs`]), whatever the sum's value.
 
 use serde::Serialize;
 
@@ -48,6 +52,41 @@ pub struct ModelFit {
     pub median_brightness: f64,
     /// Plain-language warnings (empty when the fit is good).
     pub warnings: Vec<String>,
+}
+
+/// What the fit summary and the suggested confidence need to know of the
+/// photographs behind an image: where they were saturated, and on what
+/// scale the image holds their values.
+#[derive(Clone, Copy, Debug)]
+pub struct Photographs<'a> {
+    /// The pixels where a photograph was saturated (a sum of photographs:
+    /// where any of them was, as `photo::PreparedPhoto::clipped` records
+    /// it). `None`: where the image itself is at or above
+    /// [`NEAR_SATURATED`] (one photograph).
+    pub saturated: Option<&'a Grid<bool>>,
+    /// The photographs' values are the image's times this: 1, or the power
+    /// of two a sum was divided by (`photo::PhotoReport::sum_divisor`). The
+    /// brightness thresholds ([`NEAR_BLACK`], [`TOO_DARK_MEDIAN`]) and the
+    /// reported median apply to the values times this.
+    pub scale: f64,
+}
+
+impl Photographs<'static> {
+    /// One photograph: saturated where its value is, on its own scale.
+    pub const ONE: Photographs<'static> = Photographs {
+        saturated: None,
+        scale: 1.0,
+    };
+}
+
+impl Photographs<'_> {
+    /// Whether pixel `q` (row-major index) of `image` is saturated.
+    fn saturated_at(&self, image: &Grid<f64>, q: usize) -> bool {
+        match self.saturated {
+            Some(mask) => mask.as_slice()[q],
+            None => image.as_slice()[q] >= NEAR_SATURATED,
+        }
+    }
 }
 
 fn median(mut values: Vec<f64>) -> f64 {
@@ -143,7 +182,8 @@ pub fn residual_map(
 
 /// Measures the fit of `reprojection` to `image` over the object (`domain`)
 /// with the solver's confidence (0 = not trusted), `intensity_ref` the
-/// problem's brightness scale.
+/// problem's brightness scale; the image is one photograph
+/// ([`measure_photographs`] with [`Photographs::ONE`]).
 pub fn measure(
     image: &Grid<f64>,
     reprojection: &Grid<f64>,
@@ -151,18 +191,41 @@ pub fn measure(
     confidence: Option<&Grid<f64>>,
     intensity_ref: f64,
 ) -> ModelFit {
+    measure_photographs(
+        image,
+        reprojection,
+        domain,
+        confidence,
+        intensity_ref,
+        Photographs::ONE,
+    )
+}
+
+/// [`measure`] for an image made of `photographs` (a sum: saturated where
+/// one of them was; on a scale of its own): the saturated share and its
+/// warning follow `photographs.saturated`, the near-black share and the
+/// median the photographs' scale.
+pub fn measure_photographs(
+    image: &Grid<f64>,
+    reprojection: &Grid<f64>,
+    domain: &Grid<bool>,
+    confidence: Option<&Grid<f64>>,
+    intensity_ref: f64,
+    photographs: Photographs<'_>,
+) -> ModelFit {
     let (mut num, mut den, mut trusted, mut poor) = (0.0, 0.0, 0usize, 0usize);
     let (mut object, mut black, mut saturated) = (0usize, 0usize, 0usize);
     let mut values = Vec::new();
+    let scale = photographs.scale;
     for q in 0..image.len() {
         if !domain.as_slice()[q] {
             continue;
         }
         let (i, r) = (image.as_slice()[q], reprojection.as_slice()[q]);
         object += 1;
-        values.push(i);
-        black += usize::from(i < NEAR_BLACK);
-        saturated += usize::from(i >= NEAR_SATURATED);
+        values.push(i * scale);
+        black += usize::from(i * scale < NEAR_BLACK);
+        saturated += usize::from(photographs.saturated_at(image, q));
         let c = confidence.map_or(1.0, |c| c.as_slice()[q]);
         if c > 0.0 && r.is_finite() {
             num += c * (i - r) * (i - r);
@@ -209,8 +272,13 @@ pub fn measure(
     }
     if fit.saturated_share > 0.02 {
         fit.warnings.push(format!(
-            "{:.1} % of the object is saturated (not trusted)",
-            100.0 * fit.saturated_share
+            "{:.1} % of the object is saturated{} (not trusted)",
+            100.0 * fit.saturated_share,
+            if photographs.saturated.is_some() {
+                " in a photograph"
+            } else {
+                ""
+            }
         ));
     }
     fit
@@ -240,11 +308,24 @@ const SILHOUETTE_CONFIDENCE: f64 = 0.3;
 /// least 2 pixels). Cast shadows are pixels darker than half the model's
 /// prediction where a `reprojection` is given, else darker than 30 % of the
 /// local mean brightness of the object (a box of 20 % of its size). Off the
-/// object the confidence is 0.
+/// object the confidence is 0. The image is one photograph
+/// ([`suggest_confidence_photographs`] with [`Photographs::ONE`]).
 pub fn suggest_confidence(
     image: &Grid<f64>,
     object: &Grid<bool>,
     reprojection: Option<&Grid<f64>>,
+) -> (Grid<f64>, Suggestion) {
+    suggest_confidence_photographs(image, object, reprojection, Photographs::ONE)
+}
+
+/// [`suggest_confidence`] for an image made of `photographs`: highlights
+/// are where `photographs.saturated` says (a sum: where one photograph was
+/// saturated), near-black is judged on the photographs' scale.
+pub fn suggest_confidence_photographs(
+    image: &Grid<f64>,
+    object: &Grid<bool>,
+    reprojection: Option<&Grid<f64>>,
+    photographs: Photographs<'_>,
 ) -> (Grid<f64>, Suggestion) {
     let (w, h) = image.size();
     let on = |c: usize, r: usize| *object.at(c, r);
@@ -278,20 +359,21 @@ pub fn suggest_confidence(
         let i = *image.at(c, r);
         let mut conf: f64 = 1.0;
         let near_saturated = (r.saturating_sub(1)..(r + 2).min(h)).any(|rr| {
-            (c.saturating_sub(1)..(c + 2).min(w)).any(|cc| *image.at(cc, rr) >= NEAR_SATURATED)
+            (c.saturating_sub(1)..(c + 2).min(w))
+                .any(|cc| photographs.saturated_at(image, rr * w + cc))
         });
         if near_saturated {
             conf = 0.0;
             count.saturated += 1;
         }
-        if i < NEAR_BLACK {
+        if i * photographs.scale < NEAR_BLACK {
             conf = 0.0;
             count.near_black += 1;
         }
         let shadow = match (reprojection, &local_mean) {
             (Some(model), _) => {
                 let predicted = *model.at(c, r);
-                predicted > NEAR_BLACK && i < 0.5 * predicted
+                predicted * photographs.scale > NEAR_BLACK && i < 0.5 * predicted
             }
             (None, Some(mean)) => i < 0.3 * mean.at(c, r),
             (None, None) => false,

@@ -1,7 +1,8 @@
 //! The corrections of a photograph's values: several exposures summed in
-//! linear light, an ambient (dark) frame subtracted, vignetting (cos^4 or a
-//! flat-field image) and a known albedo divided out, then area-averaged to
-//! the working size.
+//! linear light (where each one was saturated recorded from its own decoded
+//! values, and each one's own corrected image kept when asked for), an
+//! ambient (dark) frame subtracted, vignetting (cos^4 or a flat-field image)
+//! and a known albedo divided out, then area-averaged to the working size.
 
 use std::path::{Path, PathBuf};
 
@@ -9,6 +10,7 @@ use crate::camera::Intrinsics;
 use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::io::{self, IoError, SrgbMode};
+use crate::solver::problem::SATURATED;
 
 /// Albedo values below this are not trusted (division would amplify noise):
 /// such pixels get confidence 0.
@@ -67,12 +69,27 @@ pub(super) struct Corrections<'a> {
     pub albedo: Option<&'a Path>,
     /// Largest side of the working size (area averaging); `None`: full size.
     pub max_side: Option<usize>,
+    /// Several photographs: keep each one's own corrected image at the
+    /// working size too (for the fit per photograph).
+    pub keep_each: bool,
+}
+
+/// One photograph of several, at the working size.
+#[derive(Clone, Debug)]
+pub(super) struct Each {
+    /// Its own corrected linear image (ambient frame, vignetting and albedo
+    /// as for the sum), when [`Corrections::keep_each`].
+    pub image: Option<Grid<f64>>,
+    /// Where it was saturated: a working pixel any of whose source pixels
+    /// was decoded at or above [`SATURATED`].
+    pub clipped: Grid<bool>,
 }
 
 /// A photograph's corrected values at the working size.
 #[derive(Clone, Debug)]
 pub(super) struct Photo {
-    /// Linear image at the working size, corrected.
+    /// Linear image at the working size, corrected (several photographs:
+    /// their sum).
     pub image: Grid<f64>,
     /// Confidence 0 where a correction made a pixel unusable (albedo below
     /// [`MIN_ALBEDO`]), else 1; `None` when nothing was lost.
@@ -82,6 +99,12 @@ pub(super) struct Photo {
     /// Share of pixels that went below zero after the ambient subtraction
     /// (clamped to 0).
     pub ambient_clamped: f64,
+    /// Several photographs: where any of them was saturated, at the working
+    /// size (the sum's value says nothing: it may pass 1 where none was);
+    /// `None` for one photograph, whose own values say it.
+    pub clipped: Option<Grid<bool>>,
+    /// Several photographs: each one, in the order given; empty for one.
+    pub each: Vec<Each>,
 }
 
 fn read_sized(
@@ -106,31 +129,31 @@ fn read_sized(
     Ok(grid)
 }
 
-/// Loads and corrects the photographs of `setup` (the camera is needed for
-/// the cos^4 correction and is that of the full-size photograph).
-///
-/// # Errors
-/// An unreadable file, or one whose size differs from the first
-/// photograph's; the message names the file.
-pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Result<Photo, IoError> {
-    let Some(first) = setup.images.first() else {
-        return Err(IoError::BadImage {
-            path: PathBuf::from("(none)"),
-            reason: "no photograph given".into(),
-        });
-    };
-    let (mut image, srgb, why) = io::read_photo(first, setup.srgb)?;
-    let size = image.size();
-    let mode = if srgb { SrgbMode::On } else { SrgbMode::Off };
-    for path in &setup.images[1..] {
-        let more = read_sized(path, "photograph", size, mode)?;
-        image = image.zip_map(&more, |a, b| a + b);
-    }
-    let mut ambient_clamped = 0.0;
+/// An image with the corrections applied, at the photograph's size.
+struct Corrected {
+    image: Grid<f64>,
+    /// Pixels that went below zero after the ambient subtraction.
+    clamped: usize,
+    /// 1 where the albedo can be divided by, else 0 (with an albedo map).
+    lost: Option<Grid<f64>>,
+}
+
+/// Applies the corrections of `setup` to `image`, the sum of `frames`
+/// photographs of `size` pixels decoded in `mode`: the ambient frame
+/// subtracted `frames` times (clamped at 0), the flat field or cos^4 and
+/// the albedo divided out. The frames are read here, one at a time.
+fn correct(
+    mut image: Grid<f64>,
+    frames: usize,
+    setup: &Corrections<'_>,
+    size: (usize, usize),
+    mode: SrgbMode,
+    camera: Option<Intrinsics>,
+) -> Result<Corrected, IoError> {
+    let mut clamped = 0usize;
     if let Some(path) = setup.ambient {
         let ambient = read_sized(path, "ambient frame", size, mode)?;
-        let frames = setup.images.len() as f64;
-        let mut clamped = 0usize;
+        let frames = frames as f64;
         image = image.zip_map(&ambient, |a, b| {
             let v = a - frames * b;
             if v < 0.0 {
@@ -138,7 +161,6 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
             }
             v.max(0.0)
         });
-        ambient_clamped = clamped as f64 / image.len().max(1) as f64;
     }
     if let Vignetting::FlatField(path) = setup.vignetting {
         let flat = read_sized(path, "flat field", size, mode)?;
@@ -161,14 +183,80 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         image = image.zip_map(&albedo, |a, b| if *b >= MIN_ALBEDO { a / b } else { 0.0 });
         lost = Some(albedo.map(|&b| if b >= MIN_ALBEDO { 1.0 } else { 0.0 }));
     }
+    Ok(Corrected {
+        image,
+        clamped,
+        lost,
+    })
+}
+
+/// Loads and corrects the photographs of `setup` (the camera is needed for
+/// the cos^4 correction and is that of the full-size photograph). Several
+/// photographs are summed in linear light; each one's saturated pixels are
+/// recorded from its decoded values before the sum, and with
+/// [`Corrections::keep_each`] its own corrected image is kept.
+///
+/// # Errors
+/// An unreadable file, or one whose size differs from the first
+/// photograph's; the message names the file.
+pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Result<Photo, IoError> {
+    let Some(first) = setup.images.first() else {
+        return Err(IoError::BadImage {
+            path: PathBuf::from("(none)"),
+            reason: "no photograph given".into(),
+        });
+    };
+    let (mut image, srgb, why) = io::read_photo(first, setup.srgb)?;
+    let size = image.size();
+    let mode = if srgb { SrgbMode::On } else { SrgbMode::Off };
     let (w, h) = working_size(size.0, size.1, setup.max_side);
     let resize = |grid: &Grid<f64>| resize_area(grid, w, h, Cancel::NEVER).uncancelled();
-    let image = resize(&image);
-    let lost = lost.map(|l| resize(&l).map(|&v| if v >= 0.999 { 1.0 } else { 0.0 }));
+    // One of several photographs: where it is saturated (a working pixel
+    // with any saturated source pixel: area weights are positive), and its
+    // own corrected image when asked for.
+    let one_of_several = |photo: &Grid<f64>| -> Result<Each, IoError> {
+        let clipped = resize(&photo.map(|&v| if v >= SATURATED { 1.0 } else { 0.0 }));
+        let image = if setup.keep_each {
+            let own = correct(photo.clone(), 1, setup, size, mode, camera)?;
+            Some(resize(&own.image))
+        } else {
+            None
+        };
+        Ok(Each {
+            image,
+            clipped: clipped.map(|&v| v > 0.0),
+        })
+    };
+    let several = setup.images.len() > 1;
+    let mut each = Vec::new();
+    if several {
+        each.push(one_of_several(&image)?);
+    }
+    for path in &setup.images[1..] {
+        let more = read_sized(path, "photograph", size, mode)?;
+        each.push(one_of_several(&more)?);
+        image = image.zip_map(&more, |a, b| a + b);
+    }
+    let corrected = correct(image, setup.images.len(), setup, size, mode, camera)?;
+    let ambient_clamped = match setup.ambient {
+        Some(_) => corrected.clamped as f64 / corrected.image.len().max(1) as f64,
+        None => 0.0,
+    };
+    let image = resize(&corrected.image);
+    let lost = corrected
+        .lost
+        .map(|l| resize(&l).map(|&v| if v >= 0.999 { 1.0 } else { 0.0 }));
+    let clipped = several.then(|| {
+        Grid::from_fn(w, h, |c, r| {
+            each.iter().any(|one: &Each| *one.clipped.at(c, r))
+        })
+    });
     Ok(Photo {
         image,
         lost,
         srgb: (srgb, why),
         ambient_clamped,
+        clipped,
+        each,
     })
 }

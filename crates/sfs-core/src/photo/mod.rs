@@ -10,6 +10,17 @@
 //! ([`corrections`]), the working size (area averaging, the intrinsics and
 //! masks scaled alike), the masks ([`read_mask_at`], the one reader of mask
 //! files), then the suggested confidence when asked for.
+//!
+//! Several photographs are summed in linear light, and the sum is saturated
+//! only where one of them was: the pipeline records where any input was
+//! saturated ([`PreparedPhoto::clipped`]), gives those pixels confidence 0,
+//! and where the sum passes the top of the range elsewhere divides it and
+//! the lights' intensities by a power of two (exact; [`PhotoReport::sum_divisor`])
+//! so that the solver's rule for one photograph (a value at the top of the
+//! range is clipped) no longer applies to it. One photograph is read exactly
+//! as before. When each photograph has its own light (a camera file's
+//! `image` names), each one's corrected image is kept ([`PreparedPhoto::photos`])
+//! for the fit per photograph ([`fit_per_photo`]).
 
 mod camera;
 pub mod corrections;
@@ -22,11 +33,13 @@ use crate::camera::Intrinsics;
 use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::io::{self, IoError, SrgbMode};
-use crate::light::PointLight;
+use crate::light::{LightModel, PointLight};
 use crate::memory::{self, MemoryError};
-use crate::model_fit::{self, Suggestion};
+use crate::model::{self, LevelGeometry};
+use crate::model_fit::{self, ModelFit, Photographs, Suggestion};
 use crate::resample::{resize_area, scale_intrinsics, working_size};
 use crate::solver::Problem;
+use crate::solver::problem::SATURATED;
 
 pub use camera::{CameraSource, exif_focal_35mm};
 pub use corrections::{MIN_ALBEDO, Vignetting, cos4};
@@ -245,12 +258,57 @@ pub struct PhotoReport {
     pub auto_confidence: Option<Suggestion>,
     /// The camera.
     pub camera: CameraReport,
-    /// The lights switched on (empty: one at the optical centre).
+    /// The lights switched on (empty: one at the optical centre); with
+    /// several photographs their intensities are divided by `sum_divisor`
+    /// like the sum.
     pub lights: Vec<PointLight>,
+    /// Several photographs: the power of two their sum (and the lights'
+    /// intensities) was divided by so that no trusted value the photographs
+    /// did not clip reaches the top of the range (1 when none did); the
+    /// problem's image is the sum divided by it. `None` for one photograph.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sum_divisor: Option<f64>,
+    /// Several photographs: the share of the object's pixels saturated in
+    /// at least one of them (given confidence 0). `None` for one
+    /// photograph, whose saturated pixels the solver finds by their value.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub clipped_share: Option<f64>,
     /// Sentences for the summary: each decision that is not the obvious one,
     /// with its reason (in a solve's report they are its `notes`).
     #[serde(skip)]
     pub notes: Vec<String>,
+}
+
+/// One photograph of a sum with a light of its own, for the fit per
+/// photograph ([`fit_per_photo`]).
+#[derive(Clone, Debug)]
+pub struct SummedPhoto {
+    /// The photograph.
+    pub path: PathBuf,
+    /// The index of its light in the problem's lights (and the report's).
+    pub light_index: usize,
+    /// That light with its intensity on this photograph's own scale (the
+    /// problem's light times the sum's divisor): `s` times its irradiance
+    /// explains the photograph alone.
+    pub light: PointLight,
+    /// Its own corrected linear image at the working size (ambient frame,
+    /// vignetting and albedo as for the sum).
+    pub image: Grid<f64>,
+    /// Where it was saturated, at the working size.
+    pub clipped: Grid<bool>,
+}
+
+/// How well a solved depth explains one photograph of a sum under its own
+/// light alone (the `model_fit_per_photo` entries of a solve's report).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PhotoFit {
+    /// The photograph.
+    pub image: PathBuf,
+    /// The index of its light in the report's `lights`.
+    pub light_index: usize,
+    /// The fit summary against this photograph alone.
+    #[serde(flatten)]
+    pub fit: ModelFit,
 }
 
 /// A photograph ready for the solver.
@@ -267,6 +325,12 @@ pub struct PreparedPhoto {
     pub confidence_derived: bool,
     /// What was decided and why.
     pub report: PhotoReport,
+    /// Several photographs: where any of them was saturated, at the working
+    /// size (those pixels have confidence 0); `None` for one photograph.
+    pub clipped: Option<Grid<bool>>,
+    /// Several photographs each taken by a light of its own (a camera
+    /// file's `image` names): each one, in the order given; else empty.
+    pub photos: Vec<SummedPhoto>,
 }
 
 impl PreparedPhoto {
@@ -279,6 +343,69 @@ impl PreparedPhoto {
     pub fn full_size(&self) -> (usize, usize) {
         (self.report.full_width, self.report.full_height)
     }
+
+    /// What the fit summary needs to know of the photographs behind the
+    /// problem's image: one photograph, or a sum saturated where
+    /// [`Self::clipped`] says, on the scale [`PhotoReport::sum_divisor`]
+    /// divided it to.
+    pub fn photographs(&self) -> Photographs<'_> {
+        Photographs {
+            saturated: self.clipped.as_ref(),
+            scale: self.report.sum_divisor.unwrap_or(1.0),
+        }
+    }
+}
+
+/// The fit of a solved `depth` (NaN off its domain) to each photograph of
+/// `photos` alone: its own corrected image against the reprojection under
+/// its own light with the solve's intensity scale `intensity_scale`, over
+/// the solve's `confidence`. `intensity_ref` is the problem's brightness
+/// scale (of the sum as divided by `sum_divisor`), shared out among the
+/// photographs by their lights' intensities. `camera`: the intrinsics at
+/// the working size.
+pub fn fit_per_photo(
+    photos: &[SummedPhoto],
+    depth: &Grid<f64>,
+    camera: Intrinsics,
+    intensity_scale: f64,
+    confidence: Option<&Grid<f64>>,
+    intensity_ref: f64,
+    sum_divisor: f64,
+) -> Vec<PhotoFit> {
+    let (w, h) = depth.size();
+    let domain = depth.map(|z| z.is_finite());
+    let geometry = LevelGeometry::new(w, h, w, h, camera);
+    let total: f64 = photos.iter().map(|p| p.light.intensity).sum();
+    photos
+        .iter()
+        .filter(|p| p.image.size() == (w, h) && p.clipped.size() == (w, h))
+        .map(|photo| {
+            let model = LightModel::new(intensity_scale, &[photo.light]);
+            let reprojection =
+                model::reproject(&model, &geometry, &domain, depth, Cancel::NEVER).uncancelled();
+            let share = if total > 0.0 {
+                photo.light.intensity / total
+            } else {
+                1.0
+            };
+            let fit = model_fit::measure_photographs(
+                &photo.image,
+                &reprojection,
+                &domain,
+                confidence,
+                intensity_ref * sum_divisor * share,
+                Photographs {
+                    saturated: Some(&photo.clipped),
+                    scale: 1.0,
+                },
+            );
+            PhotoFit {
+                image: photo.path.clone(),
+                light_index: photo.light_index,
+                fit,
+            }
+        })
+        .collect()
 }
 
 /// Reads a mask or confidence image for a photograph of `full` pixels solved
@@ -336,7 +463,8 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
     };
     let full_size = io::image_size(first)?;
     let mut decided = camera::decide(input, full_size)?;
-    check_memory(input, full_size)?;
+    let own_lights = lights_per_photograph(input, &decided.lights);
+    check_memory(input, full_size, own_lights)?;
     let vignetting = &input.vignetting;
     let photo = corrections::load(
         &corrections::Corrections {
@@ -346,6 +474,7 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
             vignetting,
             albedo: input.albedo.as_deref(),
             max_side: input.max_side,
+            keep_each: own_lights,
         },
         Some(decided.camera),
     )?;
@@ -374,17 +503,88 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
             None => lost.clone(),
         });
     }
+    let mut clipped_share = None;
+    if let Some(clipped) = &photo.clipped {
+        clipped_share = Some(untrust_clipped(
+            clipped,
+            object_mask.as_ref(),
+            &mut confidence,
+            &mut decided.notes,
+        )?);
+    }
     let mut suggestion = None;
     if input.auto_confidence {
         let object = object_mask
             .clone()
             .unwrap_or_else(|| Grid::filled(size.0, size.1, true));
-        let (suggested, counts) = model_fit::suggest_confidence(&photo.image, &object, None);
+        let photographs = Photographs {
+            saturated: photo.clipped.as_ref(),
+            scale: 1.0,
+        };
+        let (suggested, counts) =
+            model_fit::suggest_confidence_photographs(&photo.image, &object, None, photographs);
         confidence = Some(match confidence {
             Some(c) => c.zip_map(&suggested, |a, b| a.min(*b)),
             None => suggested,
         });
         suggestion = Some(counts);
+    }
+    let mut image = photo.image;
+    let mut lights = decided.lights;
+    let mut sum_divisor = None;
+    if let Some(clipped) = &photo.clipped {
+        let divisor = sum_divisor_for(&image, clipped, object_mask.as_ref(), confidence.as_ref());
+        if divisor > 1.0 {
+            // Exact: a power of two scales every value and intensity alike.
+            image = image.map(|v| v / divisor);
+            if lights.is_empty() {
+                lights.push(PointLight {
+                    intensity: 1.0 / divisor,
+                    ..PointLight::CENTRED
+                });
+            } else {
+                for light in &mut lights {
+                    light.intensity /= divisor;
+                }
+            }
+            decided.notes.push(format!(
+                "the sum of the {} photographs passes the top of one photograph's range where \
+                 none was saturated: it and the lights' intensities are divided by {divisor}, \
+                 so that the solver does not take it for clipped (the images written are the \
+                 sum / {divisor})",
+                input.images.len()
+            ));
+        }
+        sum_divisor = Some(divisor);
+    }
+    let divisor = sum_divisor.unwrap_or(1.0);
+    let photos: Vec<SummedPhoto> = if own_lights {
+        input
+            .images
+            .iter()
+            .zip(photo.each)
+            .enumerate()
+            .filter_map(|(k, (path, each))| {
+                let mut light = *lights.get(k)?;
+                light.intensity *= divisor;
+                Some(SummedPhoto {
+                    path: path.clone(),
+                    light_index: k,
+                    light,
+                    image: each.image?,
+                    clipped: each.clipped,
+                })
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    if input.images.len() > 1 && !own_lights {
+        decided.notes.push(
+            "no model fit per photograph: which light took which photograph is known only \
+             from a camera file's `image` names"
+                .into(),
+        );
     }
     let (srgb, srgb_reason) = photo.srgb;
     let intensity_scale = decided.intensity_scale.unwrap_or(1.0);
@@ -417,28 +617,136 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
             intensity_scale_given: decided.intensity_scale.is_some(),
             units: decided.units,
         },
-        lights: decided.lights.clone(),
+        lights: lights.clone(),
+        sum_divisor,
+        clipped_share,
         notes: decided.notes,
     };
+    let clipped_any = photo
+        .clipped
+        .as_ref()
+        .is_some_and(|c| c.as_slice().iter().any(|&v| v));
     Ok(PreparedPhoto {
         problem: Problem {
-            image: photo.image,
+            image,
             camera,
             intensity_scale,
             object_mask,
             confidence,
-            lights: decided.lights,
+            lights,
         },
         full_camera: decided.camera,
         intensity_scale_given: decided.intensity_scale.is_some(),
-        confidence_derived: photo.lost.is_some() || input.auto_confidence,
+        confidence_derived: photo.lost.is_some() || input.auto_confidence || clipped_any,
         report,
+        clipped: photo.clipped,
+        photos,
     })
 }
 
+/// Whether the lights decided for `input` are one per photograph, in the
+/// photographs' order: several photographs, lights from the camera file
+/// without picks (each photograph's own light by its `image` name, see
+/// `camera::decide_lights`), one light each.
+fn lights_per_photograph(input: &PhotoInput, lights: &[PointLight]) -> bool {
+    let from_names = match &input.lights {
+        LightSpec::CameraFile { picks } => picks.is_empty(),
+        LightSpec::CameraFileOrCentred => true,
+        LightSpec::Given(_) => false,
+    };
+    from_names
+        && matches!(input.camera, CameraSpec::File(_))
+        && input.images.len() > 1
+        && lights.len() == input.images.len()
+        && input.images.iter().all(|p| p.file_name().is_some())
+}
+
+/// A sum's saturated pixels (`clipped`: where any photograph was) get
+/// confidence 0, whatever the sum's value; returns their share of the
+/// object. Refuses a sum saturated on more than half of its trusted object
+/// pixels, as the solver refuses such a photograph.
+fn untrust_clipped(
+    clipped: &Grid<bool>,
+    object: Option<&Grid<bool>>,
+    confidence: &mut Option<Grid<f64>>,
+    notes: &mut Vec<String>,
+) -> Result<f64, PhotoError> {
+    let (mut objects, mut trusted, mut saturated, mut on_object) = (0usize, 0usize, 0usize, 0usize);
+    for (q, &c) in clipped.as_slice().iter().enumerate() {
+        if !object.is_none_or(|o| o.as_slice()[q]) {
+            continue;
+        }
+        objects += 1;
+        on_object += usize::from(c);
+        if confidence.as_ref().is_none_or(|t| t.as_slice()[q] > 0.0) {
+            trusted += 1;
+            saturated += usize::from(c);
+        }
+    }
+    if trusted > 0 && saturated * 2 > trusted {
+        return Err(PhotoError::Input(format!(
+            "the photographs are saturated: {saturated} of {trusted} trusted object pixels are \
+             at the maximum value in at least one of them; lower the exposure or mask the \
+             saturated region (confidence 0)"
+        )));
+    }
+    if clipped.as_slice().iter().any(|&c| c) {
+        let keep = clipped.map(|&c| if c { 0.0 } else { 1.0 });
+        *confidence = Some(match confidence.take() {
+            Some(c) => c.zip_map(&keep, |a, b| a.min(*b)),
+            None => keep,
+        });
+    }
+    let share = on_object as f64 / objects.max(1) as f64;
+    if on_object > 0 {
+        notes.push(format!(
+            "{:.1} % of the object is saturated in at least one photograph: not trusted \
+             (confidence 0); elsewhere the sum is trusted whatever its value",
+            100.0 * share
+        ));
+    }
+    Ok(share)
+}
+
+/// The power of two a sum must be divided by so that no pixel the solver
+/// would trust (on the object, confidence > 0) and no photograph clipped
+/// reaches [`SATURATED`], the solver's mark of a clipped photograph: 1 when
+/// none does.
+fn sum_divisor_for(
+    image: &Grid<f64>,
+    clipped: &Grid<bool>,
+    object: Option<&Grid<bool>>,
+    confidence: Option<&Grid<f64>>,
+) -> f64 {
+    let top = (0..image.len())
+        .filter(|&q| {
+            !clipped.as_slice()[q]
+                && object.is_none_or(|o| o.as_slice()[q])
+                && confidence.is_none_or(|c| c.as_slice()[q] > 0.0)
+        })
+        .map(|q| image.as_slice()[q])
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let mut divisor = 1.0f64;
+    // 2^1000 is far beyond any sum of photographs in [0, 1] and their
+    // corrections; the bound only keeps the loop finite.
+    while top / divisor >= SATURATED && divisor < 2f64.powi(1000) {
+        divisor *= 2.0;
+    }
+    divisor
+}
+
 /// Refuses a solve that would not fit the free memory, before any pixel is
-/// decoded, with the working size that would.
-fn check_memory(input: &PhotoInput, full: (usize, usize)) -> Result<(), MemoryError> {
+/// decoded, with the working size that would. Several photographs keep, at
+/// the working size, where each was saturated (1 byte a pixel each, and
+/// their union) and, with lights of their own (`own_lights`), each one's
+/// corrected image (8 bytes a pixel each): charged as that many bytes of
+/// pyramid levels beyond the default's.
+fn check_memory(
+    input: &PhotoInput,
+    full: (usize, usize),
+    own_lights: bool,
+) -> Result<(), MemoryError> {
     let working = working_size(full.0, full.1, input.max_side);
     let what = if working == full {
         format!("solving {}x{} pixels", full.0, full.1)
@@ -448,12 +756,21 @@ fn check_memory(input: &PhotoInput, full: (usize, usize)) -> Result<(), MemoryEr
             working.0, working.1, full.0, full.1
         )
     };
+    let photographs = input.images.len();
+    let pyramid_factor = if photographs > 1 {
+        let each = if own_lights { 1.0 + 8.0 } else { 1.0 };
+        let bytes_per_pixel = photographs as f64 * each + 1.0;
+        input.pyramid_factor.max(memory::DEFAULT_PYRAMID_FACTOR)
+            + bytes_per_pixel / memory::LEVEL_BYTES_PER_PIXEL as f64
+    } else {
+        input.pyramid_factor
+    };
     memory::check_solve(&memory::SolvePlan {
         what,
         full,
         working,
         images: input.images.len(),
-        pyramid_factor: input.pyramid_factor,
+        pyramid_factor,
         smaller: &|side| {
             format!(
                 "solve at a smaller working size with {} {side} or less",

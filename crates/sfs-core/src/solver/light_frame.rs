@@ -101,9 +101,8 @@ pub const MAX_FRAME_ANGLE_DEG: f64 = 20.0;
 const PLANE_SAMPLES: usize = 4096;
 
 /// Whether the start for `problem` (lights off the centre) is marched in
-/// the light's frame: the lights' centroid is within
-/// [`MAX_FRAME_ANGLE_DEG`] of the camera as seen from the object's
-/// centre, placed by the fronto-parallel plane that best explains the
+/// the light's frame: every light is within [`MAX_FRAME_ANGLE_DEG`] of the
+/// camera as seen from the object's centre, placed by the fronto-parallel plane that best explains the
 /// trusted pixels of `level` (the full image; `guess` centres the plane's
 /// scan).
 pub(crate) fn serves(
@@ -148,11 +147,18 @@ pub(crate) fn serves(
     faces_the_frame(&problem.lights, depth * sum / count.max(1) as f64)
 }
 
-/// Whether the lights' centroid is within [`MAX_FRAME_ANGLE_DEG`] of the
-/// camera as seen from `centre` (a camera-frame point of the object).
+/// Whether every light is within [`MAX_FRAME_ANGLE_DEG`] of the camera as
+/// seen from `centre` (a camera-frame point of the object): then their
+/// centroid stands for them (a ring around the lens). Lights spread wider
+/// (the shared face's seven LEDs, centroid near the axis but each 33-61
+/// degrees off) are not one light anywhere.
 pub(crate) fn faces_the_frame(lights: &[PointLight], centre: DVec3) -> bool {
-    let (light, _) = centroid(lights);
-    (-centre).angle_between(light - centre).to_degrees() <= MAX_FRAME_ANGLE_DEG
+    lights.iter().all(|l| {
+        (-centre)
+            .angle_between(DVec3::from_array(l.position) - centre)
+            .to_degrees()
+            <= MAX_FRAME_ANGLE_DEG
+    })
 }
 
 /// The one light standing for `lights`: their intensity-weighted centroid
