@@ -135,6 +135,9 @@ pub enum Event {
         /// How the depth met the request's known depths (`None` without
         /// known depths).
         known_depth_fit: Option<KnownDepthFit>,
+        /// Whether the image determined the intensity scale the worker
+        /// estimated (`None` when it estimated none).
+        scale_determined: Option<bool>,
     },
     /// The solver rejected the input or parameters, or panicked.
     Failed {
@@ -360,7 +363,7 @@ impl Runner {
                     &request.known_depths,
                     &mut observer,
                 )?;
-                return Ok((solution, Some(fit)));
+                return Ok((solution, Some(fit), None));
             }
             if request.estimate_scale && !request.problem.light_is_centred() {
                 let estimate = calibrate::estimate_intensity_scale(
@@ -373,14 +376,15 @@ impl Runner {
                     ..request.problem.clone()
                 };
                 return (self.solve_fn)(&problem, &request.params, &mut observer)
-                    .map(|s| (s, None));
+                    .map(|s| (s, None, Some(estimate.well_determined)));
             }
-            (self.solve_fn)(&request.problem, &request.params, &mut observer).map(|s| (s, None))
+            (self.solve_fn)(&request.problem, &request.params, &mut observer)
+                .map(|s| (s, None, None))
         }));
         if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
             return Err(Stop);
         }
-        if let Ok(Ok((solution, Some(_)))) = &outcome
+        if let Ok(Ok((solution, Some(_), _))) = &outcome
             && let Some(level) = rescaled_level(observer.last_level.take(), solution)
         {
             // The search scaled the last solve's depth onto the known
@@ -388,10 +392,11 @@ impl Runner {
             self.outbox.deliver(Event::Level { job, result: level })?;
         }
         let event = match outcome {
-            Ok(Ok((solution, known_depth_fit))) => Event::Finished {
+            Ok(Ok((solution, known_depth_fit, scale_determined))) => Event::Finished {
                 job,
                 solution: Box::new(solution),
                 known_depth_fit,
+                scale_determined,
             },
             Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
             Ok(Err(error)) => Event::Failed {

@@ -512,6 +512,14 @@ impl Panels {
         if let Some(s_used) = s.intensity_scale_used {
             ui.weak(format!("intensity scale used: {s_used:.4e}"));
         }
+        if s.scale_determined == Some(false) {
+            ui.colored_label(
+                ui.visuals().warn_fg_color,
+                "warning: this image does not determine the intensity scale, so the depth unit \
+                 is a guess: set a known distance (Known distance section) or give a measured \
+                 intensity scale",
+            );
+        }
         if let Some(fit) = &s.known_depth_fit {
             ui.label(fit_summary(fit)).on_hover_text(
                 "The intensity scale s that puts the surface at the known distances (relative \

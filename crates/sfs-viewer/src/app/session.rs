@@ -125,6 +125,9 @@ pub struct SolveState {
     pub shadow_share: Option<f64>,
     /// The intensity scale the final result used (estimated or given).
     pub intensity_scale_used: Option<f64>,
+    /// Whether the image determined the estimated intensity scale (`None`
+    /// when the last solve estimated none).
+    pub scale_determined: Option<bool>,
     /// How the final result met the known distances (`None` without them).
     pub known_depth_fit: Option<KnownDepthFit>,
     /// With known distances, the solve of the scale search now running
@@ -573,8 +576,10 @@ impl Session {
                 Event::Finished {
                     solution,
                     known_depth_fit,
+                    scale_determined,
                     ..
                 } => {
+                    self.solve.scale_determined = scale_determined;
                     // s = I_ref Z^2 (the problem's scales), the estimated one
                     // when the worker estimated it.
                     let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
