@@ -173,27 +173,28 @@ fn centroid(lights: &[PointLight]) -> (DVec3, f64) {
     (at, total)
 }
 
-/// The surface held as a camera-frame point per pixel of one camera
-/// (`None` off it), drawn into another camera's pixels: triangles between
+/// The surface held as a camera-frame point per pixel of one camera's
+/// `w x h` grid (`point`, `None` off it), drawn into another camera's
+/// pixels: triangles between
 /// neighbouring points (none across a depth step of more than
 /// [`MAX_STEP`]), the nearest surface kept. Returns the target's depth
 /// along its optical axis (NaN where nothing was drawn) and `value`
 /// interpolated (in the target's pixels, `1/z` perspective-correct).
 fn draw(
-    points: &Grid<Option<DVec3>>,
-    value: &Grid<f64>,
+    (w, h): (usize, usize),
+    point: impl Fn(usize, usize) -> Option<DVec3>,
+    value: impl Fn(usize, usize) -> f64,
     target: &VirtualCamera,
     (target_width, target_height): (usize, usize),
 ) -> (Grid<f64>, Grid<f64>) {
-    let (w, h) = points.size();
     let mut depth = Grid::filled(target_width, target_height, f64::INFINITY);
     let mut drawn = Grid::filled(target_width, target_height, f64::NAN);
     // Each point in the target's frame: pixel, depth and value.
     let local = |c: usize, r: usize| -> Option<(f64, f64, f64, f64)> {
-        let point = (*points.at(c, r))?;
+        let point = point(c, r)?;
         let inside = target.rotation * (point - target.origin);
         let (pc, pr) = project(target.intrinsics, inside)?;
-        Some((pc, pr, inside.z, *value.at(c, r)))
+        Some((pc, pr, inside.z, value(c, r)))
     };
     for r in 0..h.saturating_sub(1) {
         for c in 0..w.saturating_sub(1) {
@@ -389,32 +390,46 @@ impl LightFrame<'_> {
             let Some(mut view) = VirtualCamera::looking_at(light, target, camera) else {
                 return Ok(None);
             };
-            let points = Grid::from_fn(w, h, |c, r| on(c, r).then(|| *depth.at(c, r) * ray(c, r)));
+            let point = |c: usize, r: usize| on(c, r).then(|| *depth.at(c, r) * ray(c, r));
             // The light's camera frames the whole object: its grid spans the
-            // object's projection (a pixel's margin), at most twice the
-            // image's size per side.
-            let (mut lo, mut hi) = (
-                (f64::INFINITY, f64::INFINITY),
-                (f64::NEG_INFINITY, f64::NEG_INFINITY),
-            );
-            for point in points.as_slice().iter().flatten() {
-                if let Some((pc, pr)) = view.project(*point) {
-                    lo = (lo.0.min(pc), lo.1.min(pr));
-                    hi = (hi.0.max(pc), hi.1.max(pr));
+            // object's projection (a pixel's margin), with at most twice the
+            // image's pixel count (a coarser focal length where the light
+            // sees the object larger).
+            let span = |view: &VirtualCamera| {
+                let (mut lo, mut hi) = (
+                    (f64::INFINITY, f64::INFINITY),
+                    (f64::NEG_INFINITY, f64::NEG_INFINITY),
+                );
+                for (c, r) in (0..h).flat_map(|r| (0..w).map(move |c| (c, r))) {
+                    if let Some((pc, pr)) = point(c, r).and_then(|p| view.project(p)) {
+                        lo = (lo.0.min(pc), lo.1.min(pr));
+                        hi = (hi.0.max(pc), hi.1.max(pr));
+                    }
                 }
-            }
-            if !(lo.0.is_finite() && hi.0.is_finite()) {
+                (lo.0.is_finite() && hi.0.is_finite()).then(|| {
+                    let (left, top) = (lo.0.floor() - 1.0, lo.1.floor() - 1.0);
+                    (left, top, hi.0.ceil() + 2.0 - left, hi.1.ceil() + 2.0 - top)
+                })
+            };
+            let Some((_, _, span_w, span_h)) = span(&view) else {
                 return Ok(None);
+            };
+            let pixels = 2.0 * (w * h) as f64;
+            if span_w * span_h > pixels {
+                view.intrinsics.focal_px *= (pixels / (span_w * span_h)).sqrt();
             }
-            let (left, top) = (lo.0.floor() - 1.0, lo.1.floor() - 1.0);
-            let vw = ((hi.0.ceil() + 2.0 - left) as usize).clamp(1, 2 * w);
-            let vh = ((hi.1.ceil() + 2.0 - top) as usize).clamp(1, 2 * h);
+            let Some((left, top, span_w, span_h)) = span(&view) else {
+                return Ok(None);
+            };
+            let vw = (span_w as usize).clamp(1, 2 * w);
+            let vh = (span_h as usize).clamp(1, 2 * h);
             view.intrinsics.principal_x_px -= left;
             view.intrinsics.principal_y_px -= top;
             // The image as the light sees it: the current surface, carrying
             // the image, drawn into the light's camera (what the light does
             // not see is hidden behind what it does).
-            let (seen_depth, mut seen) = draw(&points, image, &view, (vw, vh));
+            let (seen_depth, mut seen) =
+                draw((w, h), point, |c, r| *image.at(c, r), &view, (vw, vh));
             crate::grid::for_rows(seen.as_mut_slice(), vw, cancel, |r, row| {
                 for (c, out) in row.iter_mut().enumerate() {
                     let z = *seen_depth.at(c, r);
@@ -456,17 +471,17 @@ impl LightFrame<'_> {
             )?;
             // Back to the real camera: the marched surface drawn into it; what
             // it does not cover keeps its depth.
-            let marched_points = Grid::from_fn(vw, vh, |c, r| {
-                seen_object
-                    .at(c, r)
-                    .then(|| view.point(c as f64, r as f64, *marched.at(c, r)))
-            });
             let real = VirtualCamera {
                 origin: DVec3::ZERO,
                 rotation: DMat3::IDENTITY,
                 intrinsics: camera,
             };
-            let (back, _) = draw(&marched_points, &Grid::filled(vw, vh, 0.0), &real, (w, h));
+            let marched_point = |c: usize, r: usize| {
+                seen_object
+                    .at(c, r)
+                    .then(|| view.point(c as f64, r as f64, *marched.at(c, r)))
+            };
+            let (back, _) = draw((vw, vh), marched_point, |_, _| 0.0, &real, (w, h));
             let mut known = Grid::filled(w, h, false);
             for (q, z) in depth.as_mut_slice().iter_mut().enumerate() {
                 let drawn = back.as_slice()[q];
