@@ -1414,3 +1414,191 @@ fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
     assert!(stderr(&run).contains("given"), "{}", stderr(&run));
     assert!(report["intensity_scale_search"].is_null());
 }
+
+/// Runs `args` and asserts it fails with a message containing every one of
+/// `says`.
+#[track_caller]
+fn assert_refused(args: &[String], says: &[&str]) {
+    let run = sfs(args);
+    assert!(!run.status.success(), "{args:?} succeeded");
+    let message = stderr(&run);
+    for part in says {
+        assert!(message.contains(part), "{args:?}: {message}");
+    }
+}
+
+/// The adversarial probe's cases (issue 23): each is refused with its real
+/// cause, or warned about, instead of passing silently.
+#[test]
+fn the_probes_cases_are_refused_or_said() {
+    let dir = tempdir().expect("temp dir");
+    let scene = dir.path().join("scene");
+    assert_success(
+        &sfs(["synth", "sombrero", "--size", "48x48", "--out", &s(&scene)]),
+        "synth",
+    );
+    let image = s(&scene.join("image16.png"));
+    let out = s(&dir.path().join("out"));
+    let write = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        fs::write(&path, text).expect("writes");
+        s(&path)
+    };
+    let solve = |extra: &[&str]| -> Vec<String> {
+        let mut args = vec!["solve".to_owned(), image.clone()];
+        args.extend(extra.iter().map(|a| (*a).to_owned()));
+        args.extend(["--out".to_owned(), out.clone()]);
+        args
+    };
+    // A focal length the model cannot represent.
+    assert_refused(&solve(&["--focal", "1e-300"]), &["--focal", "1e-300"]);
+    let tiny = write(
+        "tiny.json",
+        r#"{"width": 48, "height": 48, "focal": 1e-300, "cx": 23.5, "cy": 23.5}"#,
+    );
+    assert_refused(&solve(&["--camera", &tiny]), &["`focal`", "180 degrees"]);
+    // K: non-square pixels, skew, K with focal, a negative fy.
+    for (name, k, says) in [
+        (
+            "fxfy.json",
+            "[[60, 0, 23.5], [0, 40, 23.5], [0, 0, 1]]",
+            "square pixels",
+        ),
+        (
+            "skew.json",
+            "[[50, 3, 23.5], [0, 50, 23.5], [0, 0, 1]]",
+            "skew",
+        ),
+        (
+            "k22.json",
+            "[[50, 0, 23.5], [0, 50, 23.5], [0, 0, 2]]",
+            "K[2][2]",
+        ),
+        (
+            "negfy.json",
+            "[[50, 0, 23.5], [0, -50, 23.5], [0, 0, 1]]",
+            "fy = K[1][1]",
+        ),
+    ] {
+        let file = write(name, &format!(r#"{{"width": 48, "height": 48, "K": {k}}}"#));
+        assert_refused(&solve(&["--camera", &file]), &[says]);
+    }
+    let both = write(
+        "both.json",
+        r#"{"width": 48, "height": 48, "focal": 50, "cx": 23.5, "cy": 23.5,
+            "K": [[50, 0, 23.5], [0, 50, 23.5], [0, 0, 1]]}"#,
+    );
+    assert_refused(&solve(&["--camera", &both]), &["both `K` and `focal`"]);
+    // Duplicate LED numbers and image names in a camera file.
+    let twice = write(
+        "twice.json",
+        r#"{"width": 48, "height": 48, "focal": 50, "cx": 23.5, "cy": 23.5,
+            "lights": [{"position": [1, 0, 0], "led": 4}, {"position": [0, 1, 0], "led": 4}]}"#,
+    );
+    assert_refused(
+        &solve(&["--camera", &twice, "--light-index", "4"]),
+        &["entries 1 and 2", "`led` 4"],
+    );
+    // Conflicting options.
+    let camera = s(&scene.join("scene.json"));
+    assert_refused(
+        &solve(&[
+            "--camera",
+            &camera,
+            "--known-depth",
+            "24,24,2",
+            "--intensity-scale",
+            "3",
+        ]),
+        &["--known-depth", "--intensity-scale 3"],
+    );
+    let leds = write(
+        "leds.json",
+        r#"{"width": 48, "height": 48, "focal": 50, "cx": 23.5, "cy": 23.5,
+            "lights": [{"position": [1, 0, 0], "led": 4}, {"position": [0, 1, 0], "led": 5}]}"#,
+    );
+    assert_refused(
+        &solve(&[
+            "--camera",
+            &leds,
+            "--light-index",
+            "4",
+            "--light-index",
+            "4",
+        ]),
+        &["--light-index 4 is given twice"],
+    );
+    // The real cause: an ambient frame as bright as the photograph, an
+    // empty mask, a zero albedo.
+    let black = dir.path().join("black.png");
+    sfs_core::io::write_png16(&black, &sfs_core::grid::Grid::filled(48, 48, 0.0)).expect("png");
+    let black = s(&black);
+    assert_refused(
+        &solve(&["--camera", &camera, "--ambient", &image]),
+        &["ambient frame", "at least as bright"],
+    );
+    assert_refused(
+        &solve(&["--camera", &camera, "--mask", &black]),
+        &["marks no pixel as object"],
+    );
+    assert_refused(
+        &solve(&["--camera", &camera, "--albedo", &black]),
+        &["albedo", "zero"],
+    );
+    // Impossible synthetic scenes.
+    for light in [
+        vec!["--light", "0,0,5"],
+        vec![
+            "--light",
+            "0.5,0,0",
+            "--light-dir",
+            "0,0,-1",
+            "--light-mu",
+            "1",
+        ],
+    ] {
+        let mut args = vec!["synth", "sombrero", "--size", "32x32"];
+        args.extend(light);
+        let bad = s(&dir.path().join("bad"));
+        args.extend(["--out", &bad]);
+        let run = sfs(&args);
+        assert!(!run.status.success(), "{args:?}");
+        assert!(stderr(&run).contains("reach no pixel"), "{}", stderr(&run));
+    }
+    // An LED pointing away from the object, and one behind the camera, are
+    // warned about; --quiet keeps warnings.
+    let run = sfs(solve(&[
+        "--camera",
+        &camera,
+        "--light",
+        "0.3,0,0",
+        "--light-dir",
+        "0,0,-1",
+        "--light-mu",
+        "1",
+        "--intensity-scale",
+        "2",
+        "--quiet",
+    ]));
+    assert_success(&run, "solve with an LED pointing away");
+    assert!(
+        stderr(&run).contains("warning: light 1") && stderr(&run).contains("points away"),
+        "{}",
+        stderr(&run)
+    );
+    let run = sfs(solve(&[
+        "--camera",
+        &camera,
+        "--light",
+        "0.3,0,-1",
+        "--intensity-scale",
+        "2",
+        "--quiet",
+    ]));
+    assert_success(&run, "solve with a light behind the camera");
+    assert!(
+        stderr(&run).contains("behind the camera"),
+        "{}",
+        stderr(&run)
+    );
+}

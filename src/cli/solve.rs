@@ -117,7 +117,8 @@ pub struct SolveArgs {
     /// Ground-truth folder written by `synth`: adds rse and rie to the report.
     #[arg(long)]
     pub gt: Option<PathBuf>,
-    /// No progress bar.
+    /// No progress bar, notes, summary or fit lines; warnings are still
+    /// printed.
     #[arg(long, short)]
     pub quiet: bool,
     /// Output folder (created if needed): depth.npy, depth16.png,
@@ -295,9 +296,22 @@ impl SolveArgs {
                 }
                 LightSpec::Given(lights)
             }
-            None => LightSpec::CameraFile {
-                picks: self.lights.indices.clone(),
-            },
+            None => {
+                let picks = &self.lights.indices;
+                if let Some(twice) = picks
+                    .iter()
+                    .enumerate()
+                    .find_map(|(k, i)| picks[..k].contains(i).then_some(*i))
+                {
+                    bail!(
+                        "--light-index {twice} is given twice: each LED is on once (give each \
+                         number once)"
+                    );
+                }
+                LightSpec::CameraFile {
+                    picks: picks.clone(),
+                }
+            }
         };
         let intensity_scale = match self.intensity_scale.as_deref() {
             None => ScaleSpec::FromCamera,
@@ -360,6 +374,9 @@ struct SolveInput {
     known_depth: Vec<[f64; 3]>,
 }
 
+/// A known distance is met when the solved depth there is within this share.
+const KNOWN_DEPTH_MET: f64 = 0.005;
+
 /// `report.json`: everything a solve decided and measured.
 #[derive(Debug, Serialize)]
 struct SolveReport<'a> {
@@ -414,7 +431,44 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let object_mask = prepared.problem.object_mask.clone();
     let image = &prepared.problem.image;
     if let Some(reason) = model_fit::too_dark_to_solve(image, object_mask.as_ref()) {
-        bail!("cannot solve {}: {reason}", args.images[0].display());
+        // The cause, where the input names one before the image's darkness.
+        let report = &prepared.report;
+        let cause = if object_mask
+            .as_ref()
+            .is_some_and(|m| !m.as_slice().iter().any(|&o| o))
+        {
+            format!(
+                "the object mask {} marks no pixel as object (white = object)",
+                report
+                    .mask
+                    .as_deref()
+                    .map_or_else(String::new, |p| p.display().to_string())
+            )
+        } else if let Some(ambient) = &report.ambient
+            && !image
+                .as_slice()
+                .iter()
+                .zip(0..)
+                .any(|(&v, q)| v > 0.0 && object_mask.as_ref().is_none_or(|m| m.as_slice()[q]))
+        {
+            format!(
+                "after subtracting the ambient frame {} the image is black on every object \
+                 pixel: the ambient frame is at least as bright as the photograph there (the \
+                 wrong frame, or the two swapped?)",
+                ambient.display()
+            )
+        } else if let Some(albedo) = &report.albedo
+            && report.albedo_untrusted_share >= 0.999
+        {
+            format!(
+                "the albedo {} is zero (below the smallest albedo divided out) on every object \
+                 pixel",
+                albedo.display()
+            )
+        } else {
+            reason
+        };
+        bail!("cannot solve {}: {cause}", args.images[0].display());
     }
     let dark = model_fit::darkness_warning(image, object_mask.as_ref());
     if let Some(warning) = &dark
@@ -493,6 +547,15 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             );
         }
     }
+    if !known_points.is_empty()
+        && let Some(given) = &args.intensity_scale
+        && given != "auto"
+    {
+        bail!(
+            "--known-depth and --intensity-scale {given} both set the depth unit: give one \
+             (--known-depth searches the intensity scale)"
+        );
+    }
     let mut scale_estimate = None;
     let mut scale_warning = None;
     let centred = problem.light_is_centred();
@@ -526,6 +589,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     }
     let method = args.method.method();
     let mut known_depth_fit = None;
+    let mut known_depth_warning = None;
     let solution = if known_points.is_empty() {
         solver::solve_method(&problem, &params, &method, &mut progress)
     } else {
@@ -555,12 +619,32 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                     .collect::<Vec<_>>()
                     .join("; ")
             ));
-            if !fit.converged {
-                notes.push(
-                    "warning: the scale search for --known-depth did not settle; the residuals \
-                     above say how far off it stopped"
-                        .into(),
-                );
+            if let Some(worst) = fit
+                .points
+                .iter()
+                .max_by(|a, b| {
+                    a.relative_residual
+                        .abs()
+                        .total_cmp(&b.relative_residual.abs())
+                })
+                .filter(|p| p.relative_residual.abs() > KNOWN_DEPTH_MET)
+            {
+                known_depth_warning = Some(format!(
+                    "--known-depth is not met: pixel {},{} (working size) is at {:.4} for the \
+                     given {:.4} ({:+.2} %){}; the depth unit is off by about that much",
+                    worst.column_px,
+                    worst.row_px,
+                    worst.solved,
+                    worst.given,
+                    100.0 * worst.relative_residual,
+                    if fit.points.len() > 1 {
+                        " (several points: they may disagree with each other)"
+                    } else if fit.converged {
+                        ""
+                    } else {
+                        " (the scale search did not settle)"
+                    }
+                ));
             }
             known_depth_fit = Some(fit);
             solution
@@ -650,6 +734,14 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     if let Some(w) = scale_warning {
         warnings.insert(0, w);
     }
+    if let Some(w) = known_depth_warning {
+        warnings.insert(0, w);
+    }
+    warnings.extend(sfs_core::light::lights_that_miss(
+        &problem.lights,
+        &solution.depth,
+        &camera,
+    ));
     if let Some(d) = dark
         && !warnings.iter().any(|w| w.contains("too dark"))
     {
@@ -752,9 +844,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                 100.0 * share
             );
         }
-        for warning in &warnings {
-            eprintln!("warning: {warning}");
-        }
+    }
+    // Warnings are never quiet (--quiet drops the progress, notes and
+    // summary only).
+    for warning in &warnings {
+        eprintln!("warning: {warning}");
     }
     Ok(())
 }

@@ -128,6 +128,31 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     let mut stage = OutputStage::new(&args.out, SYNTH_OUTPUTS)?;
     let (scene, shadow) = render_scene(args)?;
     let (w, h) = scene.image.size();
+    // A scene the solver could not take is refused, not written: lights
+    // that reach no object pixel (inside or behind the object, an LED
+    // pointing away), or a scale outside the accepted range.
+    let lit = scene
+        .image
+        .as_slice()
+        .iter()
+        .zip(scene.object_mask.as_slice())
+        .filter(|(v, on)| **on && **v > 0.0)
+        .count();
+    if lit == 0 {
+        anyhow::bail!(
+            "the lights reach no pixel of the object (a light inside or beyond it, or an LED \
+             pointing away): the image would be black; check --light, --light-dir and --light-mu"
+        );
+    }
+    let (s_min, s_max) = sfs_core::params::INTENSITY_SCALE_RANGE;
+    if !(s_min..=s_max).contains(&scene.intensity_scale) {
+        anyhow::bail!(
+            "the lights give an intensity scale of {:e} (outside [{s_min:e}, {s_max:e}], which \
+             solve accepts): a light barely reaches the object (an LED with a high --light-mu \
+             aimed away?); check --light, --light-dir and --light-mu",
+            scene.intensity_scale
+        );
+    }
     io::write_png16(&stage.path("image16.png"), &scene.image)?;
     io::write_png8(&stage.path("image8.png"), &scene.image)?;
     if let Some(sigma) = args.noise {

@@ -17,6 +17,13 @@ use crate::light::PointLight;
 /// factors for which a calibration is scaled to an image (beyond it the
 /// image was cropped, not resized, and the intrinsics cannot follow).
 pub const MAX_ASPECT_MISMATCH: f64 = 0.01;
+/// Largest relative difference between a `K`'s fx and fy the model takes
+/// (square pixels; their mean is used).
+pub const MAX_FOCAL_MISMATCH: f64 = 0.01;
+/// The smallest focal length, as a share of the image's longest side: below
+/// it the field of view nears 180 degrees, which the model cannot represent
+/// (a focal length of 1e-300 solved to an all-zero depth).
+pub const MIN_FOCAL_PER_SIDE: f64 = 1e-3;
 
 /// One light as a camera file stores it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -193,7 +200,9 @@ impl CameraFile {
         })
     }
 
-    /// Checks every value; the error names the key and `path`.
+    /// Checks every value (a `K` the pinhole model cannot represent, a focal
+    /// length below [`MIN_FOCAL_PER_SIDE`] of the longest side, duplicate
+    /// LED numbers or image names); the error names the key and `path`.
     pub fn validate(&self, path: &Path) -> Result<(), IoError> {
         let bad = |reason: String| {
             Err(IoError::Camera {
@@ -201,18 +210,95 @@ impl CameraFile {
                 reason,
             })
         };
+        let has_focal = self.focal.is_some() || self.cx.is_some() || self.cy.is_some();
+        if let Some(k) = self.k {
+            // K is [[fx, skew, cx], [0, fy, cy], [0, 0, 1]]; the model is a
+            // pinhole with square pixels and no skew.
+            if has_focal {
+                return bad(
+                    "gives both `K` and `focal`/`cx`/`cy`: give one of them (they may disagree)"
+                        .into(),
+                );
+            }
+            if k.iter().flatten().any(|v| !v.is_finite()) {
+                return bad("`K` must hold finite numbers".into());
+            }
+            let (fx, fy) = (k[0][0], k[1][1]);
+            if !(fx > 0.0 && fy > 0.0) {
+                return bad(format!(
+                    "`K`: fx = K[0][0] and fy = K[1][1] must be positive, got {fx} and {fy}"
+                ));
+            }
+            if (fx - fy).abs() > MAX_FOCAL_MISMATCH * fx.max(fy) {
+                return bad(format!(
+                    "`K`: fx = {fx} and fy = {fy} differ by more than {} %: the model has \
+                     square pixels (resample the image to square pixels first)",
+                    100.0 * MAX_FOCAL_MISMATCH
+                ));
+            }
+            if k[0][1].abs() > 1e-9 * fx || k[1][0] != 0.0 || k[2][0] != 0.0 || k[2][1] != 0.0 {
+                return bad(format!(
+                    "`K`: skew K[0][1] = {} and the lower off-diagonal entries must be 0: the \
+                     model has no skew",
+                    k[0][1]
+                ));
+            }
+            if (k[2][2] - 1.0).abs() > 1e-9 {
+                return bad(format!(
+                    "`K`: K[2][2] must be 1 (a normalised intrinsic matrix), got {}",
+                    k[2][2]
+                ));
+            }
+        }
         let Some(camera) = self.intrinsics() else {
             return bad("needs `focal`, `cx` and `cy`, or `K`".into());
         };
+        let focal_key = if self.k.is_some() {
+            "`K`'s fx, fy"
+        } else {
+            "`focal`"
+        };
         if !(camera.focal_px.is_finite() && camera.focal_px > 0.0 && camera.focal_px < 1e9) {
             return bad(format!(
-                "`focal` must be a positive finite number, got {}",
+                "{focal_key} must be a positive number below 1e9 pixels, got {:?}",
                 camera.focal_px
+            ));
+        }
+        let smallest = MIN_FOCAL_PER_SIDE * self.width.max(self.height) as f64;
+        if camera.focal_px < smallest {
+            return bad(format!(
+                "{focal_key} {:?} px is below {smallest} px ({} of the longest side of the \
+                 {}x{} calibration): a field of view near 180 degrees the model cannot represent",
+                camera.focal_px, MIN_FOCAL_PER_SIDE, self.width, self.height
             ));
         }
         for (key, v) in [("cx", camera.principal_x_px), ("cy", camera.principal_y_px)] {
             if !(v.is_finite() && v.abs() < 1e9) {
-                return bad(format!("`{key}` must be a finite number, got {v}"));
+                return bad(format!(
+                    "`{key}` must be a finite number of pixels below 1e9 in size, got {v}"
+                ));
+            }
+        }
+        // Each LED number and image name once: a duplicate would silently
+        // resolve to the first.
+        for (a, first) in self.lights.iter().enumerate() {
+            for (b, second) in self.lights.iter().enumerate().skip(a + 1) {
+                if first.led.is_some() && first.led == second.led {
+                    return bad(format!(
+                        "`lights`: entries {} and {} both have `led` {}",
+                        a + 1,
+                        b + 1,
+                        first.led.unwrap_or_default()
+                    ));
+                }
+                if first.image.is_some() && first.image == second.image {
+                    return bad(format!(
+                        "`lights`: entries {} and {} both have `image` {:?}",
+                        a + 1,
+                        b + 1,
+                        first.image.as_deref().unwrap_or_default()
+                    ));
+                }
             }
         }
         if let Some(s) = self.intensity_scale

@@ -287,6 +287,88 @@ pub fn irradiance(lights: &[PointLight], point: [f64; 3], normal: [f64; 3]) -> f
         .sum()
 }
 
+/// Warnings for lights that cannot light the object as a solve placed it
+/// (`depth`, NaN off the object, through `camera`): a light behind the
+/// camera's plane; a light that lights less than half of the object's
+/// points, with each point's normal taken as facing the camera (a light
+/// beyond the object, or an LED pointing away). Empty when every light can.
+pub fn lights_that_miss(
+    lights: &[PointLight],
+    depth: &crate::grid::Grid<f64>,
+    camera: &crate::camera::Intrinsics,
+) -> Vec<String> {
+    let (w, h) = depth.size();
+    // At most about 4096 points of the surface.
+    let step = ((w * h) as f64 / 4096.0).sqrt().ceil().max(1.0) as usize;
+    let points: Vec<DVec3> = (0..h)
+        .step_by(step)
+        .flat_map(|r| (0..w).step_by(step).map(move |c| (c, r)))
+        .filter_map(|(c, r)| {
+            let z = *depth.at(c, r);
+            (z.is_finite() && z > 0.0).then(|| {
+                let (x, y) = camera.image_xy(c as f64, r as f64);
+                DVec3::from_array(camera.back_project(x, y, z))
+            })
+        })
+        .collect();
+    if points.is_empty() {
+        return Vec::new();
+    }
+    let mut warnings = Vec::new();
+    for (k, light) in lights.iter().enumerate() {
+        let s = DVec3::from_array(light.position);
+        if light.is_centred() {
+            continue;
+        }
+        if s.z < 0.0 {
+            warnings.push(format!(
+                "light {} at ({:.3}, {:.3}, {:.3}) is behind the camera (z < 0): check the \
+                 sign of its position",
+                k + 1,
+                s.x,
+                s.y,
+                s.z
+            ));
+        }
+        let lit = points
+            .iter()
+            .filter(|&&p| {
+                let facing = -p.normalize_or_zero();
+                let towards = s - p;
+                let aimed = match light.direction {
+                    Some(d) if light.mu > 0.0 => DVec3::from_array(d).dot(p - s) > 0.0,
+                    _ => true,
+                };
+                facing.dot(towards) > 0.0 && aimed
+            })
+            .count();
+        if 2 * lit < points.len() {
+            let median = {
+                let mut z: Vec<f64> = points.iter().map(|p| p.z).collect();
+                let middle = z.len() / 2;
+                *z.select_nth_unstable_by(middle, f64::total_cmp).1
+            };
+            warnings.push(format!(
+                "light {} at ({:.3}, {:.3}, {:.3}) cannot light most of the object as solved \
+                 (median depth {median:.3}): it lights {:.0} % of the surface facing the camera \
+                 ({}); check its position{}",
+                k + 1,
+                s.x,
+                s.y,
+                s.z,
+                100.0 * lit as f64 / points.len() as f64,
+                if s.z >= median {
+                    "it is beyond the object"
+                } else {
+                    "it points away or sits behind the surface"
+                },
+                if light.mu > 0.0 { " and direction" } else { "" }
+            ));
+        }
+    }
+    warnings
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

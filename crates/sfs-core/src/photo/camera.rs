@@ -89,6 +89,18 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
             cx_px,
             cy_px,
         } => {
+            let smallest =
+                crate::camera_file::MIN_FOCAL_PER_SIDE * full_size.0.max(full_size.1) as f64;
+            if !(focal_px.is_finite() && *focal_px >= smallest && *focal_px < 1e9) {
+                return Err(PhotoError::Input(format!(
+                    "--focal {focal_px:?}: must be a number of pixels in [{smallest}, 1e9) for the \
+                     {}x{} photograph (below {} of its longest side the field of view nears 180 \
+                     degrees, which the model cannot represent)",
+                    full_size.0,
+                    full_size.1,
+                    crate::camera_file::MIN_FOCAL_PER_SIDE
+                )));
+            }
             let mut camera = Intrinsics::centred(*focal_px, full_size.0, full_size.1);
             if let Some(cx) = cx_px {
                 camera.principal_x_px = *cx;

@@ -118,7 +118,7 @@ fn read_sized(
         return Err(IoError::BadImage {
             path: path.to_path_buf(),
             reason: format!(
-                "the {what} is {}x{} but the photograph is {}x{}",
+                "the {what} is {}x{} but the photograph solved is {}x{}",
                 grid.width(),
                 grid.height(),
                 size.0,
@@ -233,7 +233,12 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         each.push(one_of_several(&image)?);
     }
     for path in &setup.images[1..] {
-        let more = read_sized(path, "photograph", size, mode)?;
+        let what = format!(
+            "photograph {} (the first, {}, is the size every input must have)",
+            path.display(),
+            first.display()
+        );
+        let more = read_sized(path, &what, size, mode)?;
         each.push(one_of_several(&more)?);
         image = image.zip_map(&more, |a, b| a + b);
     }
