@@ -333,7 +333,7 @@ impl SolveArgs {
             )
         };
         let first = self.images.first().map(PathBuf::as_path);
-        let full = first.and_then(|p| io::image_size(p).ok());
+        let full = first.and_then(|p| io::photo_size(p).ok());
         Ok(PhotoInput {
             images: self.images.clone(),
             srgb: self.srgb.mode(),

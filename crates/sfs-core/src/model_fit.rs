@@ -217,6 +217,14 @@ pub fn measure_photographs(
     let (mut object, mut black, mut saturated) = (0usize, 0usize, 0usize);
     let mut values = Vec::new();
     let scale = photographs.scale;
+    // The smallest brightness a residual is measured against; an unusable
+    // reference (a degenerate solve's scales) must not call every residual
+    // small (RIE 1 with 0 % badly explained, the probe's tiny focal length).
+    let floor = if intensity_ref.is_finite() {
+        0.1 * intensity_ref
+    } else {
+        0.0
+    };
     for q in 0..image.len() {
         if !domain.as_slice()[q] {
             continue;
@@ -231,7 +239,7 @@ pub fn measure_photographs(
             num += c * (i - r) * (i - r);
             den += c * i * i;
             trusted += 1;
-            poor += usize::from((i - r).abs() > POOR_RESIDUAL * i.max(0.1 * intensity_ref));
+            poor += usize::from((i - r).abs() > POOR_RESIDUAL * i.max(floor));
         }
     }
     let share = |n: usize, of: usize| n as f64 / of.max(1) as f64;
@@ -504,6 +512,11 @@ mod tests {
         let zero = Grid::filled(30, 30, 0.0);
         let ignored = measure(&image, &wrong, &domain, Some(&zero), 0.3);
         assert_eq!(ignored.poor_share, 0.0);
+        // A black reprojection against an unusable reference is all badly
+        // explained, consistent with its RIE of 1.
+        let black = measure(&image, &zero, &domain, None, f64::INFINITY);
+        assert!((black.rie_trusted - 1.0).abs() < 1e-12);
+        assert_eq!(black.poor_share, 1.0);
     }
 
     #[test]

@@ -52,6 +52,32 @@ fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
     })
 }
 
+/// The EXIF orientation of a photograph when it is not the identity
+/// (`None` without EXIF, or for an upright image).
+pub fn exif_orientation(path: &Path) -> Option<image::metadata::Orientation> {
+    use image::ImageDecoder as _;
+    let mut decoder = ImageReader::open(path)
+        .ok()?
+        .with_guessed_format()
+        .ok()?
+        .into_decoder()
+        .ok()?;
+    decoder
+        .orientation()
+        .ok()
+        .filter(|o| *o != image::metadata::Orientation::NoTransforms)
+}
+
+/// Whether `orientation` turns the image by a quarter turn (width and
+/// height swap).
+fn swaps_sides(orientation: image::metadata::Orientation) -> bool {
+    use image::metadata::Orientation as O;
+    matches!(
+        orientation,
+        O::Rotate90 | O::Rotate270 | O::Rotate90FlipH | O::Rotate270FlipH
+    )
+}
+
 /// An image's `(width, height)` from its header, without decoding it
 /// (TIFFs that `image` does not decode through the `tiff` crate).
 pub fn image_size(path: &Path) -> Result<(usize, usize), IoError> {
@@ -69,6 +95,16 @@ pub fn image_size(path: &Path) -> Result<(usize, usize), IoError> {
         }
         Err(cause) => Err(cause_to_error(path, cause)),
     }
+}
+
+/// A photograph's `(width, height)` upright (after its EXIF orientation, as
+/// [`read_photo`] returns it), from its header.
+pub fn photo_size(path: &Path) -> Result<(usize, usize), IoError> {
+    let (w, h) = image_size(path)?;
+    Ok(match exif_orientation(path) {
+        Some(orientation) if swaps_sides(orientation) => (h, w),
+        _ => (w, h),
+    })
 }
 
 /// A decoder error as the error naming `path`.
@@ -338,7 +374,11 @@ fn png_marked_linear(path: &Path) -> bool {
 /// `mode`; returns the image and whether sRGB decoding was applied, with the
 /// reason.
 pub fn read_photo(path: &Path, mode: SrgbMode) -> Result<(Grid<f64>, bool, String), IoError> {
-    let image = decode_image(path)?;
+    let mut image = decode_image(path)?;
+    // Upright, as photo viewers show it (and as masks are drawn on it).
+    if let Some(orientation) = exif_orientation(path) {
+        image.apply_orientation(orientation);
+    }
     let (srgb, why) = decide_srgb(path, &image, mode);
     Ok((image_to_grey(path, image, srgb)?, srgb, why))
 }
@@ -657,5 +697,47 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("odd.png") && e.contains("8 samples"), "{e}");
+    }
+
+    /// A photograph tagged "rotate 90 clockwise" (EXIF orientation 6) is read
+    /// upright, as photo viewers show it, and its size is the upright one.
+    #[test]
+    fn an_exif_orientation_is_honoured() {
+        let dir = std::env::temp_dir().join(format!("sfs-exif-{}", std::process::id()));
+        fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("turned.png");
+        // 3 wide, 2 high as stored: values 10..15 row by row.
+        let stored: Vec<u8> = (10..16).collect();
+        {
+            let file = fs::File::create(&path).unwrap();
+            let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), 3, 2);
+            encoder.set_color(png::ColorType::Grayscale);
+            encoder.set_depth(png::BitDepth::Eight);
+            let mut writer = encoder.write_header().unwrap();
+            // A big-endian TIFF header and one IFD entry: Orientation
+            // (0x0112), SHORT, count 1, value 6.
+            let exif: Vec<u8> = vec![
+                b'M', b'M', 0, 42, 0, 0, 0, 8, 0, 1, 0x01, 0x12, 0, 3, 0, 0, 0, 1, 0, 6, 0, 0, 0,
+                0, 0, 0,
+            ];
+            writer
+                .write_chunk(png::chunk::ChunkType(*b"eXIf"), &exif)
+                .unwrap();
+            writer.write_image_data(&stored).unwrap();
+        }
+        assert_eq!(
+            exif_orientation(&path),
+            Some(image::metadata::Orientation::Rotate90)
+        );
+        assert_eq!(image_size(&path).unwrap(), (3, 2));
+        assert_eq!(photo_size(&path).unwrap(), (2, 3));
+        let (grid, _, _) = read_photo(&path, SrgbMode::Off).unwrap();
+        assert_eq!(grid.size(), (2, 3));
+        // Turned a quarter clockwise: the stored bottom-left pixel (13) is
+        // the top-left, the stored top-left (10) the top-right.
+        let value = |c: usize, r: usize| (grid.at(c, r) * 255.0).round() as u8;
+        assert_eq!((value(0, 0), value(1, 0)), (13, 10));
+        assert_eq!((value(0, 2), value(1, 2)), (15, 12));
+        let _ = fs::remove_dir_all(&dir);
     }
 }

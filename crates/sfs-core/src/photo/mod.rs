@@ -461,8 +461,18 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
     let Some(first) = input.images.first() else {
         return Err(PhotoError::Input("no photograph given".into()));
     };
-    let full_size = io::image_size(first)?;
+    let full_size = io::photo_size(first)?;
     let mut decided = camera::decide(input, full_size)?;
+    if let Some(orientation) = io::exif_orientation(first) {
+        decided.notes.push(format!(
+            "{} carries the EXIF orientation {orientation:?}: read upright ({}x{}), as photo \
+             viewers show it; masks and the other inputs are taken as drawn on the upright \
+             photograph",
+            first.display(),
+            full_size.0,
+            full_size.1
+        ));
+    }
     let own_lights = lights_per_photograph(input, &decided.lights);
     check_memory(input, full_size, own_lights)?;
     let vignetting = &input.vignetting;
