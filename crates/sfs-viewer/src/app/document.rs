@@ -614,6 +614,33 @@ mod tests {
         );
     }
 
+    /// An explicit object mask at the photograph's size is scaled to a
+    /// smaller working size as `solve` scales it, not dropped (the probe of
+    /// issue 23: a mask named otherwise than `mask.png`).
+    #[test]
+    fn an_explicit_full_size_mask_is_scaled_to_the_working_size() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let image = dir.path().join("photo.png");
+        std::fs::copy(sample(), &image).expect("copies the sample");
+        // The left half is object.
+        let mask = dir.path().join("m_left.png");
+        let left = Grid::from_fn(256, 256, |c, _| c < 128);
+        sfs_core::io::write_mask_png(&mask, &left).expect("writes the mask");
+        let doc = open(
+            &image,
+            &OpenOptions {
+                max_side: Some(128),
+                mask: Some(mask.clone()),
+                ..OpenOptions::default()
+            },
+        );
+        assert_eq!(doc.size(), (128, 128));
+        let object = doc.masks.object();
+        assert!(*object.at(10, 64) && !*object.at(118, 64));
+        let count = object.as_slice().iter().filter(|&&o| o).count();
+        assert_eq!(count, 64 * 128);
+    }
+
     #[test]
     fn known_distances_convert_as_the_command_line_does_and_bad_ones_are_refused() {
         // The 256x256 sample at a working size of 128.
