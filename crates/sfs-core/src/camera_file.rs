@@ -568,13 +568,22 @@ mod tests {
 
     #[test]
     fn k_matrix_and_calibration_size_aliases() {
+        // fx and fy within 1 % are averaged (square pixels).
         let c = file(
             r#"{"calibration_width": 100, "calibration_height": 50,
-                "K": [[210, 0, 49.5], [0, 190, 24.5], [0, 0, 1]]}"#,
+                "K": [[200.5, 0, 49.5], [0, 199.5, 24.5], [0, 0, 1]]}"#,
         );
         let k = c.intrinsics_for(Path::new("c.json"), (200, 100)).unwrap();
         assert!((k.focal_px - 400.0).abs() < 1e-9);
         assert!((k.principal_x_px - 99.5).abs() < 1e-9);
+        // 10 % apart is refused, with the numbers.
+        let apart: CameraFile = serde_json::from_str(
+            r#"{"calibration_width": 100, "calibration_height": 50,
+                "K": [[210, 0, 49.5], [0, 190, 24.5], [0, 0, 1]]}"#,
+        )
+        .unwrap();
+        let e = apart.validate(Path::new("c.json")).unwrap_err().to_string();
+        assert!(e.contains("fx = 210") && e.contains("fy = 190"), "{e}");
     }
 
     #[test]
