@@ -2,7 +2,7 @@
 //!
 //! With every light at the optical centre `s` only sets the depth scale
 //! (image and `s` times `k^2` give depth times `k`, exactly): one known
-//! distance fixes it ([`scale_to_known_depth`]). With a light off the centre
+//! distance fixes it ([`solve_with_known_depths`]). With a light off the centre
 //! the depth is metric and `s` is a real unknown: [`estimate_intensity_scale`]
 //! searches the object distance `Z` whose scale `s(Z)` (a plane at `Z`
 //! renders to the image's median brightness) lets the solver explain the
@@ -278,22 +278,6 @@ fn determined(trials: &[(f64, f64, f64)], best: f64) -> bool {
             .all(|t| t.2.is_finite() && t.2 >= least * (1.0 + DETERMINED_RISE))
 }
 
-/// The scale factor `k` that puts pixel `(column, row)` of `depth` at
-/// `distance`: multiply the depth by `k` and `s` by `k^2` (exact for centred
-/// lights). `None` when the pixel has no finite positive depth.
-pub fn scale_to_known_depth(
-    depth: &Grid<f64>,
-    column: usize,
-    row: usize,
-    distance: f64,
-) -> Option<f64> {
-    if column >= depth.width() || row >= depth.height() {
-        return None;
-    }
-    let z = *depth.at(column, row);
-    (z.is_finite() && z > 0.0 && distance.is_finite() && distance > 0.0).then(|| distance / z)
-}
-
 /// A distance the user knows: the surface at pixel `(column_px, row_px)` of
 /// the solved image lies at depth `depth` (the camera's depth unit).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, serde::Deserialize)]
@@ -343,22 +327,30 @@ pub const KNOWN_DEPTH_TOLERANCE: f64 = 2e-3;
 /// At most this many solves search the scale with lights off the centre.
 const KNOWN_DEPTH_SOLVES: usize = 12;
 
-/// Solved depth at each known point (`None` where a point is off the solved
-/// surface or outside the image).
-fn depths_at(depth: &Grid<f64>, points: &[KnownDepth]) -> Option<Vec<f64>> {
-    points
-        .iter()
-        .map(|p| {
-            let (c, r) = (p.column_px.round(), p.row_px.round());
-            if !(c >= 0.0 && r >= 0.0) {
-                return None;
-            }
-            let (c, r) = (c as usize, r as usize);
-            (c < depth.width() && r < depth.height())
-                .then(|| *depth.at(c, r))
-                .filter(|z| z.is_finite() && *z > 0.0)
-        })
-        .collect()
+/// Solved depth at each known point; an error naming the points when one
+/// is off the solved surface or outside the image.
+fn depths_at(depth: &Grid<f64>, points: &[KnownDepth]) -> Result<Vec<f64>, SolveError> {
+    let at = |p: &KnownDepth| {
+        let (c, r) = (p.column_px.round(), p.row_px.round());
+        if !(c >= 0.0 && r >= 0.0) {
+            return None;
+        }
+        let (c, r) = (c as usize, r as usize);
+        (c < depth.width() && r < depth.height())
+            .then(|| *depth.at(c, r))
+            .filter(|z| z.is_finite() && *z > 0.0)
+    };
+    points.iter().map(at).collect::<Option<_>>().ok_or_else(|| {
+        SolveError::Input(format!(
+            "known depth: a pixel ({}) is not on the solved surface (inside the object mask \
+             and the image)",
+            points
+                .iter()
+                .map(|p| format!("{},{}", p.column_px, p.row_px))
+                .collect::<Vec<_>>()
+                .join("; ")
+        ))
+    })
 }
 
 /// The factor `k` that scales `solved` onto `given` in relative least
@@ -390,25 +382,10 @@ fn search_scale(
     points: &[KnownDepth],
     observer: &mut dyn SolveObserver,
 ) -> Result<((f64, bool, usize), super::Solution), SolveError> {
-    let off_surface = || {
-        SolveError::Input(format!(
-            "known depth: a pixel ({}) is not on the solved surface (inside the object mask \
-             and the image)",
-            points
-                .iter()
-                .map(|p| format!("{},{}", p.column_px, p.row_px))
-                .collect::<Vec<_>>()
-                .join("; ")
-        ))
-    };
-    let mut solution = super::solve_method(problem, params, method, observer)?;
+    let mut best_solution = super::solve_method(problem, params, method, observer)?;
     let mut solves = 1;
-    let mut k = least_squares_factor(
-        &depths_at(&solution.depth, points).ok_or_else(off_surface)?,
-        points,
-    );
+    let mut k = least_squares_factor(&depths_at(&best_solution.depth, points)?, points);
     let mut best = (problem.intensity_scale, k);
-    let mut best_solution = solution.clone();
     // (log s, log k) of the previous solve: the secant's line.
     let mut previous: Option<(f64, f64)> = None;
     while (k - 1.0).abs() >= KNOWN_DEPTH_TOLERANCE && solves < KNOWN_DEPTH_SOLVES {
@@ -425,15 +402,12 @@ fn search_scale(
         // A step of at most a factor 4 in s.
         let step = (-log_k / slope).clamp(-4f64.ln(), 4f64.ln());
         problem.intensity_scale = (log_s + step).exp();
-        solution = super::solve_method(problem, params, method, observer)?;
+        let solution = super::solve_method(problem, params, method, observer)?;
         solves += 1;
-        k = least_squares_factor(
-            &depths_at(&solution.depth, points).ok_or_else(off_surface)?,
-            points,
-        );
-        if (k.ln()).abs() < best.1.ln().abs() {
+        k = least_squares_factor(&depths_at(&solution.depth, points)?, points);
+        if k.ln().abs() < best.1.ln().abs() {
             best = (problem.intensity_scale, k);
-            best_solution = solution.clone();
+            best_solution = solution;
         }
     }
     let converged = (best.1 - 1.0).abs() < KNOWN_DEPTH_TOLERANCE;
@@ -486,16 +460,6 @@ pub fn solve_with_known_depths(
             p.column_px, p.row_px, p.depth
         )));
     }
-    let off_surface = |p: &[KnownDepth]| {
-        SolveError::Input(format!(
-            "known depth: a pixel ({}) is not on the solved surface (inside the object mask \
-             and the image)",
-            p.iter()
-                .map(|p| format!("{},{}", p.column_px, p.row_px))
-                .collect::<Vec<_>>()
-                .join("; ")
-        ))
-    };
     // Lights far beside the lens (seen from the known points) start from
     // the plane up the pyramid in every solve of the search: left to each
     // solve's own guess of the distance, the start would switch with `s`
@@ -544,7 +508,7 @@ pub fn solve_with_known_depths(
     let (solution, converged, solves) = if problem.light_is_centred() {
         let mut solution = super::solve_method(problem, params, method, observer)?;
         let mut solves = 1;
-        let solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+        let solved = depths_at(&solution.depth, points)?;
         let k = least_squares_factor(&solved, points);
         if (k - 1.0).abs() >= KNOWN_DEPTH_TOLERANCE {
             problem.intensity_scale *= k * k;
@@ -552,7 +516,7 @@ pub fn solve_with_known_depths(
             solves += 1;
         }
         // Exact up to round-off: the last factor is applied to the depth.
-        let solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+        let solved = depths_at(&solution.depth, points)?;
         let k = least_squares_factor(&solved, points);
         solution.depth = solution.depth.map(|z| z * k);
         (solution, true, solves)
@@ -562,7 +526,7 @@ pub fn solve_with_known_depths(
         problem.intensity_scale = s;
         (solution, converged, solves)
     };
-    let solved = depths_at(&solution.depth, points).ok_or_else(|| off_surface(points))?;
+    let solved = depths_at(&solution.depth, points)?;
     let residuals: Vec<KnownDepthResidual> = solved
         .iter()
         .zip(points)

@@ -34,8 +34,8 @@ use super::fast_marching::{FastMarchingParams, march};
 use super::problem::SolveError;
 
 /// The virtual camera at a light: origin, rotation (rows: its x, y and
-/// optical axes in the real camera's frame) and pinhole intrinsics on a
-/// grid the real image's size.
+/// optical axes in the real camera's frame) and pinhole intrinsics (on a
+/// grid that spans the object's projection, see `LightFrame::passes`).
 struct VirtualCamera {
     origin: DVec3,
     rotation: DMat3,
@@ -268,12 +268,9 @@ fn fill_triangle(corners: [(f64, f64, f64, f64); 3], depth: &mut Grid<f64>, draw
 /// light's frame (see the module docs): [`COARSE_PASSES`] passes on a
 /// working copy (longest side [`COARSE_SIDE`] or a quarter of the image's)
 /// from the centred march, then one or two (up to [`SMALL_SIDE`]) on the
-/// image itself. A value at
-/// every pixel (the
-/// object's marched depth, the mean elsewhere). `None` where the set-up
-/// has no light frame to march in (a light not well in front of the
-/// object).
-#[allow(clippy::too_many_arguments)]
+/// image itself. A value at every pixel (the object's marched depth, the
+/// mean elsewhere). `None` where the set-up has no light frame to march in
+/// (a light not well in front of the object).
 pub(crate) fn march_from_the_light(
     image: &Grid<f64>,
     object: &Grid<bool>,
@@ -469,8 +466,9 @@ impl LightFrame<'_> {
                 settings,
                 cancel,
             )?;
-            // Back to the real camera: the marched surface drawn into it; what
-            // it does not cover keeps its depth.
+            // Back to the real camera: the marched surface drawn into it;
+            // what it does not cover (what the light does not see) takes the
+            // thin-plate fill of what it does.
             let real = VirtualCamera {
                 origin: DVec3::ZERO,
                 rotation: DMat3::IDENTITY,
