@@ -18,6 +18,10 @@ pub struct EvalArgs {
     /// Folder written by `synth` (depth_gt.npy, image16.png, scene.json).
     #[arg(long)]
     pub gt: PathBuf,
+    /// The material the RIE is measured with [default: scene.json's, else
+    /// lambert].
+    #[command(flatten)]
+    pub material: super::lights::MaterialArgs,
 }
 
 /// Runs `eval`: prints `{"rse": .., "rie": ..}`.
@@ -39,7 +43,18 @@ pub fn run(args: &EvalArgs) -> Result<()> {
     }
     let intrinsics = camera.intrinsics_for(&camera_path, gt.depth.size())?;
     let (lights, _) = camera.lights_for(&camera_path, &[], None)?;
-    let model = LightModel::new(camera.intensity_scale.unwrap_or(1.0), &lights);
+    let material = match args.material.material()? {
+        Some(m) => m,
+        None => camera
+            .material
+            .map(|m| {
+                m.validated()
+                    .map_err(|e| anyhow::anyhow!("{}: material: {e}", camera_path.display()))
+            })
+            .transpose()?
+            .unwrap_or_default(),
+    };
+    let model = LightModel::with_material(camera.intensity_scale.unwrap_or(1.0), &lights, material);
     let errors = metrics::errors_with_model(&depth, &gt.depth, &gt.image, intrinsics, &model)
         .with_context(|| format!("cannot evaluate {}", args.depth.display()))?;
     println!("{}", serde_json::to_string(&errors)?);

@@ -6,6 +6,7 @@ use anyhow::{Result, bail};
 use clap::Args;
 
 use sfs_core::light::PointLight;
+use sfs_core::material::Material;
 
 /// Where the lights are (camera frame: x right, y down, z forward; units of
 /// depth). Without `--light` the camera file's lights are used, else one
@@ -84,5 +85,72 @@ impl LightArgs {
             );
         }
         Ok(Some(lights))
+    }
+}
+
+/// The material of a rendered or evaluated surface (METHOD.md section 10):
+/// `synth` renders with it, `eval` measures with it. The names are those of
+/// `solve`'s parameters of the same meaning.
+#[derive(Debug, Clone, Args)]
+pub struct MaterialArgs {
+    /// Reflectance model: lambert, oren-nayar or blinn-phong.
+    #[arg(long, value_name = "MODEL", value_parser = ["lambert", "oren-nayar", "blinn-phong"])]
+    pub reflectance: Option<String>,
+    /// Oren-Nayar roughness sigma, radians [default: 0.3].
+    #[arg(long, value_name = "SIGMA")]
+    pub roughness: Option<f64>,
+    /// Blinn-Phong specular weight k_s [default: 0.3].
+    #[arg(long, value_name = "KS")]
+    pub specular: Option<f64>,
+    /// Blinn-Phong shininess n [default: 20].
+    #[arg(long, value_name = "N")]
+    pub shininess: Option<f64>,
+}
+
+impl MaterialArgs {
+    /// The material asked for; `None` when `--reflectance` is not given
+    /// (a model's parameter without its model is refused).
+    pub fn material(&self) -> Result<Option<Material>> {
+        let defaults = sfs_core::params::SolverParams::default();
+        let material = match self.reflectance.as_deref() {
+            None => {
+                if self.roughness.is_some() || self.specular.is_some() || self.shininess.is_some() {
+                    anyhow::bail!(
+                        "--roughness, --specular and --shininess need --reflectance \
+                         oren-nayar or blinn-phong"
+                    );
+                }
+                return Ok(None);
+            }
+            Some("oren-nayar") => {
+                if self.specular.is_some() || self.shininess.is_some() {
+                    anyhow::bail!("--specular and --shininess belong to --reflectance blinn-phong");
+                }
+                Material::OrenNayar {
+                    roughness_rad: self.roughness.unwrap_or(defaults.roughness_rad),
+                }
+            }
+            Some("blinn-phong") => {
+                if self.roughness.is_some() {
+                    anyhow::bail!("--roughness belongs to --reflectance oren-nayar");
+                }
+                Material::BlinnPhong {
+                    specular: self.specular.unwrap_or(defaults.specular),
+                    shininess: self.shininess.unwrap_or(defaults.shininess),
+                }
+            }
+            Some(_) => {
+                if self.roughness.is_some() || self.specular.is_some() || self.shininess.is_some() {
+                    anyhow::bail!(
+                        "--reflectance lambert takes no --roughness, --specular or --shininess"
+                    );
+                }
+                Material::Lambert
+            }
+        };
+        material
+            .validated()
+            .map(Some)
+            .map_err(|e| anyhow::anyhow!("invalid material: {e}"))
     }
 }

@@ -386,6 +386,11 @@ struct SolveReport<'a> {
     known_depth_fit: Option<solver::calibrate::KnownDepthFit>,
     notes: &'a [String],
     parameters: serde_json::Value,
+    /// The material the surface was solved as (with `--reflectance auto`,
+    /// the fitted one).
+    material: sfs_core::material::Material,
+    /// With `--reflectance auto`: every candidate and the verdict.
+    material_fit: Option<&'a solver::material_fit::MaterialFit>,
     alpha_used: f64,
     alpha_px: f64,
     lambda_px: f64,
@@ -655,7 +660,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     }
     let solution =
         solution.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
-    let model = problem.model();
+    let model = problem.model(solution.material);
     let errors = match &ground_truth {
         Some(gt) => Some(metrics::errors_with_model(
             &solution.depth,
@@ -758,6 +763,8 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         known_depth_fit,
         notes: &notes,
         parameters: params_json(&params, args),
+        material: solution.material,
+        material_fit: solution.material_fit.as_ref(),
         alpha_used: solution.alpha,
         alpha_px: solution.alpha_px,
         lambda_px: solution.lambda_px,
@@ -816,6 +823,15 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             eprintln!("{note}");
         }
         eprintln!("{summary}");
+        if !solution.material.is_lambert() || solution.material_fit.is_some() {
+            eprintln!("reflectance: {}", solution.material.describe());
+        }
+        if let Some(fit) = &solution.material_fit {
+            eprintln!(
+                "material fit ({} px working copy, {:.1} s): {}",
+                fit.working_side, fit.seconds, fit.summary
+            );
+        }
         eprintln!(
             "model fit: RIE {:.3} over trusted pixels, {:.0} % badly explained, {:.0} % \
              near-black, {:.1} % saturated",

@@ -47,6 +47,9 @@ pub struct SynthArgs {
     /// mesh's largest side = 1) [default: one at the optical centre].
     #[command(flatten)]
     pub lights: super::LightArgs,
+    /// The surface's material [default: lambert]; recorded in scene.json.
+    #[command(flatten)]
+    pub material: super::lights::MaterialArgs,
     /// Output folder (created if needed).
     #[arg(long, value_parser = super::parse_path)]
     pub out: PathBuf,
@@ -63,8 +66,11 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
         anyhow::bail!("--light-index picks lights of a camera file; synth takes --light X,Y,Z");
     }
     let lights = args.lights.lights()?.unwrap_or_default();
+    let material = args.material.material()?.unwrap_or_default();
     let render: Box<Renderer> = if args.scene == "sombrero" {
-        Box::new(move |lights: &[PointLight]| Ok(sombrero::sombrero_lit(width, height, lights)))
+        Box::new(move |lights: &[PointLight]| {
+            Ok(sombrero::sombrero_shaded(width, height, lights, material))
+        })
     } else {
         let path = Path::new(&args.scene);
         let mesh = mesh::load_obj(path)?;
@@ -78,8 +84,8 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "mesh".into());
         Box::new(move |lights: &[PointLight]| {
-            Ok(mesh::render_lit(
-                &mesh, width, height, &placement, lights, &name,
+            Ok(mesh::render_shaded(
+                &mesh, width, height, &placement, lights, material, &name,
             )?)
         })
     };
@@ -172,6 +178,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         name: Some(scene.name.clone()),
         intensity_scale: Some(scene.intensity_scale),
         intensity_scale_measured: true,
+        material: (!scene.material.is_lambert()).then_some(scene.material),
         lights: scene
             .lights
             .iter()

@@ -117,6 +117,11 @@ pub struct CameraFile {
     /// treated as unknown; default false.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub intensity_scale_measured: bool,
+    /// The surface's material, where known (a render's truth, written by
+    /// `synth` for any but Lambert); `eval` measures with it. `solve` does
+    /// not read it: the material to solve with is a parameter.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub material: Option<crate::material::Material>,
     /// The unit of depth and of light positions (e.g. `mm`), for reports.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub units: Option<String>,

@@ -21,6 +21,7 @@ pub mod depth_smoothing;
 pub mod grid;
 pub mod io;
 pub mod light;
+pub mod material;
 pub mod memory;
 pub mod metrics;
 pub mod model;

@@ -11,6 +11,7 @@
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
+use crate::material::Material;
 use crate::model::{Lambertian, PixelRay, Reflectance};
 
 /// One point light in the camera frame (x right, y down, z along the optical
@@ -201,15 +202,152 @@ impl Reflectance for NearLights {
     }
 }
 
+/// A surface of any [`Material`] under point lights anywhere (METHOD.md
+/// section 10): `I = s sum_k phi_k a_k(P) m(N, L_k, V) / |S_k - P|^2`, with
+/// `m` the material's factor. With every light at the optical centre the
+/// factor is a function of `c = N . L = z Q / W` alone and the derivatives
+/// are exact; otherwise they are central differences in `(z, z_x, z_y)`
+/// (the paper's numeric derivatives).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ShadedLights {
+    /// Intensity scale `s` (albedo times the camera's gain).
+    pub intensity_scale: f64,
+    /// The lights switched on (summed); empty: one at the optical centre.
+    pub lights: Vec<PointLight>,
+    /// The material (any; Lambert gives back [`NearLights`]' values).
+    pub material: Material,
+    /// Every light at the optical centre: their summed intensity, folded
+    /// into the closed form; `None`: the general model.
+    centred_intensity: Option<f64>,
+}
+
+impl ShadedLights {
+    /// The model of `material` lit by `lights` (empty: the paper's light).
+    pub fn new(intensity_scale: f64, lights: &[PointLight], material: Material) -> Self {
+        let centred_intensity = is_centred(lights).then(|| {
+            if lights.is_empty() {
+                1.0
+            } else {
+                lights.iter().map(|l| l.intensity).sum()
+            }
+        });
+        ShadedLights {
+            intensity_scale,
+            lights: lights.to_vec(),
+            material,
+            centred_intensity,
+        }
+    }
+
+    /// One light's term `phi a m(N, L, V) / d^2` at `P = z v`.
+    #[inline]
+    fn term(&self, light: &PointLight, ray: &PixelRay, depth: f64, dz_dx: f64, dz_dy: f64) -> f64 {
+        let f = ray.focal_px;
+        let (x, y) = (ray.x_px, ray.y_px);
+        let v = DVec3::new(x / f, y / f, 1.0);
+        let l = DVec3::from_array(light.position) - depth * v;
+        let n = DVec3::new(f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy));
+        let (w2, d2) = (n.length_squared(), l.length_squared());
+        if !(n.dot(l) > 0.0 && w2 > 0.0 && d2 > 0.0) {
+            return 0.0;
+        }
+        let d = d2.sqrt();
+        let Some((aniso, _, _)) = emission(light, l, d) else {
+            return 0.0;
+        };
+        let to_camera = -v / v.length();
+        let factor = self.material.factor(n / w2.sqrt(), l / d, to_camera);
+        light.intensity * aniso * factor / d2
+    }
+
+    /// Closed form with the lights at the centre: `[R, dR/dz, dR/dzx, dR/dzy]`.
+    #[inline]
+    fn centred(&self, phi: f64, ray: &PixelRay, depth: f64, dz_dx: f64, dz_dy: f64) -> [f64; 4] {
+        // c = z Q / W, r^2 = z^2 / Q^2, R = s phi m(c) Q^2 / z^2.
+        let f2 = ray.focal_px * ray.focal_px;
+        let t = depth + dz_dx * ray.x_px + dz_dy * ray.y_px;
+        let w2 = f2 * (dz_dx * dz_dx + dz_dy * dz_dy) + t * t;
+        let w = w2.sqrt();
+        let q = ray.q();
+        let c = (depth * q / w).min(1.0);
+        let (m, dm) = self.material.centred(c);
+        let k = self.intensity_scale * phi * q * q / (depth * depth);
+        let r = k * m;
+        // dc/dz = (Q/W)(1 - z t / W^2); dc/dz_x = -(z Q / W^3)(f^2 z_x + t x).
+        let dc_dz = q / w * (1.0 - depth * t / w2);
+        let common = -depth * q / (w2 * w);
+        let dc_dzx = common * (f2 * dz_dx + t * ray.x_px);
+        let dc_dzy = common * (f2 * dz_dy + t * ray.y_px);
+        [
+            r,
+            k * dm * dc_dz - 2.0 * r / depth,
+            k * dm * dc_dzx,
+            k * dm * dc_dzy,
+        ]
+    }
+}
+
+impl Reflectance for ShadedLights {
+    #[inline]
+    fn radiance(&self, ray: &PixelRay, depth: f64, dz_dx: f64, dz_dy: f64) -> f64 {
+        if let Some(phi) = self.centred_intensity {
+            return self.centred(phi, ray, depth, dz_dx, dz_dy)[0];
+        }
+        let sum: f64 = self
+            .lights
+            .iter()
+            .map(|light| self.term(light, ray, depth, dz_dx, dz_dy))
+            .sum();
+        self.intensity_scale * sum
+    }
+
+    #[inline]
+    fn radiance_with_partials(
+        &self,
+        ray: &PixelRay,
+        depth: f64,
+        dz_dx: f64,
+        dz_dy: f64,
+    ) -> Option<[f64; 4]> {
+        if let Some(phi) = self.centred_intensity {
+            return Some(self.centred(phi, ray, depth, dz_dx, dz_dy));
+        }
+        // Central differences, each step relative to its variable's scale:
+        // the depth, and the slope of 45 degrees (z / f) for the gradient.
+        let r = self.radiance(ray, depth, dz_dx, dz_dy);
+        let h_z = NUMERIC_STEP * depth.abs();
+        let slope = depth.abs() / ray.focal_px;
+        let h_x = NUMERIC_STEP * dz_dx.abs().max(slope);
+        let h_y = NUMERIC_STEP * dz_dy.abs().max(slope);
+        let d_z = (self.radiance(ray, depth + h_z, dz_dx, dz_dy)
+            - self.radiance(ray, depth - h_z, dz_dx, dz_dy))
+            / (2.0 * h_z);
+        let d_x = (self.radiance(ray, depth, dz_dx + h_x, dz_dy)
+            - self.radiance(ray, depth, dz_dx - h_x, dz_dy))
+            / (2.0 * h_x);
+        let d_y = (self.radiance(ray, depth, dz_dx, dz_dy + h_y)
+            - self.radiance(ray, depth, dz_dx, dz_dy - h_y))
+            / (2.0 * h_y);
+        Some([r, d_z, d_x, d_y])
+    }
+}
+
+/// Relative step of [`ShadedLights`]' central differences: truncation
+/// `~1e-12`, rounding `~1e-10` of the radiance.
+const NUMERIC_STEP: f64 = 1e-6;
+
 /// The reflectance a problem is solved with: the paper's closed form when
 /// every light sits at the optical centre (their intensities fold into `s`),
-/// the general model otherwise.
+/// the general model otherwise; any material but Lambert through
+/// [`ShadedLights`].
 #[derive(Clone, Debug, PartialEq)]
 pub enum LightModel {
     /// Lights at the optical centre: `s sum(phi) Q^3 / (z W)`.
     Centred(Lambertian),
     /// Lights anywhere.
     Near(NearLights),
+    /// A material other than Lambert, lights anywhere.
+    Shaded(ShadedLights),
 }
 
 impl LightModel {
@@ -232,6 +370,27 @@ impl LightModel {
             })
         }
     }
+
+    /// The model of `material` for intensity scale `intensity_scale` and
+    /// `lights`: [`LightModel::new`]'s for Lambert (the same closed forms and
+    /// exact derivatives), [`ShadedLights`] otherwise.
+    pub fn with_material(intensity_scale: f64, lights: &[PointLight], material: Material) -> Self {
+        if material.is_lambert() {
+            Self::new(intensity_scale, lights)
+        } else {
+            LightModel::Shaded(ShadedLights::new(intensity_scale, lights, material))
+        }
+    }
+
+    /// The intensity scale `s` this model multiplies by (with centred
+    /// Lambertian lights, their summed intensity folded in).
+    pub fn intensity_scale(&self) -> f64 {
+        match self {
+            LightModel::Centred(m) => m.intensity_scale,
+            LightModel::Near(m) => m.intensity_scale,
+            LightModel::Shaded(m) => m.intensity_scale,
+        }
+    }
 }
 
 impl Reflectance for LightModel {
@@ -240,6 +399,7 @@ impl Reflectance for LightModel {
         match self {
             LightModel::Centred(m) => m.radiance(ray, depth, dz_dx, dz_dy),
             LightModel::Near(m) => m.radiance(ray, depth, dz_dx, dz_dy),
+            LightModel::Shaded(m) => m.radiance(ray, depth, dz_dx, dz_dy),
         }
     }
 
@@ -254,6 +414,7 @@ impl Reflectance for LightModel {
         match self {
             LightModel::Centred(m) => m.radiance_with_partials(ray, depth, dz_dx, dz_dy),
             LightModel::Near(m) => m.radiance_with_partials(ray, depth, dz_dx, dz_dy),
+            LightModel::Shaded(m) => m.radiance_with_partials(ray, depth, dz_dx, dz_dy),
         }
     }
 }
@@ -281,6 +442,46 @@ pub fn irradiance(lights: &[PointLight], point: [f64; 3], normal: [f64; 3]) -> f
             let d = d2.sqrt();
             match emission(light, l, d) {
                 Some((aniso, _, _)) => light.intensity * aniso * cos_n / (d2 * d),
+                None => 0.0,
+            }
+        })
+        .sum()
+}
+
+/// [`irradiance`] of a surface of `material`: `sum_k phi_k a_k m(N, L_k, V)
+/// / |L_k|^2` at `point` with unit `normal` facing the camera, `V` the
+/// direction from the point to the camera. Lambert gives [`irradiance`]'s
+/// value exactly (it is called).
+pub fn irradiance_with_material(
+    lights: &[PointLight],
+    material: Material,
+    point: [f64; 3],
+    normal: [f64; 3],
+) -> f64 {
+    if material.is_lambert() {
+        return irradiance(lights, point, normal);
+    }
+    let (point, normal) = (DVec3::from_array(point), DVec3::from_array(normal));
+    let to_camera = -point.normalize_or_zero();
+    let centred = [PointLight::CENTRED];
+    let lights = if lights.is_empty() {
+        &centred[..]
+    } else {
+        lights
+    };
+    lights
+        .iter()
+        .map(|light| {
+            let l = DVec3::from_array(light.position) - point;
+            let d2 = l.length_squared();
+            if !(normal.dot(l) > 0.0 && d2 > 0.0) {
+                return 0.0;
+            }
+            let d = d2.sqrt();
+            match emission(light, l, d) {
+                Some((aniso, _, _)) => {
+                    light.intensity * aniso * material.factor(normal, l / d, to_camera) / d2
+                }
                 None => 0.0,
             }
         })
@@ -372,6 +573,139 @@ pub fn lights_that_miss(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    const NON_LAMBERT: [Material; 3] = [
+        Material::OrenNayar { roughness_rad: 0.4 },
+        Material::BlinnPhong {
+            specular: 0.3,
+            shininess: 30.0,
+        },
+        Material::BlinnPhong {
+            specular: 1.0,
+            shininess: 5.0,
+        },
+    ];
+
+    #[test]
+    fn shaded_lambert_is_the_lambertian_model_centred_and_off_centre() {
+        let off = [PointLight {
+            position: [0.8, -0.5, 0.3],
+            direction: Some([-0.3, 0.4, 0.87]),
+            mu: 1.5,
+            intensity: 1.0,
+        }
+        .validated(1)
+        .unwrap()];
+        for lights in [&[][..], &off[..]] {
+            let shaded = ShadedLights::new(2.0, lights, Material::Lambert);
+            let lambert = LightModel::new(2.0, lights);
+            for (z, zx, zy) in [(4.0, 0.01, -0.02), (2.5, -0.003, 0.0)] {
+                let a = shaded.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+                let b = lambert.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+                for k in 0..4 {
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-7 * b[0].abs() * (1.0 + b[k].abs() / b[0]),
+                        "{lights:?} slot {k}: {a:?} {b:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn centred_material_partials_are_exact_and_agree_with_numeric_ones() {
+        // The centred closed form against central differences of the
+        // general (per light) model with the light at the optical centre.
+        for material in NON_LAMBERT {
+            let exact = ShadedLights::new(1.7, &[], material);
+            let general = ShadedLights {
+                centred_intensity: None,
+                lights: vec![PointLight::CENTRED],
+                ..exact.clone()
+            };
+            for (z, zx, zy) in [(4.0, 0.004, -0.006), (2.5, -0.01, 0.002), (6.0, 0.0, 0.0)] {
+                let a = exact.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+                let b = general.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+                for k in 0..4 {
+                    let scale = if k == 0 { a[0] } else { a[0] / z * 300.0 };
+                    assert!(
+                        (a[k] - b[k]).abs() <= 1e-6 * scale,
+                        "{material:?} slot {k}: exact {a:?} numeric {b:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn numeric_partials_off_centre_match_differences_of_the_radiance() {
+        let lights = [
+            PointLight {
+                position: [0.8, -0.5, 0.3],
+                direction: Some([-0.3, 0.4, 0.87]),
+                mu: 1.5,
+                intensity: 1.0,
+            }
+            .validated(1)
+            .unwrap(),
+            PointLight {
+                position: [-0.2, 0.1, 0.0],
+                direction: None,
+                mu: 0.0,
+                intensity: 0.7,
+            },
+        ];
+        for material in NON_LAMBERT {
+            let model = ShadedLights::new(3.0, &lights, material);
+            for (z, zx, zy) in [(4.0, 0.004, -0.006), (2.5, -0.01, 0.002)] {
+                let p = model.radiance_with_partials(&ray(), z, zx, zy).unwrap();
+                assert!(p.iter().all(|v| v.is_finite()));
+                // A coarser difference (1e-4 of the scale) agrees to its
+                // own truncation error.
+                let r =
+                    |dz: f64, dx: f64, dy: f64| model.radiance(&ray(), z + dz, zx + dx, zy + dy);
+                let hz = 1e-4 * z;
+                let hg = 1e-4 * z / 300.0;
+                let coarse = [
+                    (r(hz, 0.0, 0.0) - r(-hz, 0.0, 0.0)) / (2.0 * hz),
+                    (r(0.0, hg, 0.0) - r(0.0, -hg, 0.0)) / (2.0 * hg),
+                    (r(0.0, 0.0, hg) - r(0.0, 0.0, -hg)) / (2.0 * hg),
+                ];
+                for k in 0..3 {
+                    let scale = p[0] / z * if k == 0 { 1.0 } else { 300.0 };
+                    assert!(
+                        (p[k + 1] - coarse[k]).abs() <= 1e-5 * scale,
+                        "{material:?} slot {k}: {p:?} {coarse:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn renderer_irradiance_agrees_with_the_model() {
+        // The renderer's value from the true normal against the model's
+        // from the depth gradient, for a tilted plane point.
+        let lights = [PointLight {
+            position: [0.3, -0.1, 0.0],
+            direction: None,
+            mu: 0.0,
+            intensity: 1.0,
+        }];
+        let r = ray();
+        let (z, zx, zy) = (3.0, 0.003, -0.002);
+        let f = r.focal_px;
+        let point = [z * r.x_px / f, z * r.y_px / f, z];
+        let n = DVec3::new(f * zx, f * zy, -(z + r.x_px * zx + r.y_px * zy)).normalize();
+        for material in NON_LAMBERT.into_iter().chain([Material::Lambert]) {
+            for set in [&[][..], &lights[..]] {
+                let model = LightModel::with_material(1.0, set, material);
+                let a = model.radiance(&r, z, zx, zy);
+                let b = irradiance_with_material(set, material, point, n.to_array());
+                assert!((a - b).abs() <= 1e-12 * b, "{material:?} {set:?}: {a} {b}");
+            }
+        }
+    }
 
     fn ray() -> PixelRay {
         PixelRay {

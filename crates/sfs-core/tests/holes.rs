@@ -53,6 +53,7 @@ fn analytic(
         depth_gt,
         object_mask,
         lights: Vec::new(),
+        material: Default::default(),
     }
 }
 

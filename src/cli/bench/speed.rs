@@ -229,7 +229,7 @@ fn convergence(
     let depth = fast_marching
         .depth
         .map(|&z| if z.is_finite() { z } else { 1.0 });
-    let model = problem.model();
+    let model = problem.model(sfs_core::material::Material::Lambert);
     let fresh = || -> Result<LinearSystem> {
         let mut system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
         anyhow::ensure!(

@@ -21,6 +21,8 @@ pub const DEPTH_RANGE: (f64, f64) = (1e-15, 1e25);
 
 pub mod table;
 
+use crate::material::Material;
+
 pub use table::{PARAMS, ParamError, ParamKind, ParamSpec, ParamValue};
 
 /// How the domain of the unknown depth is chosen (see README, "Object mask
@@ -179,6 +181,24 @@ impl LinearSolver {
     }
 }
 
+/// Which reflectance model the solver uses (the table's `reflectance`);
+/// its parameters are [`SolverParams`]' `roughness_rad`, `specular` and
+/// `shininess`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReflectanceChoice {
+    /// Lambert (the paper's; default).
+    #[default]
+    Lambert,
+    /// Oren-Nayar with `roughness_rad`.
+    OrenNayar,
+    /// Blinn-Phong with `specular` and `shininess`.
+    BlinnPhong,
+    /// Fitted to the image on a coarse working copy before the solve
+    /// (`solver::material_fit`).
+    Auto,
+}
+
 /// How each Gauss-Newton update is controlled.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
@@ -299,6 +319,14 @@ pub struct SolverParams {
     /// RSE where it was (geometric mean 0.0425 against 0.0421), and
     /// applied on every level it was worse (0.0456).
     pub shadow_bound: bool,
+    /// The reflectance model (METHOD.md section 10); default Lambert.
+    pub reflectance: ReflectanceChoice,
+    /// Oren-Nayar roughness `sigma`, radians (used with `oren-nayar`).
+    pub roughness_rad: f64,
+    /// Blinn-Phong specular weight `k_s` (used with `blinn-phong`).
+    pub specular: f64,
+    /// Blinn-Phong shininess `n` (used with `blinn-phong`).
+    pub shininess: f64,
 }
 
 impl Default for SolverParams {
@@ -328,6 +356,10 @@ impl Default for SolverParams {
             step_control: StepControl::Backtracking,
             anti_alias_sigma: 0.0,
             shadow_bound: false,
+            reflectance: ReflectanceChoice::Lambert,
+            roughness_rad: 0.3,
+            specular: 0.3,
+            shininess: 20.0,
         }
     }
 }
@@ -367,6 +399,62 @@ impl SolverParams {
                 dz_limit: 0.01,
                 ..Self::default()
             },
+        }
+    }
+}
+
+impl SolverParams {
+    /// The material these parameters ask for; `None` for
+    /// [`ReflectanceChoice::Auto`] (fitted by `solver::material_fit`).
+    pub fn fixed_material(&self) -> Option<Material> {
+        Some(match self.reflectance {
+            ReflectanceChoice::Lambert => Material::Lambert,
+            ReflectanceChoice::OrenNayar => Material::OrenNayar {
+                roughness_rad: self.roughness_rad,
+            },
+            ReflectanceChoice::BlinnPhong => Material::BlinnPhong {
+                specular: self.specular,
+                shininess: self.shininess,
+            },
+            ReflectanceChoice::Auto => return None,
+        })
+    }
+
+    /// The material a solve uses: [`SolverParams::fixed_material`], Lambert
+    /// while `auto` is unresolved (the solvers resolve it first).
+    pub fn material(&self) -> Material {
+        self.fixed_material().unwrap_or_default()
+    }
+
+    /// These parameters set to `material` (its model and parameters).
+    pub fn with_material(mut self, material: Material) -> Self {
+        match material {
+            Material::Lambert => self.reflectance = ReflectanceChoice::Lambert,
+            Material::OrenNayar { roughness_rad } => {
+                self.reflectance = ReflectanceChoice::OrenNayar;
+                self.roughness_rad = roughness_rad;
+            }
+            Material::BlinnPhong {
+                specular,
+                shininess,
+            } => {
+                self.reflectance = ReflectanceChoice::BlinnPhong;
+                self.specular = specular;
+                self.shininess = shininess;
+            }
+        }
+        self
+    }
+
+    /// True when the named parameter matters for the chosen reflectance
+    /// (`roughness` only with Oren-Nayar, `specular` and `shininess` only
+    /// with Blinn-Phong; everything else always): the viewer shows a
+    /// model's sliders only when it is chosen.
+    pub fn applies(&self, name: &str) -> bool {
+        match name {
+            "roughness" => self.reflectance == ReflectanceChoice::OrenNayar,
+            "specular" | "shininess" => self.reflectance == ReflectanceChoice::BlinnPhong,
+            _ => true,
         }
     }
 }

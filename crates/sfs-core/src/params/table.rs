@@ -4,7 +4,7 @@
 //! settings, the solve report and [`SolverParams::validate`] all read it, so
 //! a parameter is added in one place.
 
-use super::{Alpha, DomainMode, LinearSolver, SolverParams, StepControl, Units};
+use super::{Alpha, DomainMode, LinearSolver, ReflectanceChoice, SolverParams, StepControl, Units};
 use crate::model::Derivatives;
 
 /// What values a parameter takes.
@@ -84,7 +84,8 @@ pub struct ParamSpec {
     pub help: &'static str,
     /// Values and range (why the bounds: in `help`).
     pub kind: ParamKind,
-    /// Slider range in the viewer (relative units), `None`: not a slider.
+    /// How the viewer shows it: a number's slider range (relative units);
+    /// for a choice any `Some` shows a selector; `None`: not in the viewer.
     pub slider: Option<(f64, f64)>,
     /// Reads the value.
     pub get: fn(&SolverParams) -> ParamValue,
@@ -572,6 +573,79 @@ pub const PARAMS: &[ParamSpec] = &[
         slider: None,
         get: |p| ParamValue::Real(p.anti_alias_sigma),
         set: |p, v| p.anti_alias_sigma = real(v),
+    },
+    ParamSpec {
+        name: "reflectance",
+        label: "reflectance",
+        help: "Reflectance model (METHOD.md section 10): 'lambert' (default, the paper's matte \
+               surface), 'oren-nayar' (rough: plaster, clay, stone, cloth; --roughness), \
+               'blinn-phong' (glossy: skin, plastic; --specular, --shininess), or 'auto': \
+               fitted to the image on a coarse copy, reported with how well the image \
+               determined it.",
+        kind: ParamKind::Choice(&["lambert", "oren-nayar", "blinn-phong", "auto"]),
+        slider: Some((0.0, 0.0)),
+        get: |p| {
+            ParamValue::Choice(match p.reflectance {
+                ReflectanceChoice::Lambert => "lambert",
+                ReflectanceChoice::OrenNayar => "oren-nayar",
+                ReflectanceChoice::BlinnPhong => "blinn-phong",
+                ReflectanceChoice::Auto => "auto",
+            })
+        },
+        set: |p, v| {
+            p.reflectance = match word(v) {
+                "oren-nayar" => ReflectanceChoice::OrenNayar,
+                "blinn-phong" => ReflectanceChoice::BlinnPhong,
+                "auto" => ReflectanceChoice::Auto,
+                _ => ReflectanceChoice::Lambert,
+            }
+        },
+    },
+    ParamSpec {
+        name: "roughness",
+        label: "roughness (rad)",
+        help: "Oren-Nayar roughness sigma: the spread of the surface's facet slopes, radians \
+               (default 0.3; 0 is Lambert; at most 1). Rough surfaces stay lit towards the rim \
+               and look flatter facing the light. Fast marching needs it below about 0.61.",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: crate::material::MAX_ROUGHNESS_RAD,
+            log: false,
+            auto: false,
+        },
+        slider: Some((0.0, 1.0)),
+        get: |p| ParamValue::Real(p.roughness_rad),
+        set: |p, v| p.roughness_rad = real(v),
+    },
+    ParamSpec {
+        name: "specular",
+        label: "specular k_s",
+        help: "Blinn-Phong specular weight k_s against a diffuse weight of 1 (default 0.3; 0 \
+               is Lambert; at most 10).",
+        kind: ParamKind::Real {
+            min: 0.0,
+            max: crate::material::MAX_SPECULAR,
+            log: false,
+            auto: false,
+        },
+        slider: Some((0.0, 2.0)),
+        get: |p| ParamValue::Real(p.specular),
+        set: |p, v| p.specular = real(v),
+    },
+    ParamSpec {
+        name: "shininess",
+        label: "shininess n",
+        help: "Blinn-Phong shininess exponent n (default 20): larger gives a smaller, sharper \
+               highlight (10: a broad sheen, 30: skin or plastic, 100: polished). In [1, 1000].",
+        kind: ParamKind::Real {
+            min: crate::material::SHININESS_RANGE.0,
+            max: crate::material::SHININESS_RANGE.1,
+            log: true,
+            auto: false,
+        },
+        slider: Some((1.0, 200.0)),
+        get: |p| ParamValue::Real(p.shininess),
+        set: |p, v| p.shininess = real(v),
     },
 ];
 

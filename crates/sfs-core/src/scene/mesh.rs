@@ -20,6 +20,7 @@ use rayon::prelude::*;
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::light::PointLight;
+use crate::material::Material;
 use crate::scene::Scene;
 
 /// Rows per band of the parallel rasteriser (triangles are binned per band).
@@ -337,6 +338,32 @@ pub fn render_lit(
     lights: &[PointLight],
     name: &str,
 ) -> Result<Scene, MeshError> {
+    render_shaded(
+        mesh,
+        width,
+        height,
+        placement,
+        lights,
+        Material::Lambert,
+        name,
+    )
+}
+
+/// [`render_lit`] for a surface of `material` (METHOD.md section 10),
+/// shaded with the true normal and the direction to the camera; Lambert
+/// renders exactly as [`render_lit`].
+pub fn render_shaded(
+    mesh: &TriangleMesh,
+    width: usize,
+    height: usize,
+    placement: &Placement,
+    lights: &[PointLight],
+    material: Material,
+    name: &str,
+) -> Result<Scene, MeshError> {
+    let material = material
+        .validated()
+        .map_err(|message| MeshError::InvalidInput { message })?;
     for (k, light) in lights.iter().enumerate() {
         light
             .validated(k + 1)
@@ -387,7 +414,15 @@ pub fn render_lit(
                 ray_x: &ray_x,
                 ray_y: &ray_y,
             };
-            band.render(bin, &triangles, &vertex_normals, lights, depth, image, mask);
+            band.render(
+                bin,
+                &triangles,
+                &vertex_normals,
+                (lights, material),
+                depth,
+                image,
+                mask,
+            );
         });
 
     if !mask.iter().any(|&m| m) {
@@ -415,6 +450,7 @@ pub fn render_lit(
         depth_gt: Grid::from_vec(width, height, depth).ok_or_else(grid_error)?,
         object_mask: Grid::from_vec(width, height, mask).ok_or_else(grid_error)?,
         lights: lights.to_vec(),
+        material,
     })
 }
 
@@ -475,7 +511,7 @@ impl Band<'_> {
         bin: &[u32],
         triangles: &[PreparedTriangle],
         vertex_normals: &[DVec3],
-        lights: &[PointLight],
+        (lights, material): (&[PointLight], Material),
         depth: &mut [f64],
         image: &mut [f64],
         mask: &mut [bool],
@@ -521,7 +557,12 @@ impl Band<'_> {
             } else {
                 normal
             };
-            let intensity = crate::light::irradiance(lights, point.to_array(), facing.to_array());
+            let intensity = crate::light::irradiance_with_material(
+                lights,
+                material,
+                point.to_array(),
+                facing.to_array(),
+            );
             depth[k] = z;
             mask[k] = true;
             image[k] = if intensity.is_finite() {

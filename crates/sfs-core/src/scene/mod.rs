@@ -26,6 +26,8 @@ pub struct Scene {
     pub object_mask: Grid<bool>,
     /// The lights it was rendered with (empty: one at the optical centre).
     pub lights: Vec<crate::light::PointLight>,
+    /// The material it was rendered with (METHOD.md section 10).
+    pub material: crate::material::Material,
 }
 
 /// Adds Gaussian noise of standard deviation `sigma_255` (on the 0..255 scale)

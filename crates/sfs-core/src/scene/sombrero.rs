@@ -6,6 +6,7 @@ use super::Scene;
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::light::{LightModel, PointLight};
+use crate::material::Material;
 use crate::model::{PixelRay, Reflectance};
 
 /// Intensity scale of the Sombrero scene.
@@ -43,8 +44,20 @@ pub fn sombrero(width: usize, height: usize) -> Scene {
 /// chosen so the brightest pixel is 0.9 (as meshes are rendered), so that a
 /// ring of lights does not saturate.
 pub fn sombrero_lit(width: usize, height: usize, lights: &[PointLight]) -> Scene {
+    sombrero_shaded(width, height, lights, Material::Lambert)
+}
+
+/// [`sombrero_lit`] for a surface of `material` (METHOD.md section 10);
+/// with lights given or a material other than Lambert, `s` is chosen so the
+/// brightest pixel is 0.9.
+pub fn sombrero_shaded(
+    width: usize,
+    height: usize,
+    lights: &[PointLight],
+    material: Material,
+) -> Scene {
     let camera = Intrinsics::centred(width as f64, width, height);
-    let model = LightModel::new(SOMBRERO_INTENSITY_SCALE, lights);
+    let model = LightModel::with_material(SOMBRERO_INTENSITY_SCALE, lights, material);
     let mut depth_gt = Grid::filled(width, height, 0.0);
     let image = Grid::from_fn(width, height, |c, r| {
         let (x_px, y_px) = camera.image_xy(c as f64, r as f64);
@@ -58,7 +71,8 @@ pub fn sombrero_lit(width: usize, height: usize, lights: &[PointLight]) -> Scene
         model.radiance(&ray, z, zx, zy)
     });
     let brightest = image.as_slice().iter().copied().fold(0.0, f64::max);
-    let (image, intensity_scale) = if lights.is_empty() || brightest.is_nan() || brightest <= 0.0 {
+    let paper = lights.is_empty() && material.is_lambert();
+    let (image, intensity_scale) = if paper || brightest.is_nan() || brightest <= 0.0 {
         (image, SOMBRERO_INTENSITY_SCALE)
     } else {
         let k = 0.9 / brightest;
@@ -72,6 +86,7 @@ pub fn sombrero_lit(width: usize, height: usize, lights: &[PointLight]) -> Scene
         depth_gt,
         object_mask: Grid::filled(width, height, true),
         lights: lights.to_vec(),
+        material,
     }
 }
 

@@ -43,7 +43,7 @@ fn small(problem: &Problem) -> Problem {
 }
 
 /// The working copy of `problem` at a longest side of `side` pixels.
-fn working_copy(problem: &Problem, side: usize) -> Problem {
+pub(crate) fn working_copy(problem: &Problem, side: usize) -> Problem {
     let (w, h) = problem.image.size();
     let (sw, sh) = working_size(w, h, Some(side));
     let resize = |grid: &Grid<f64>| resize_area(grid, sw, sh, Cancel::NEVER).uncancelled();
@@ -135,7 +135,7 @@ fn trial(
 
 /// Passes cancellation through, nothing else (the trials are not levels of
 /// the user's solve).
-struct Forward<'a>(&'a mut dyn SolveObserver);
+pub(crate) struct Forward<'a>(pub(crate) &'a mut dyn SolveObserver);
 
 impl SolveObserver for Forward<'_> {
     fn is_cancelled(&self) -> bool {

@@ -24,14 +24,23 @@ use super::problem::{
 use super::sor;
 use super::system::LinearSystem;
 
-/// Solves with the problem's own model: the paper's Lambertian model with
+/// Solves with the problem's own model and the material of `params`
+/// (`auto`: fitted first, [`super::material_fit`]): the paper's model with
 /// the light at the optical centre, or lights anywhere (METHOD.md section 9).
 pub fn solve(
     problem: &Problem,
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    solve_with_model(problem, params, &problem.model(), observer)
+    if params.fixed_material().is_none() {
+        let fit = super::material_fit::fit_material(problem, params, observer)?;
+        let resolved = params.clone().with_material(fit.material);
+        let mut solution =
+            solve_with_model(problem, &resolved, &problem.model(fit.material), observer)?;
+        solution.material_fit = Some(fit);
+        return Ok(solution);
+    }
+    solve_with_model(problem, params, &problem.model(params.material()), observer)
 }
 
 /// Solves with any reflectance model.
@@ -102,6 +111,8 @@ fn solve_on_worker<M: Reflectance>(
         alpha_px: prepared.alpha,
         lambda_px: prepared.lambda,
         scales: prepared.scales,
+        material: params.material(),
+        material_fit: None,
     }
     .checked()
 }

@@ -369,7 +369,7 @@ pub fn solve_explicit(
     explicit: &ExplicitParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    let model = problem.model();
+    let model = problem.model(params.material());
     rayon::scope(|_| run(problem, params, explicit, &model, observer))
 }
 
@@ -419,6 +419,8 @@ fn run<M: Reflectance>(
         alpha_px: prepared.alpha,
         lambda_px: prepared.lambda,
         scales: prepared.scales,
+        material: params.material(),
+        material_fit: None,
     }
     .checked()
 }

@@ -66,8 +66,8 @@ use rayon::prelude::*;
 use crate::camera::Intrinsics;
 use crate::cancel::{Cancel, Cancelled, Uncancelled};
 use crate::grid::Grid;
-use crate::light::LightModel;
-use crate::model::{self, Lambertian, LevelGeometry};
+use crate::material::Material;
+use crate::model::{self, LevelGeometry};
 use crate::params::DomainMode;
 
 use super::problem::{
@@ -81,12 +81,28 @@ pub struct FastMarchingParams {
     /// Image values below this fraction of the brightest object pixel are
     /// raised to it (a black pixel has no finite solution); default 1e-3.
     pub min_relative_intensity: f64,
+    /// The surface's material: Lambert (default) or any whose brightness
+    /// under a centred light grows with `N . L` ([`Material::centred_is_monotone`]:
+    /// Blinn-Phong, Oren-Nayar up to about 0.61 rad), the Phong-type
+    /// marching of Vogel, Breuss, Leichtweis and Weickert.
+    pub material: Material,
 }
 
 impl Default for FastMarchingParams {
     fn default() -> Self {
         Self {
             min_relative_intensity: 1e-3,
+            material: Material::Lambert,
+        }
+    }
+}
+
+impl FastMarchingParams {
+    /// The default settings for `material`.
+    pub fn for_material(material: Material) -> Self {
+        Self {
+            material,
+            ..Self::default()
         }
     }
 }
@@ -144,6 +160,9 @@ struct LocalEquation<'a> {
     f2: f64,
     ax: Option<Axis>,
     ay: Option<Axis>,
+    /// Not Lambert: `H` gains `-ln(m(c) / c)`, `c = Q / sqrt(g)` (see
+    /// [`LocalEquation::eval`]).
+    material: Option<Material>,
 }
 
 impl LocalEquation<'_> {
@@ -162,13 +181,24 @@ impl LocalEquation<'_> {
         (g, dg)
     }
 
-    /// `H(v)` and `dH/dv`.
+    /// `H(v)` and `dH/dv`. For a material with factor `m(c)` under the
+    /// centred light, `I e^{2v} = s m(c)` with `c = Q / sqrt(g)`:
+    /// `H = 2 v + ln sqrt(g) - ln(s Q / I) - ln(m(c) / c)`, and
+    /// `dH/dv = 2 + (c m'(c) / m(c)) dg / (2 g)` (Lambert: `m = c`).
     fn eval(&self, v: f64) -> (f64, f64) {
         let (g, dg) = self.root_term(v);
-        (
+        let lambert = (
             2.0 * v + 0.5 * g.ln() - self.pixel.log_target,
             2.0 + 0.5 * dg / g,
-        )
+        );
+        match self.material {
+            None => lambert,
+            Some(material) => {
+                let c = (self.pixel.q2 / g).sqrt().min(1.0);
+                let (m, dm) = material.centred(c);
+                (lambert.0 - (m / c).ln(), 2.0 + 0.5 * (c * dm / m) * dg / g)
+            }
+        }
     }
 
     /// `d^2 g / dv^2` (constant: `g` is quadratic in `v`).
@@ -208,13 +238,24 @@ impl LocalEquation<'_> {
 /// facing value both `2 v` and `g` grow, so the root lies below where either
 /// alone would close the gap `-H(facing)`; below about 45 degrees of slope
 /// `H` is convex there and the iterates fall monotonically onto the root.
-fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>) -> f64 {
+fn local_root(
+    p: &Pixel,
+    f2: f64,
+    material: Option<Material>,
+    lower: f64,
+    ax: Option<Axis>,
+    ay: Option<Axis>,
+) -> f64 {
     let equation = LocalEquation {
         pixel: p,
         f2,
         ax,
         ay,
+        material,
     };
+    // The bound by g alone needs `ln m(c)` to fall at least as fast as
+    // `ln c` (Lambert, Blinn-Phong); Oren-Nayar's falls slower.
+    let bound_by_g = material.is_none_or(|m| !matches!(m, Material::OrenNayar { .. }));
     let facing = equation.facing_value(lower);
     let (h_facing, _) = equation.eval(facing);
     if !h_facing.is_finite() {
@@ -229,7 +270,7 @@ fn local_root(p: &Pixel, f2: f64, lower: f64, ax: Option<Axis>, ay: Option<Axis>
         let half_curvature = 0.5 * equation.curvature();
         let by_g = 2.0 * gap / (dg + (dg * dg + 4.0 * half_curvature * gap).sqrt());
         let by_v = -0.5 * h_facing;
-        let bound = if by_g.is_finite() {
+        let bound = if bound_by_g && by_g.is_finite() {
             by_g.min(by_v)
         } else {
             by_v
@@ -305,6 +346,9 @@ pub(crate) fn march(
         .reduce(|| 0.0, f64::max);
     cancel.check()?;
     let floor = settings.min_relative_intensity * brightest;
+    let material = (!settings.material.is_lambert()).then_some(settings.material);
+    // A light-facing patch (c = 1) is m(1) times Lambert's brightness.
+    let facing_s = s * settings.material.facing_gain();
     let pixel = |q: usize, log_target: f64| {
         let ray = geometry.ray(q % w, q / w);
         let qv = ray.q();
@@ -326,7 +370,7 @@ pub(crate) fn march(
     let mut value = vec![0.0; w * h];
     fill_rows(&mut value, w, cancel, |q| {
         if inside[q] {
-            0.5 * (s / image[q].max(floor)).ln()
+            0.5 * (facing_s / image[q].max(floor)).ln()
         } else {
             f64::INFINITY
         }
@@ -414,18 +458,18 @@ pub(crate) fn march(
                         (y, x, false)
                     };
                     let one = if first_is_x {
-                        local_root(&p, f2, first.value, Some(first), None)
+                        local_root(&p, f2, material, first.value, Some(first), None)
                     } else {
-                        local_root(&p, f2, first.value, None, Some(first))
+                        local_root(&p, f2, material, first.value, None, Some(first))
                     };
                     if one <= second.value {
                         one
                     } else {
-                        local_root(&p, f2, second.value, Some(x), Some(y))
+                        local_root(&p, f2, material, second.value, Some(x), Some(y))
                     }
                 }
-                (Some(x), None) => local_root(&p, f2, x.value, Some(x), None),
-                (None, Some(y)) => local_root(&p, f2, y.value, None, Some(y)),
+                (Some(x), None) => local_root(&p, f2, material, x.value, Some(x), None),
+                (None, Some(y)) => local_root(&p, f2, material, y.value, None, Some(y)),
                 (None, None) => continue,
             };
             if candidate.is_finite() && candidate < value[q] {
@@ -623,16 +667,23 @@ pub fn solve_fast_marching(
     let scales = problem.scales(&confidence, Cancel::NEVER).uncancelled();
     let (w, h) = problem.image.size();
     let geometry = LevelGeometry::new(w, h, w, h, problem.camera);
-    let s = match problem.model() {
-        LightModel::Centred(model) => model.intensity_scale,
-        LightModel::Near(_) => {
-            return Err(SolveError::Input(
-                "fast marching models lights at the optical centre only (the paper's set-up); \
-                 these lights are off the centre: use the linearised or the explicit method"
-                    .into(),
-            ));
-        }
-    };
+    if !problem.light_is_centred() {
+        return Err(SolveError::Input(
+            "fast marching models lights at the optical centre only (the paper's set-up); \
+             these lights are off the centre: use the linearised or the explicit method"
+                .into(),
+        ));
+    }
+    if !settings.material.centred_is_monotone() {
+        return Err(SolveError::Input(format!(
+            "fast marching needs a brightness that grows as the surface turns to the light; \
+             {} does not (Oren-Nayar roughness above about 0.61 rad): use the linearised \
+             or the explicit method",
+            settings.material.describe()
+        )));
+    }
+    let model = problem.model(settings.material);
+    let s = model.intensity_scale();
     let (solved, mean) = march(
         &problem.image,
         problem.camera,
@@ -641,7 +692,6 @@ pub fn solve_fast_marching(
         settings,
         Cancel::new(&|| observer.is_cancelled()),
     )?;
-    let model = Lambertian { intensity_scale: s };
     let reprojection =
         model::reproject(&model, &geometry, &domain, &solved, Cancel::NEVER).uncancelled();
     let ones = Grid::filled(w, h, 1.0);
@@ -700,6 +750,8 @@ pub fn solve_fast_marching(
         alpha_px: f64::NAN,
         lambda_px: f64::NAN,
         scales,
+        material: settings.material,
+        material_fit: None,
     }
     .checked()
 }

@@ -109,6 +109,7 @@ pub(crate) fn serves(
     problem: &super::Problem,
     level: &super::pyramid::PyramidLevel,
     guess: f64,
+    material: crate::material::Material,
 ) -> bool {
     let (w, h) = (level.geometry.width, level.geometry.height);
     let on = |q: usize| {
@@ -133,7 +134,7 @@ pub(crate) fn serves(
     }
     let depth = super::prepare::plane_fit(
         &pixels,
-        &problem.model(),
+        &problem.model(material),
         guess,
         super::prepare::nearest_object_depth(&problem.lights),
     );

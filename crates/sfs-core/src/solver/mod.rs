@@ -14,6 +14,7 @@ pub mod explicit;
 pub mod fast_marching;
 pub mod holes;
 pub(crate) mod light_frame;
+pub mod material_fit;
 pub mod multigrid;
 pub mod prepare;
 pub mod preview;
@@ -65,9 +66,25 @@ pub fn solve_method(
     method: &Method,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
+    if params.fixed_material().is_none() && !matches!(method, Method::Linearised) {
+        // `auto`: fitted by the linearised scheme first (`solve` does it
+        // itself).
+        let fit = material_fit::fit_material(problem, params, observer)?;
+        let resolved = params.clone().with_material(fit.material);
+        let mut solution = solve_method(problem, &resolved, method, observer)?;
+        solution.material_fit = Some(fit);
+        return Ok(solution);
+    }
     match method {
         Method::Linearised => solve(problem, params, observer),
         Method::Explicit(explicit) => solve_explicit(problem, params, explicit, observer),
-        Method::FastMarching(settings) => solve_fast_marching(problem, settings, observer),
+        Method::FastMarching(settings) => solve_fast_marching(
+            problem,
+            &FastMarchingParams {
+                material: params.material(),
+                ..settings.clone()
+            },
+            observer,
+        ),
     }
 }

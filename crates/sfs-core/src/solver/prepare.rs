@@ -110,6 +110,8 @@ pub(crate) fn prepare<'a>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Prepared<'a>, SolveError> {
     params.validate()?;
+    // `auto` is resolved before any solve (`solver::material_fit`).
+    let material = params.material();
     let initial_depth_map = match &params.initial_depth {
         InitialDepth::Map(map) => Some(map),
         _ => None,
@@ -170,14 +172,18 @@ pub(crate) fn prepare<'a>(
     // marched (`light_frame`); lights farther off start from the plane that
     // best explains the image, refined through the whole pyramid (the
     // paper's path).
+    // A material whose brightness does not grow as the surface turns to
+    // the light (rough Oren-Nayar) has no fast marching: the constant or
+    // plane start of the paper's path.
     let fast_marching_start_wanted = matches!(params.initial_depth, InitialDepth::FastMarching)
+        && material.centred_is_monotone()
         && (problem.light_is_centred()
-            || super::light_frame::serves(problem, &finest, scales.depth));
+            || super::light_frame::serves(problem, &finest, scales.depth, material));
     // That start takes seconds on a photograph: its preview goes out first.
     let shown = match preview {
-        Some(start) if fast_marching_start_wanted && problem.light_is_centred() => {
-            usize::from(super::preview::send_preview(problem, 3, start, observer)?)
-        }
+        Some(start) if fast_marching_start_wanted && problem.light_is_centred() => usize::from(
+            super::preview::send_preview(problem, material, 3, start, observer)?,
+        ),
         _ => 0,
     };
     let cancelled = || observer.is_cancelled();
@@ -189,6 +195,7 @@ pub(crate) fn prepare<'a>(
         true => {
             let mut candidates = fast_marching_start(
                 problem,
+                material,
                 &finest,
                 relative_noise * scales.intensity,
                 relative_noise > FAST_MARCHING_DENOISE_ABOVE,
@@ -254,7 +261,7 @@ pub(crate) fn prepare<'a>(
         _ if !problem.light_is_centred() => {
             let z0 = initial_depth_plane_fit(
                 coarsest,
-                &problem.model(),
+                &problem.model(material),
                 scales.depth,
                 nearest_object_depth(&problem.lights),
             );
@@ -267,8 +274,11 @@ pub(crate) fn prepare<'a>(
             // A coarsest level with no bright trusted pixel left (they
             // averaged away) takes the same formula's median over the full
             // image, which validation guarantees exists.
-            let z0 =
-                initial_depth_from_image(coarsest, problem.intensity_scale).unwrap_or(scales.depth);
+            let z0 = initial_depth_from_image(
+                coarsest,
+                problem.intensity_scale * material.facing_gain(),
+            )
+            .unwrap_or(scales.depth);
             (
                 Grid::filled(coarsest.geometry.width, coarsest.geometry.height, z0),
                 z0,
@@ -316,6 +326,7 @@ pub(crate) fn prepare<'a>(
 /// trusted depth across the holes; the scheme picks one by energy.
 fn fast_marching_start(
     problem: &Problem,
+    material: crate::material::Material,
     finest: &PyramidLevel,
     noise_sigma: f64,
     denoise: bool,
@@ -380,7 +391,7 @@ fn fast_marching_start(
             &everywhere
         }
     };
-    let settings = super::fast_marching::FastMarchingParams::default();
+    let settings = super::fast_marching::FastMarchingParams::for_material(material);
     let march = |image: &Grid<f64>, object: &Grid<bool>| -> Result<Grid<f64>, SolveError> {
         if !problem.light_is_centred()
             && let Some(depth) = super::light_frame::march_from_the_light(
@@ -435,7 +446,7 @@ fn fast_marching_start(
         // rim as if it faced the light; the continued surface turns inside
         // the hole, and its image gives fast marching that point back.
         let shown = crate::model::reproject(
-            &problem.model(),
+            &problem.model(material),
             &finest.geometry,
             &on_object,
             &candidates[0],

@@ -46,6 +46,7 @@ impl SolveObserver for Relabel<'_> {
 /// preview's size), sends nothing; cancellation is passed on.
 pub(crate) fn send_preview(
     problem: &Problem,
+    material: crate::material::Material,
     levels: usize,
     start: Instant,
     observer: &mut dyn SolveObserver,
@@ -81,7 +82,11 @@ pub(crate) fn send_preview(
         start,
         sent: false,
     };
-    match solve_fast_marching(&small, &FastMarchingParams::default(), &mut relabel) {
+    match solve_fast_marching(
+        &small,
+        &FastMarchingParams::for_material(material),
+        &mut relabel,
+    ) {
         Err(SolveError::Cancelled) => Err(SolveError::Cancelled),
         // Only a preview: the full solve reports its own errors.
         _ => Ok(relabel.sent),

@@ -11,6 +11,7 @@ use crate::camera::Intrinsics;
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 use crate::light::{LightModel, PointLight};
+use crate::material::Material;
 use crate::model::{Energy, LevelGeometry};
 use crate::params::{DomainMode, ParamError, ProblemScales};
 
@@ -194,6 +195,11 @@ pub struct Solution {
     pub lambda_px: f64,
     /// The problem's scales that relative parameters refer to.
     pub scales: ProblemScales,
+    /// The material the surface was solved as (METHOD.md section 10).
+    pub material: Material,
+    /// With `--reflectance auto`, how the material was fitted; `None`
+    /// when it was given.
+    pub material_fit: Option<super::material_fit::MaterialFit>,
 }
 
 fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
@@ -261,9 +267,10 @@ pub trait SolveObserver: Send + Sync {
 impl SolveObserver for () {}
 
 impl Problem {
-    /// The reflectance model of this problem's lights and intensity scale.
-    pub fn model(&self) -> LightModel {
-        LightModel::new(self.intensity_scale, &self.lights)
+    /// The reflectance model of this problem's lights and intensity scale
+    /// for a surface of `material` (a solve's: `SolverParams::material`).
+    pub fn model(&self, material: Material) -> LightModel {
+        LightModel::with_material(self.intensity_scale, &self.lights, material)
     }
 
     /// True when every light sits at the optical centre (the paper's model).
