@@ -742,6 +742,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     if let Some(w) = known_depth_warning {
         warnings.insert(0, w);
     }
+    if let Some(fit) = &solution.material_fit
+        && !fit.best.is_lambert()
+    {
+        warnings.push(fit.summary.clone());
+    }
     warnings.extend(sfs_core::light::lights_that_miss(
         &problem.lights,
         &solution.depth,
@@ -826,7 +831,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         if !solution.material.is_lambert() || solution.material_fit.is_some() {
             eprintln!("reflectance: {}", solution.material.describe());
         }
-        if let Some(fit) = &solution.material_fit {
+        if let Some(fit) = solution
+            .material_fit
+            .as_ref()
+            .filter(|f| f.best.is_lambert())
+        {
             eprintln!(
                 "material fit ({} px working copy, {:.1} s): {}",
                 fit.working_side, fit.seconds, fit.summary

@@ -16,6 +16,7 @@ use clap::Args;
 mod holes;
 mod lights;
 mod paper_figures;
+mod reflectance;
 mod report;
 mod robustness;
 mod run;
@@ -32,12 +33,17 @@ pub struct BenchArgs {
     /// scenes whose file is missing are skipped (and listed in the report).
     #[arg(long, default_value = "../shared/meshes", value_parser = super::parse_path)]
     pub meshes: PathBuf,
+    /// Folder with the real photographs (`near_ps_human1/`), for
+    /// `--part reflectance`; skipped (and listed) when missing.
+    #[arg(long, default_value = "../shared/real", value_parser = super::parse_path)]
+    pub real: PathBuf,
     /// A few minutes in all: every scene at a quarter of its size per side,
     /// a 5 s budget for the explicit scheme.
     #[arg(long)]
     pub quick: bool,
     /// Only these scenes (comma separated): sombrero, bunny, dragon,
-    /// suzanne, highres.
+    /// suzanne, highres; face (the shared photograph, `--part
+    /// reflectance`).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Option<Vec<String>>,
     /// Time budget of the explicit scheme per solve, in seconds (default 150,
@@ -49,7 +55,10 @@ pub struct BenchArgs {
     /// exposure), `lights`, `all` (these four), `holes` (holes of confidence
     /// 0 against the harmonic fill of the true depth; holes.md, holes.json),
     /// `shadows` (a light off the axis with cast shadows; shadows.md,
-    /// shadows.json) or `speed` (time, memory and
+    /// shadows.json), `reflectance` (Lambert, Oren-Nayar and Blinn-Phong
+    /// renders solved with the matched model, as Lambertian and with auto,
+    /// and the shared face with each model; reflectance.md,
+    /// reflectance.json) or `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
     #[arg(long, value_enum, default_value = "all")]
@@ -82,6 +91,10 @@ pub enum Part {
     /// exact hand mask and the same light without shadows (shadows.md,
     /// shadows.json).
     Shadows,
+    /// Oren-Nayar and Blinn-Phong renders solved with the matched model, as
+    /// Lambertian and with auto; the shared face with each model
+    /// (reflectance.md, reflectance.json).
+    Reflectance,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -99,7 +112,7 @@ const POST_WEIGHT: f64 = 100.0;
 const TV_ITERATIONS: usize = 200;
 
 /// Every scene `--scenes` can name.
-const SCENE_NAMES: &[&str] = &["sombrero", "bunny", "dragon", "suzanne", "highres"];
+const SCENE_NAMES: &[&str] = &["sombrero", "bunny", "dragon", "suzanne", "highres", "face"];
 
 /// Whether `--scenes` asks for `name` (no `--scenes`: every scene).
 fn wanted(args: &BenchArgs, name: &str) -> bool {
@@ -173,6 +186,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else if args.part == Part::Holes {
         holes::run(args)?;
         args.out.join("holes.md")
+    } else if args.part == Part::Reflectance {
+        reflectance::run(args)?;
+        args.out.join("reflectance.md")
     } else if args.part == Part::Shadows {
         shadows::run(args)?;
         args.out.join("shadows.md")
