@@ -24,6 +24,11 @@
 //!   (level indices start again at 0 with each solve), and where the search
 //!   rescaled the last solve's depth a last `Level` event carries the
 //!   rescaled depth; `Finished` then holds the [`KnownDepthFit`].
+//! - With `reflectance auto` the core compares the materials once per job
+//!   (`material_fit`; no events while it runs, only cancellation): a scale
+//!   estimate or known-depth search runs as Lambert, what `auto` stands
+//!   for, and the fit follows at the scale found. It reaches the UI in the
+//!   finished [`Solution::material_fit`].
 
 use std::any::Any;
 use std::fmt;
@@ -658,6 +663,8 @@ mod tests {
 
     use sfs_core::camera::Intrinsics;
     use sfs_core::grid::Grid;
+    use sfs_core::material::Material;
+    use sfs_core::params::ReflectanceChoice;
     use sfs_core::scene::sombrero::sombrero;
 
     use super::*;
@@ -894,6 +901,113 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    /// The finished solution of `job`'s events, which must end with it.
+    fn finished_solution(events: &[Event]) -> &Solution {
+        match events.last() {
+            Some(Event::Finished { solution, .. }) => solution,
+            other => panic!("last event is {}", kind(other)),
+        }
+    }
+
+    /// Checks a fit of `reflectance auto` and that the solve used its
+    /// material.
+    fn assert_fitted(solution: &Solution) {
+        let fit = solution
+            .material_fit
+            .as_ref()
+            .expect("reflectance auto reports its fit");
+        assert_eq!(
+            fit.trials.len(),
+            sfs_core::solver::material_fit::candidates().len()
+        );
+        assert_eq!(fit.trials[0].material, fit.best);
+        assert_eq!(solution.material, fit.material);
+        assert!(!fit.summary.is_empty());
+    }
+
+    #[test]
+    fn reflectance_auto_fits_the_material_and_the_fit_reaches_the_ui() {
+        let (mut worker, _) = spawn_counting();
+        let mut request = sombrero_request(32);
+        request.params.reflectance = ReflectanceChoice::Auto;
+        let job = worker.submit(request);
+        let events = events_until_end(&mut worker, job);
+        let solution = finished_solution(&events);
+        assert_fitted(solution);
+        assert_eq!(solution.depth.size(), (32, 32));
+        // A given material: no fit.
+        let mut request = sombrero_request(32);
+        request.params.reflectance = ReflectanceChoice::OrenNayar;
+        request.params.roughness_rad = 0.45;
+        let job = worker.submit(request);
+        let events = events_until_end(&mut worker, job);
+        let solution = finished_solution(&events);
+        assert!(solution.material_fit.is_none());
+        assert_eq!(
+            solution.material,
+            Material::OrenNayar {
+                roughness_rad: 0.45
+            }
+        );
+        // With a known distance: fitted before the search, which meets it.
+        let (mut request, point) = known_depth_request(1.5);
+        request.params.reflectance = ReflectanceChoice::Auto;
+        let job = worker.submit(request);
+        let events = events_until_end(&mut worker, job);
+        let Some(Event::Finished {
+            known_depth_fit: Some(fit),
+            ..
+        }) = events.last()
+        else {
+            panic!("last event is {} without a fit", kind(events.last()));
+        };
+        assert!(fit.converged, "{fit:?}");
+        let solution = finished_solution(&events);
+        assert_fitted(solution);
+        let solved = *solution
+            .depth
+            .at(point.column_px as usize, point.row_px as usize);
+        assert!(
+            ((solved - point.depth) / point.depth).abs() < 5e-3,
+            "solved {solved}, given {}",
+            point.depth
+        );
+        // A light off the centre, scale estimated: as Lambertian, then the
+        // material is fitted at the estimated scale.
+        let a = 40f64.to_radians();
+        let light = sfs_core::light::PointLight {
+            position: [2.0 * a.sin(), 0.0, 2.0 * (1.0 - a.cos())],
+            ..sfs_core::light::PointLight::CENTRED
+        };
+        let scene = sfs_core::scene::sombrero::sombrero_lit(48, 48, &[light]);
+        let request = SolveRequest {
+            problem: Problem {
+                image: scene.image,
+                camera: scene.camera,
+                intensity_scale: 1.0,
+                object_mask: Some(scene.object_mask),
+                confidence: None,
+                lights: vec![light],
+            },
+            params: SolverParams {
+                reflectance: ReflectanceChoice::Auto,
+                ..SolverParams::default()
+            },
+            estimate_scale: true,
+            known_depths: Vec::new(),
+        };
+        let job = worker.submit(request);
+        let events = events_until_end(&mut worker, job);
+        assert!(matches!(
+            events.last(),
+            Some(Event::Finished {
+                scale_determined: Some(_),
+                ..
+            })
+        ));
+        assert_fitted(finished_solution(&events));
     }
 
     #[test]

@@ -519,3 +519,93 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
     step_until(&mut harness, |app| app.solve_state().finished.is_some());
     assert!(harness.state().solve_state().known_depth_fit.is_none());
 }
+
+/// Whether the parameter slider labelled `label` is shown.
+fn has_slider(harness: &Harness<'_, ViewerApp>, label: &str) -> bool {
+    harness
+        .query_by_role_and_label(Role::Slider, label)
+        .is_some()
+}
+
+/// Chooses `word` in the reflectance selector.
+fn choose_reflectance(harness: &mut Harness<'_, ViewerApp>, word: &str) {
+    // (a pointer click: accesskit's does not open the popup)
+    harness
+        .get_by_role_and_label(Role::ComboBox, "reflectance")
+        .click();
+    harness.step();
+    harness.step();
+    // (in the popup, a button: alpha's "auto" is a check box)
+    harness
+        .get_by_role(Role::ListBox)
+        .get_by_role_and_label(Role::Button, word)
+        .click();
+    harness.step();
+    harness.step();
+}
+
+/// [`choose_reflectance`], then waits for the new solve it starts to
+/// finish.
+fn choose_and_solve(harness: &mut Harness<'_, ViewerApp>, word: &str) {
+    let before = harness.state().solve_state().job;
+    choose_reflectance(harness, word);
+    step_until(harness, |app| {
+        app.solve_state().job != before && app.solve_state().finished.is_some()
+    });
+    harness.step();
+}
+
+#[test]
+fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_what_was_used() {
+    use sfs_core::material::Material;
+    use sfs_core::params::ReflectanceChoice;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    harness.step();
+    // Lambert, the default: no model's parameters, nothing said.
+    for label in ["roughness (rad)", "specular k_s", "shininess n"] {
+        assert!(!has_slider(&harness, label), "{label} shown with Lambert");
+    }
+    assert!(harness.query_by_label_contains("reflectance:").is_none());
+    // Blinn-Phong: its two sliders, which set its parameters.
+    choose_reflectance(&mut harness, "blinn-phong");
+    let params = harness.state().params().to_params();
+    assert_eq!(params.reflectance, ReflectanceChoice::BlinnPhong);
+    assert!(has_slider(&harness, "specular k_s") && has_slider(&harness, "shininess n"));
+    assert!(!has_slider(&harness, "roughness (rad)"));
+    harness
+        .get_by_role_and_label(Role::Slider, "shininess n")
+        .set_value_accesskit(50.0);
+    harness.step();
+    assert_eq!(harness.state().params().to_params().shininess, 50.0);
+    // Oren-Nayar: its roughness instead; the solve says what it used.
+    choose_and_solve(&mut harness, "oren-nayar");
+    assert!(has_slider(&harness, "roughness (rad)"));
+    assert!(!has_slider(&harness, "shininess n") && !has_slider(&harness, "specular k_s"));
+    let solution = harness
+        .state()
+        .solve_state()
+        .finished
+        .as_ref()
+        .expect("solved");
+    assert_eq!(
+        solution.material,
+        Material::OrenNayar { roughness_rad: 0.3 }
+    );
+    harness.get_by_label("reflectance: oren-nayar (roughness 0.300 rad)");
+    assert!(harness.query_by_label_contains("material fit (").is_none());
+    // Auto: fitted, the finding and the candidates reported.
+    choose_and_solve(&mut harness, "auto");
+    let fit = harness
+        .state()
+        .solve_state()
+        .finished
+        .as_ref()
+        .and_then(|s| s.material_fit.clone())
+        .expect("auto reports its fit");
+    assert!(!has_slider(&harness, "roughness (rad)"));
+    harness.get_by_label_contains("material fit (");
+    harness.get_by_label_contains(&fit.summary);
+    harness.get_by_label(&format!("best 5 of {} candidates", fit.trials.len()));
+}

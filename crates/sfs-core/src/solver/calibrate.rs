@@ -11,12 +11,11 @@
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::params::SolverParams;
-use crate::resample::{resize_area, scale_intrinsics, working_size};
 
 use super::problem::{Problem, SolveError, SolveObserver};
+use super::working::{Forward, working_copy};
 
 /// Longest side of the working copy the scale is searched on.
 pub const SEARCH_SIDE: usize = 128;
@@ -40,28 +39,6 @@ pub struct ScaleEstimate {
 /// The working copy of `problem` at [`SEARCH_SIDE`].
 fn small(problem: &Problem) -> Problem {
     working_copy(problem, SEARCH_SIDE)
-}
-
-/// The working copy of `problem` at a longest side of `side` pixels.
-pub(crate) fn working_copy(problem: &Problem, side: usize) -> Problem {
-    let (w, h) = problem.image.size();
-    let (sw, sh) = working_size(w, h, Some(side));
-    let resize = |grid: &Grid<f64>| resize_area(grid, sw, sh, Cancel::NEVER).uncancelled();
-    let mask = problem
-        .object_mask
-        .as_ref()
-        .map(|m| resize(&m.map(|&v| if v { 1.0 } else { 0.0 })).map(|&v| v >= 0.5));
-    Problem {
-        image: resize(&problem.image),
-        camera: scale_intrinsics(problem.camera, (w, h), (sw, sh)),
-        intensity_scale: problem.intensity_scale,
-        object_mask: mask,
-        confidence: problem
-            .confidence
-            .as_ref()
-            .map(|c| resize(c).map(|v| v.clamp(0.0, 1.0))),
-        lights: problem.lights.clone(),
-    }
 }
 
 /// The median brightness over the object and the model's brightness of a
@@ -133,16 +110,6 @@ fn trial(
     Ok(((num / den.max(f64::MIN_POSITIVE)).sqrt(), depth))
 }
 
-/// Passes cancellation through, nothing else (the trials are not levels of
-/// the user's solve).
-pub(crate) struct Forward<'a>(pub(crate) &'a mut dyn SolveObserver);
-
-impl SolveObserver for Forward<'_> {
-    fn is_cancelled(&self) -> bool {
-        self.0.is_cancelled()
-    }
-}
-
 /// Estimates `s` for a problem whose lights are off the optical centre (see
 /// the module docs). The object distance is searched from the nearest the
 /// lights allow ([`super::prepare::nearest_object_depth`], at least half the
@@ -159,6 +126,10 @@ pub fn estimate_intensity_scale(
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<ScaleEstimate, SolveError> {
+    // `auto` is only a report (the solve stays Lambertian): the trials run
+    // as Lambert, not comparing the materials again in each.
+    let resolved = params.clone().with_material(params.material());
+    let params = &resolved;
     if problem.light_is_centred() {
         return Err(SolveError::Input(
             "with every light at the optical centre the intensity scale only sets the depth \
@@ -460,6 +431,12 @@ pub fn solve_with_known_depths(
             p.column_px, p.row_px, p.depth
         )));
     }
+    // `auto` searches as Lambert (what it stands for: the fit only
+    // reports) and compares the materials once, at the scale found.
+    let resolved = params.clone().with_material(params.material());
+    let auto = params.fixed_material().is_none();
+    let user_params = params;
+    let params = &resolved;
     // Lights far beside the lens (seen from the known points) start from
     // the plane up the pyramid in every solve of the search: left to each
     // solve's own guess of the distance, the start would switch with `s`
@@ -526,6 +503,14 @@ pub fn solve_with_known_depths(
         problem.intensity_scale = s;
         (solution, converged, solves)
     };
+    let mut solution = solution;
+    if auto {
+        solution.material_fit = Some(super::material_fit::fit_material(
+            problem,
+            user_params,
+            observer,
+        )?);
+    }
     let solved = depths_at(&solution.depth, points)?;
     let residuals: Vec<KnownDepthResidual> = solved
         .iter()

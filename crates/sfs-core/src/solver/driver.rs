@@ -25,21 +25,14 @@ use super::sor;
 use super::system::LinearSystem;
 
 /// Solves with the problem's own model and the material of `params`
-/// (`auto`: fitted first, [`super::material_fit`]): the paper's model with
+/// (`auto` as Lambert, what it resolves to; [`super::solve`] runs its fit
+/// first): the paper's model with
 /// the light at the optical centre, or lights anywhere (METHOD.md section 9).
 pub fn solve(
     problem: &Problem,
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    if params.fixed_material().is_none() {
-        let fit = super::material_fit::fit_material(problem, params, observer)?;
-        let resolved = params.clone().with_material(fit.material);
-        let mut solution =
-            solve_with_model(problem, &resolved, &problem.model(fit.material), observer)?;
-        solution.material_fit = Some(fit);
-        return Ok(solution);
-    }
     solve_with_model(problem, params, &problem.model(params.material()), observer)
 }
 

@@ -155,17 +155,18 @@ struct Axis {
 /// with `g(v) = f^2 (a^2 + b^2) + (a x + b y)^2 + Q^2`: zero exactly where
 /// `F(v) = I e^{2v} sqrt(g) - s Q` is, with the same sign elsewhere, and no
 /// exponential.
-struct LocalEquation<'a> {
+struct LocalEquation<'a, const LAMBERT: bool> {
     pixel: &'a Pixel,
     f2: f64,
     ax: Option<Axis>,
     ay: Option<Axis>,
-    /// Not Lambert: `H` gains `-ln(m(c) / c)`, `c = Q / sqrt(g)` (see
-    /// [`LocalEquation::eval`]).
-    material: Option<Material>,
+    /// Unless `LAMBERT`: `H` gains `-ln(m(c) / c)`, `c = Q / sqrt(g)` (see
+    /// [`LocalEquation::eval`]). `LAMBERT` compiles the paper's equation
+    /// alone (a branch in this inner loop slowed a 1024 px start).
+    material: Material,
 }
 
-impl LocalEquation<'_> {
+impl<const LAMBERT: bool> LocalEquation<'_, LAMBERT> {
     /// `g(v)` and `dg/dv`.
     fn root_term(&self, v: f64) -> (f64, f64) {
         let p = self.pixel;
@@ -191,14 +192,12 @@ impl LocalEquation<'_> {
             2.0 * v + 0.5 * g.ln() - self.pixel.log_target,
             2.0 + 0.5 * dg / g,
         );
-        match self.material {
-            None => lambert,
-            Some(material) => {
-                let c = (self.pixel.q2 / g).sqrt().min(1.0);
-                let (m, dm) = material.centred(c);
-                (lambert.0 - (m / c).ln(), 2.0 + 0.5 * (c * dm / m) * dg / g)
-            }
+        if LAMBERT {
+            return lambert;
         }
+        let c = (self.pixel.q2 / g).sqrt().min(1.0);
+        let (m, dm) = self.material.centred(c);
+        (lambert.0 - (m / c).ln(), 2.0 + 0.5 * (c * dm / m) * dg / g)
     }
 
     /// `d^2 g / dv^2` (constant: `g` is quadratic in `v`).
@@ -238,15 +237,15 @@ impl LocalEquation<'_> {
 /// facing value both `2 v` and `g` grow, so the root lies below where either
 /// alone would close the gap `-H(facing)`; below about 45 degrees of slope
 /// `H` is convex there and the iterates fall monotonically onto the root.
-fn local_root(
+fn local_root<const LAMBERT: bool>(
     p: &Pixel,
     f2: f64,
-    material: Option<Material>,
+    material: Material,
     lower: f64,
     ax: Option<Axis>,
     ay: Option<Axis>,
 ) -> f64 {
-    let equation = LocalEquation {
+    let equation = LocalEquation::<LAMBERT> {
         pixel: p,
         f2,
         ax,
@@ -255,7 +254,7 @@ fn local_root(
     };
     // The bound by g alone needs `ln m(c)` to fall at least as fast as
     // `ln c` (Lambert, Blinn-Phong); Oren-Nayar's falls slower.
-    let bound_by_g = material.is_none_or(|m| !matches!(m, Material::OrenNayar { .. }));
+    let bound_by_g = !matches!(material, Material::OrenNayar { .. });
     let facing = equation.facing_value(lower);
     let (h_facing, _) = equation.eval(facing);
     if !h_facing.is_finite() {
@@ -324,6 +323,22 @@ pub(crate) fn march(
     settings: &FastMarchingParams,
     cancel: Cancel<'_>,
 ) -> Result<(Grid<f64>, f64), SolveError> {
+    if settings.material.is_lambert() {
+        march_with::<true>(image, camera, domain, s, settings, cancel)
+    } else {
+        march_with::<false>(image, camera, domain, s, settings, cancel)
+    }
+}
+
+/// [`march`] for Lambert (`LAMBERT`) or any other material.
+fn march_with<const LAMBERT: bool>(
+    image: &Grid<f64>,
+    camera: Intrinsics,
+    domain: &Grid<bool>,
+    s: f64,
+    settings: &FastMarchingParams,
+    cancel: Cancel<'_>,
+) -> Result<(Grid<f64>, f64), SolveError> {
     let (w, h) = image.size();
     let geometry = LevelGeometry::new(w, h, w, h, camera);
     let f2 = camera.focal_px * camera.focal_px;
@@ -346,7 +361,7 @@ pub(crate) fn march(
         .reduce(|| 0.0, f64::max);
     cancel.check()?;
     let floor = settings.min_relative_intensity * brightest;
-    let material = (!settings.material.is_lambert()).then_some(settings.material);
+    let material = settings.material;
     // A light-facing patch (c = 1) is m(1) times Lambert's brightness.
     let facing_s = s * settings.material.facing_gain();
     let pixel = |q: usize, log_target: f64| {
@@ -458,18 +473,18 @@ pub(crate) fn march(
                         (y, x, false)
                     };
                     let one = if first_is_x {
-                        local_root(&p, f2, material, first.value, Some(first), None)
+                        local_root::<LAMBERT>(&p, f2, material, first.value, Some(first), None)
                     } else {
-                        local_root(&p, f2, material, first.value, None, Some(first))
+                        local_root::<LAMBERT>(&p, f2, material, first.value, None, Some(first))
                     };
                     if one <= second.value {
                         one
                     } else {
-                        local_root(&p, f2, material, second.value, Some(x), Some(y))
+                        local_root::<LAMBERT>(&p, f2, material, second.value, Some(x), Some(y))
                     }
                 }
-                (Some(x), None) => local_root(&p, f2, material, x.value, Some(x), None),
-                (None, Some(y)) => local_root(&p, f2, material, y.value, None, Some(y)),
+                (Some(x), None) => local_root::<LAMBERT>(&p, f2, material, x.value, Some(x), None),
+                (None, Some(y)) => local_root::<LAMBERT>(&p, f2, material, y.value, None, Some(y)),
                 (None, None) => continue,
             };
             if candidate.is_finite() && candidate < value[q] {

@@ -21,8 +21,8 @@ use std::time::Instant;
 
 use serde::Serialize;
 
-use super::calibrate::{Forward, working_copy};
 use super::problem::{Problem, SolveError, SolveObserver};
+use super::working::{Forward, working_copy};
 use crate::material::Material;
 use crate::params::SolverParams;
 
@@ -101,7 +101,7 @@ pub fn fit_material(
     let mut scored = Vec::new();
     for material in candidates() {
         let trial_params = params.clone().with_material(material);
-        let solution = super::solve(&work, &trial_params, &mut Forward(observer))?;
+        let solution = super::driver::solve(&work, &trial_params, &mut Forward(observer))?;
         let residual = relative_residual(&work, &solution);
         scored.push((material, solution.final_energy.total, residual));
     }
@@ -146,6 +146,23 @@ pub fn fit_material(
         seconds: start.elapsed().as_secs_f64(),
         summary,
     })
+}
+
+/// `params` with `auto` resolved: the fit (when asked for) and the
+/// parameters of the material it chose; `params` unchanged otherwise.
+///
+/// # Errors
+/// As [`fit_material`].
+pub fn resolve(
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<(SolverParams, Option<MaterialFit>), SolveError> {
+    if params.fixed_material().is_some() {
+        return Ok((params.clone(), None));
+    }
+    let fit = fit_material(problem, params, observer)?;
+    Ok((params.clone().with_material(fit.material), Some(fit)))
 }
 
 /// `sqrt(sum c (I - R)^2 / sum c I^2)` over the solved pixels.

@@ -24,8 +24,9 @@ pub(crate) mod shadow_bound;
 pub mod shadows;
 pub mod sor;
 pub mod system;
+pub(crate) mod working;
 
-pub use driver::{solve, solve_with_model};
+pub use driver::solve_with_model;
 pub use explicit::{ExplicitParams, solve_explicit};
 pub use fast_marching::{FastMarchingParams, solve_fast_marching};
 pub use prepare::initial_depth_from_image;
@@ -66,17 +67,10 @@ pub fn solve_method(
     method: &Method,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    if params.fixed_material().is_none() && !matches!(method, Method::Linearised) {
-        // `auto`: fitted by the linearised scheme first (`solve` does it
-        // itself).
-        let fit = material_fit::fit_material(problem, params, observer)?;
-        let resolved = params.clone().with_material(fit.material);
-        let mut solution = solve_method(problem, &resolved, method, observer)?;
-        solution.material_fit = Some(fit);
-        return Ok(solution);
-    }
-    match method {
-        Method::Linearised => solve(problem, params, observer),
+    let (params, fit) = material_fit::resolve(problem, params, observer)?;
+    let params = &params;
+    let mut solution = match method {
+        Method::Linearised => driver::solve(problem, params, observer),
         Method::Explicit(explicit) => solve_explicit(problem, params, explicit, observer),
         Method::FastMarching(settings) => solve_fast_marching(
             problem,
@@ -86,5 +80,21 @@ pub fn solve_method(
             },
             observer,
         ),
-    }
+    }?;
+    solution.material_fit = fit;
+    Ok(solution)
+}
+
+/// Solves `problem` with the linearised scheme (the paper's) at `params`:
+/// with `--reflectance auto` the materials are compared first
+/// ([`material_fit`]) and the fit is kept in the solution.
+///
+/// # Errors
+/// As the scheme, and the fit.
+pub fn solve(
+    problem: &Problem,
+    params: &crate::params::SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<Solution, SolveError> {
+    solve_method(problem, params, &Method::Linearised, observer)
 }

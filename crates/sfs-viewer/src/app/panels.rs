@@ -14,8 +14,10 @@ use super::settings::{InitialChoice, Settings, SurfaceColour, Tool};
 use super::view3d::SurfaceView;
 use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
 use sfs_core::grid::Grid;
+use sfs_core::material::Material;
 use sfs_core::params::{PARAMS, ParamKind, ParamValue, SolverParams};
 use sfs_core::photo::{PhotoInput, Vignetting};
+use sfs_core::solver::{Solution, material_fit};
 
 /// Which 2-D panel is shown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -438,8 +440,23 @@ impl Panels {
     fn progress_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         let s = &cx.session.solve;
         let running = s.running;
+        // `auto`: the material is fitted before the solve reports anything.
+        let fitting = s.running
+            && s.energies.is_empty()
+            && cx.settings.params.to_params().fixed_material().is_none();
         ui.horizontal(|ui| {
-            if s.running {
+            if fitting {
+                ui.spinner();
+                ui.label(format!(
+                    "fitting the reflectance ({} solves on a {} px copy)",
+                    material_fit::candidates().len(),
+                    material_fit::FIT_SIDE
+                ))
+                .on_hover_text(
+                    "reflectance auto: every candidate material is solved on a coarse copy \
+                     of the image and their energies compared; the solve follows",
+                );
+            } else if s.running {
                 ui.spinner();
                 let p = &s.progress;
                 ui.label(format!(
@@ -520,6 +537,9 @@ impl Panels {
                  intensity scale",
             );
         }
+        if let Some(solution) = &s.finished {
+            material_ui(ui, solution);
+        }
         if let Some(fit) = &s.known_depth_fit {
             ui.label(fit_summary(fit)).on_hover_text(
                 "The intensity scale s that puts the surface at the known distances (relative \
@@ -556,12 +576,30 @@ impl Panels {
         let chosen_alpha = cx.session.solve.finished.as_ref().map(|s| s.alpha);
         let mut changed = false;
         for spec in PARAMS {
-            let Some((low, high)) = spec.slider else {
+            // A model's own parameters only while it is chosen.
+            let Some((low, high)) = spec.slider.filter(|_| p.applies(spec.name)) else {
                 continue;
             };
             let tooltip = format!("{} Default: {}.", spec.help, (spec.get)(&defaults));
             let value = (spec.get)(&p);
             match (spec.kind, value) {
+                (ParamKind::Choice(words), ParamValue::Choice(chosen)) => {
+                    // One line, labelled on the right as the sliders are.
+                    let mut picked = chosen;
+                    egui::ComboBox::from_label(spec.label)
+                        .selected_text(chosen)
+                        .show_ui(ui, |ui| {
+                            for &word in words {
+                                ui.selectable_value(&mut picked, word, word);
+                            }
+                        })
+                        .response
+                        .on_hover_text(tooltip.as_str());
+                    if picked != chosen {
+                        (spec.set)(&mut p, ParamValue::Choice(picked));
+                        changed = true;
+                    }
+                }
                 (ParamKind::Real { log, auto, .. }, value) => {
                     let mut number = match value {
                         ParamValue::Real(v) => v,
@@ -1541,6 +1579,82 @@ impl Panels {
                 None => {}
             }
         }
+    }
+}
+
+/// Candidates of a material fit listed under its summary.
+const TRIALS_SHOWN: usize = 5;
+
+/// The material a solve used (when not Lambert or fitted), and with
+/// `reflectance auto` what the fit found and its best candidates.
+fn material_ui(ui: &mut egui::Ui, solution: &Solution) {
+    if solution.material.is_lambert() && solution.material_fit.is_none() {
+        return;
+    }
+    ui.label(format!("reflectance: {}", solution.material.describe()))
+        .on_hover_text("The reflectance model the surface was solved with (METHOD.md section 10)");
+    let Some(fit) = &solution.material_fit else {
+        return;
+    };
+    let text = format!("material fit ({:.1} s): {}", fit.seconds, fit.summary);
+    let hover = format!(
+        "reflectance auto: each of the {} candidates solved on a {} px copy of the image and \
+         ranked by energy (data term plus smoothness), each with its residual; the solve used \
+         the reflectance above. To solve as another model, choose it under Parameters",
+        fit.trials.len(),
+        fit.working_side
+    );
+    if !fit.determined && !fit.best.is_lambert() {
+        ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {text}"))
+            .on_hover_text(hover.as_str());
+    } else {
+        ui.label(text).on_hover_text(hover.as_str());
+    }
+    egui::CollapsingHeader::new(format!(
+        "best {} of {} candidates",
+        TRIALS_SHOWN.min(fit.trials.len()),
+        fit.trials.len()
+    ))
+    .id_salt("material candidates")
+    .default_open(false)
+    .show(ui, |ui| {
+        let best = fit.trials.iter().take(TRIALS_SHOWN);
+        // Lambert's row for comparison when it is not among the best.
+        let lambert = fit
+            .trials
+            .iter()
+            .skip(TRIALS_SHOWN)
+            .find(|t| t.material.is_lambert());
+        egui::Grid::new("material trials")
+            .striped(true)
+            .show(ui, |ui| {
+                ui.strong("material");
+                ui.strong("energy")
+                    .on_hover_text("the solve's final energy relative to the best candidate's");
+                ui.strong("residual")
+                    .on_hover_text("sqrt(sum c (I - R)^2 / sum c I^2) of the candidate's solve");
+                ui.end_row();
+                for trial in best.chain(lambert) {
+                    ui.label(short_material(&trial.material))
+                        .on_hover_text(trial.material.describe());
+                    ui.label(format!("×{:.3}", trial.relative_energy));
+                    ui.label(format!("{:.4}", trial.relative_residual));
+                    ui.end_row();
+                }
+            });
+    });
+}
+
+/// A material in a few characters, for the candidates' table (the narrow
+/// side panel): `oren-nayar σ 0.40`, `blinn-phong k_s 0.60 n 5`.
+fn short_material(material: &Material) -> String {
+    match *material {
+        Material::Lambert => "lambert".into(),
+        Material::OrenNayar { roughness_rad } => format!("oren-nayar σ {roughness_rad:.2}"),
+        Material::BlinnPhong {
+            specular,
+            shininess,
+        } => format!("blinn-phong k_s {specular:.2} n {shininess:.0}"),
     }
 }
 

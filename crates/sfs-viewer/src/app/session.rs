@@ -587,8 +587,12 @@ impl Session {
                     self.solve.known_depth_fit = known_depth_fit;
                     self.solve.errors = self.document.as_ref().and_then(|doc| {
                         let gt = doc.ground_truth.as_ref()?;
-                        let model =
-                            sfs_core::light::LightModel::new(s_used, &doc.camera.solve_lights());
+                        // RIE with the material the solve used.
+                        let model = sfs_core::light::LightModel::with_material(
+                            s_used,
+                            &doc.camera.solve_lights(),
+                            solution.material,
+                        );
                         metrics::errors_with_model(
                             &solution.depth,
                             gt,

@@ -251,4 +251,42 @@ mod tests {
         let back: Settings = serde_json::from_str(&json).unwrap_or_default();
         assert_eq!(back, s);
     }
+
+    #[test]
+    fn the_reflectance_and_its_parameters_round_trip_through_the_stored_settings() {
+        use sfs_core::material::Material;
+        use sfs_core::params::ReflectanceChoice;
+        let mut s = Settings::default();
+        s.params.update(|p| {
+            p.reflectance = ReflectanceChoice::OrenNayar;
+            p.roughness_rad = 0.45;
+        });
+        assert_eq!(
+            s.params.values.get("reflectance").map(String::as_str),
+            Some("oren-nayar")
+        );
+        let json = serde_json::to_string(&s).expect("serialises");
+        let back: Settings = serde_json::from_str(&json).expect("deserialises");
+        assert_eq!(back, s);
+        let params = back.params.to_params();
+        assert_eq!(params.reflectance, ReflectanceChoice::OrenNayar);
+        assert_eq!(params.roughness_rad, 0.45);
+        assert_eq!(
+            params.fixed_material(),
+            Some(Material::OrenNayar {
+                roughness_rad: 0.45
+            })
+        );
+        // Blinn-Phong's and auto's stored words read back too; a word of
+        // no model falls back to the default (Lambert).
+        for (word, choice) in [
+            ("blinn-phong", ReflectanceChoice::BlinnPhong),
+            ("auto", ReflectanceChoice::Auto),
+            ("glossy", ReflectanceChoice::Lambert),
+        ] {
+            let mut stored = back.params.clone();
+            stored.values.insert("reflectance".into(), word.into());
+            assert_eq!(stored.to_params().reflectance, choice, "{word}");
+        }
+    }
 }
