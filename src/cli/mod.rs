@@ -46,7 +46,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a synthetic scene with ground truth (the Sombrero or an OBJ mesh).
-    Synth(SynthArgs),
+    Synth(Box<SynthArgs>),
     /// Recover depth from an image.
     Solve(Box<SolveArgs>),
     /// Compare a depth map with a synthetic scene's ground truth (prints JSON).

@@ -689,11 +689,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     );
     let model_fit_per_photo = photo::fit_per_photo(
         &prepared.photos,
-        &solution.depth,
+        &solution,
         camera,
         problem.intensity_scale,
         fit_confidence.as_ref(),
-        solution.scales.intensity,
         sum_divisor,
     );
     let residual = model_fit::residual_map(

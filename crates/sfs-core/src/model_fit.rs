@@ -29,6 +29,13 @@ pub const POOR_RIE: f64 = 0.15;
 /// The share of badly explained trusted pixels above which the fit is called
 /// poor.
 pub const POOR_SHARE: f64 = 0.2;
+/// The brightest share of trusted object pixels checked for highlights.
+pub const HIGHLIGHT_SHARE: f64 = 0.02;
+/// Highlights are named when at least this share of the brightest pixels is
+/// brighter than the model explains, and at least twice the share of badly
+/// explained pixels overall: the misfit is concentrated where a glossy
+/// surface would shine.
+pub const HIGHLIGHT_POOR_SHARE: f64 = 0.3;
 
 /// The median object brightness (linear, full range 1) below which an image
 /// is too dark to carry shape: half the object near-black (an ambient frame
@@ -50,6 +57,10 @@ pub struct ModelFit {
     pub saturated_share: f64,
     /// Median linear brightness of the object pixels.
     pub median_brightness: f64,
+    /// Share of the brightest [`HIGHLIGHT_SHARE`] of trusted object pixels
+    /// that are brighter than the model explains by more than
+    /// [`POOR_RESIDUAL`]: highlights a matte model cannot show.
+    pub highlight_poor_share: f64,
     /// Plain-language warnings (empty when the fit is good).
     pub warnings: Vec<String>,
 }
@@ -216,6 +227,9 @@ pub fn measure_photographs(
     let (mut num, mut den, mut trusted, mut poor) = (0.0, 0.0, 0usize, 0usize);
     let (mut object, mut black, mut saturated) = (0usize, 0usize, 0usize);
     let mut values = Vec::new();
+    // Trusted pixels' brightness and whether the image there is brighter
+    // than the model by more than POOR_RESIDUAL (for the highlights).
+    let mut lit: Vec<(f64, bool)> = Vec::new();
     let scale = photographs.scale;
     // The smallest brightness a residual is measured against; an unusable
     // reference (a degenerate solve's scales) must not call every residual
@@ -240,9 +254,17 @@ pub fn measure_photographs(
             den += c * i * i;
             trusted += 1;
             poor += usize::from((i - r).abs() > POOR_RESIDUAL * i.max(floor));
+            lit.push((i, i - r > POOR_RESIDUAL * i.max(floor)));
         }
     }
     let share = |n: usize, of: usize| n as f64 / of.max(1) as f64;
+    let brightest = ((lit.len() as f64 * HIGHLIGHT_SHARE).ceil() as usize).min(lit.len());
+    let highlight_poor_share = if brightest == 0 {
+        0.0
+    } else {
+        lit.select_nth_unstable_by(brightest - 1, |a, b| b.0.total_cmp(&a.0));
+        share(lit[..brightest].iter().filter(|p| p.1).count(), brightest)
+    };
     let mut fit = ModelFit {
         rie_trusted: if den > 0.0 {
             (num / den).sqrt()
@@ -253,6 +275,7 @@ pub fn measure_photographs(
         near_black_share: share(black, object),
         saturated_share: share(saturated, object),
         median_brightness: median(values),
+        highlight_poor_share,
         warnings: Vec::new(),
     };
     if fit.median_brightness < TOO_DARK_MEDIAN {
@@ -268,6 +291,19 @@ pub fn measure_photographs(
              see the residual map and mask what the model cannot explain",
             fit.rie_trusted,
             100.0 * fit.poor_share,
+            100.0 * POOR_RESIDUAL
+        ));
+    }
+    if fit.highlight_poor_share >= HIGHLIGHT_POOR_SHARE
+        && fit.highlight_poor_share >= 2.0 * fit.poor_share
+    {
+        fit.warnings.push(format!(
+            "the brightest pixels are brighter than the model explains ({:.0} % of the \
+             brightest {:.0} % by more than {:.0} %): a glossy surface? Solve with \
+             --reflectance blinn-phong, or lower their confidence (--auto-confidence, the \
+             viewer's brush)",
+            100.0 * fit.highlight_poor_share,
+            100.0 * HIGHLIGHT_SHARE,
             100.0 * POOR_RESIDUAL
         ));
     }
@@ -517,6 +553,35 @@ mod tests {
         let black = measure(&image, &zero, &domain, None, f64::INFINITY);
         assert!((black.rie_trusted - 1.0).abs() < 1e-12);
         assert_eq!(black.poor_share, 1.0);
+    }
+
+    #[test]
+    fn highlights_the_model_cannot_show_are_named() {
+        // A matte reprojection of an image with a glossy spot: the
+        // brightest pixels are the badly explained ones.
+        let matte = Grid::from_fn(50, 50, |c, r| 0.2 + 0.002 * (c + r) as f64);
+        let mut glossy = matte.clone();
+        // 64 pixels: more than the brightest 2 % of 2500.
+        for r in 20..28 {
+            for c in 20..28 {
+                *glossy.at_mut(c, r) = 0.9;
+            }
+        }
+        let domain = Grid::filled(50, 50, true);
+        let fit = measure(&glossy, &matte, &domain, None, 0.4);
+        assert_eq!(fit.highlight_poor_share, 1.0);
+        assert!(fit.warnings.iter().any(|w| w.contains("glossy")), "{fit:?}");
+        // The same misfit spread evenly (a darker model everywhere) is no
+        // highlight.
+        let darker = glossy.map(|v| 0.7 * v);
+        let even = measure(&glossy, &darker, &domain, None, 0.4);
+        assert!(
+            !even.warnings.iter().any(|w| w.contains("glossy")),
+            "{even:?}"
+        );
+        // Brightest pixels explained: nothing.
+        let exact = measure(&glossy, &glossy, &domain, None, 0.4);
+        assert_eq!(exact.highlight_poor_share, 0.0);
     }
 
     #[test]

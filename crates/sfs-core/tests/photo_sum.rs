@@ -176,11 +176,10 @@ fn a_sum_above_1_of_photographs_below_1_is_not_saturated() {
     }
     let fits = photo::fit_per_photo(
         &prepared.photos,
-        &solution.depth,
+        &solution,
         prepared.problem.camera,
         prepared.problem.intensity_scale,
         prepared.problem.confidence.as_ref(),
-        solution.scales.intensity,
         4.0,
     );
     assert_eq!(fits.len(), 3);

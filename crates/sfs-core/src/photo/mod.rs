@@ -356,22 +356,23 @@ impl PreparedPhoto {
     }
 }
 
-/// The fit of a solved `depth` (NaN off its domain) to each photograph of
-/// `photos` alone: its own corrected image against the reprojection under
-/// its own light with the solve's intensity scale `intensity_scale`, over
-/// the solve's `confidence`. `intensity_ref` is the problem's brightness
-/// scale (of the sum as divided by `sum_divisor`), shared out among the
-/// photographs by their lights' intensities. `camera`: the intrinsics at
-/// the working size.
+/// The fit of a solution's depth (NaN off its domain) to each photograph
+/// of `photos` alone: its own corrected image against the reprojection
+/// under its own light with the solve's intensity scale `intensity_scale`
+/// and material, over the solve's `confidence`. The problem's brightness
+/// scale (the solution's, of the sum as divided by `sum_divisor`) is shared
+/// out among the photographs by their lights' intensities. `camera`: the
+/// intrinsics at the working size.
 pub fn fit_per_photo(
     photos: &[SummedPhoto],
-    depth: &Grid<f64>,
+    solution: &crate::solver::Solution,
     camera: Intrinsics,
     intensity_scale: f64,
     confidence: Option<&Grid<f64>>,
-    intensity_ref: f64,
     sum_divisor: f64,
 ) -> Vec<PhotoFit> {
+    let depth = &solution.depth;
+    let intensity_ref = solution.scales.intensity;
     let (w, h) = depth.size();
     let domain = depth.map(|z| z.is_finite());
     let geometry = LevelGeometry::new(w, h, w, h, camera);
@@ -380,7 +381,8 @@ pub fn fit_per_photo(
         .iter()
         .filter(|p| p.image.size() == (w, h) && p.clipped.size() == (w, h))
         .map(|photo| {
-            let model = LightModel::new(intensity_scale, &[photo.light]);
+            let model =
+                LightModel::with_material(intensity_scale, &[photo.light], solution.material);
             let reprojection =
                 model::reproject(&model, &geometry, &domain, depth, Cancel::NEVER).uncancelled();
             let share = if total > 0.0 {
