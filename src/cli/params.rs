@@ -59,7 +59,28 @@ impl ParamArgs {
         for (spec, text) in &self.given {
             values.push((*spec, spec.parse(text)?));
         }
-        Ok(sfs_core::params::table::params_from(values))
+        let params = sfs_core::params::table::params_from(values);
+        // A model's parameter without its model would be silently unused.
+        if let Some((spec, text)) = self
+            .given
+            .iter()
+            .find(|(spec, _)| !params.applies(spec.name))
+        {
+            return Err(ParamError {
+                name: spec.name,
+                value: text.clone(),
+                reason: format!(
+                    "--{} belongs to --reflectance {} (the chosen reflectance does not use it)",
+                    spec.name,
+                    if spec.name == "roughness" {
+                        "oren-nayar"
+                    } else {
+                        "blinn-phong"
+                    }
+                ),
+            });
+        }
+        Ok(params)
     }
 }
 
@@ -72,6 +93,34 @@ mod tests {
     struct Probe {
         #[command(flatten)]
         params: ParamArgs,
+    }
+
+    #[test]
+    fn a_models_parameter_without_its_model_is_refused() {
+        let probe = Probe::try_parse_from(["x", "--roughness", "0.5"]).expect("parse");
+        let err = probe.params.to_params().expect_err("no oren-nayar");
+        assert!(err.to_string().contains("oren-nayar"), "{err}");
+        let probe = Probe::try_parse_from(["x", "--reflectance", "oren-nayar", "--shininess", "9"])
+            .expect("parse");
+        assert!(probe.params.to_params().is_err());
+        let probe = Probe::try_parse_from([
+            "x",
+            "--reflectance",
+            "blinn-phong",
+            "--specular",
+            "0.5",
+            "--shininess",
+            "40",
+        ])
+        .expect("parse");
+        let p = probe.params.to_params().expect("params");
+        assert_eq!(
+            p.fixed_material(),
+            Some(sfs_core::material::Material::BlinnPhong {
+                specular: 0.5,
+                shininess: 40.0
+            })
+        );
     }
 
     #[test]
