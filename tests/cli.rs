@@ -1602,3 +1602,124 @@ fn the_probes_cases_are_refused_or_said() {
         stderr(&run)
     );
 }
+
+#[test]
+fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
+    let dir = tempdir().expect("temp dir");
+    let scene = dir.path().join("glossy");
+    let out = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "64x64",
+        "--reflectance",
+        "blinn-phong",
+        "--specular",
+        "0.3",
+        "--shininess",
+        "30",
+        "--out",
+        &s(&scene),
+    ]);
+    assert_success(&out, "synth with blinn-phong");
+    let camera = read_json(&scene.join("scene.json"));
+    assert_eq!(camera["material"]["model"], "blinn-phong");
+    assert_eq!(camera["material"]["shininess"], 30.0);
+    let solve = |name: &str, extra: &[&str]| -> Value {
+        let result = dir.path().join(name);
+        let mut args = vec![
+            "solve".to_string(),
+            s(&scene.join("image16.png")),
+            "--camera".into(),
+            s(&scene.join("scene.json")),
+            "--gt".into(),
+            s(&scene),
+            "--quiet".into(),
+            "--out".into(),
+            s(&result),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        assert_success(&sfs(&args), name);
+        read_json(&result.join("report.json"))
+    };
+    let matched = solve(
+        "matched",
+        &[
+            "--reflectance",
+            "blinn-phong",
+            "--specular",
+            "0.3",
+            "--shininess",
+            "30",
+        ],
+    );
+    let lambert = solve("lambert", &[]);
+    assert_eq!(matched["material"]["model"], "blinn-phong");
+    assert_eq!(matched["parameters"]["reflectance"], "blinn-phong");
+    assert_eq!(lambert["material"]["model"], "lambert");
+    let rse = |r: &Value| r["rse"].as_f64().expect("rse");
+    assert!(
+        rse(&matched) < 0.5 * rse(&lambert),
+        "matched {} against Lambert {}",
+        rse(&matched),
+        rse(&lambert)
+    );
+    // eval measures with scene.json's material: the matched solve explains
+    // the image, and the RIE eval prints is the one solve reported.
+    let eval = sfs([
+        "eval",
+        "--depth",
+        &s(&dir.path().join("matched").join("depth.npy")),
+        "--gt",
+        &s(&scene),
+    ]);
+    assert_success(&eval, "eval");
+    let measured: Value = serde_json::from_str(stdout(&eval).trim()).expect("eval prints JSON");
+    let rie = |r: &Value| r["rie"].as_f64().expect("rie");
+    assert!((rie(&measured) - rie(&matched)).abs() < 1e-6 * (1.0 + rie(&matched)));
+    // Auto reports the models and solves as Lambertian.
+    let auto = solve("auto", &["--reflectance", "auto"]);
+    assert_eq!(auto["material"]["model"], "lambert");
+    assert_eq!(auto["material_fit"]["determined"], false);
+    assert_eq!(
+        auto["material_fit"]["trials"].as_array().map(Vec::len),
+        Some(sfs_core::solver::material_fit::candidates().len())
+    );
+    // A model's parameter without its model, or out of range, is refused.
+    let refused = dir.path().join("refused");
+    let base = [
+        "solve".to_string(),
+        s(&scene.join("image16.png")),
+        "--camera".into(),
+        s(&scene.join("scene.json")),
+        "--out".into(),
+        s(&refused),
+    ];
+    let with = |extra: &[&str]| {
+        let mut args = base.to_vec();
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    };
+    expect_failure(
+        &with(&["--roughness", "0.4"]),
+        &refused,
+        &["roughness", "oren-nayar"],
+    );
+    expect_failure(
+        &with(&["--reflectance", "blinn-phong", "--shininess", "0"]),
+        &refused,
+        &["shininess"],
+    );
+    expect_failure(
+        &with(&[
+            "--method",
+            "fast-marching",
+            "--reflectance",
+            "oren-nayar",
+            "--roughness",
+            "0.9",
+        ]),
+        &refused,
+        &["fast marching", "oren-nayar"],
+    );
+}
