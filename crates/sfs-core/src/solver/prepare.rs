@@ -175,17 +175,10 @@ pub(crate) fn prepare<'a>(
     // A material whose brightness does not grow as the surface turns to
     // the light (rough Oren-Nayar) has no fast marching: the constant or
     // plane start of the paper's path.
-    // With lights off the centre, Oren-Nayar (whose brightness depends on
-    // the camera's direction as much as the light's, which the light's
-    // frame takes as one) starts from the plane: with a light 0.4 beside
-    // the lens the march left the Sombrero at RSE 0.021, the plane 0.008
-    // (the Bunny 0.017 and 0.015, the Dragon 0.014 both); Blinn-Phong
-    // marched there 0.012 against the plane's 0.051.
     let fast_marching_start_wanted = matches!(params.initial_depth, InitialDepth::FastMarching)
         && material.centred_is_monotone()
         && (problem.light_is_centred()
-            || (!matches!(material, crate::material::Material::OrenNayar { .. })
-                && super::light_frame::serves(problem, &finest, scales.depth, material)));
+            || super::light_frame::serves(problem, &finest, scales.depth, material));
     // That start takes seconds on a photograph: its preview goes out first.
     let shown = match preview {
         Some(start) if fast_marching_start_wanted && problem.light_is_centred() => usize::from(
