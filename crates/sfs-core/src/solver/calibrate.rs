@@ -15,7 +15,7 @@ use crate::grid::Grid;
 use crate::params::SolverParams;
 
 use super::problem::{Problem, SolveError, SolveObserver};
-use super::working::{Forward, working_copy};
+use super::working::{Forward, relative_residual, working_copy};
 
 /// Longest side of the working copy the scale is searched on.
 pub const SEARCH_SIDE: usize = 128;
@@ -85,29 +85,20 @@ fn trial(
     observer: &mut dyn SolveObserver,
 ) -> Result<(f64, f64), SolveError> {
     let solution = super::solve(problem, params, &mut Forward(observer))?;
-    let (mut num, mut den) = (0.0, 0.0);
-    let mut depths = Vec::new();
-    for q in 0..problem.image.len() {
-        let z = solution.depth.as_slice()[q];
-        if !z.is_finite() {
-            continue;
-        }
-        depths.push(z);
-        let c = problem.confidence.as_ref().map_or(1.0, |c| c.as_slice()[q]);
-        let (i, r) = (
-            problem.image.as_slice()[q],
-            solution.reprojection.as_slice()[q],
-        );
-        num += c * (i - r) * (i - r);
-        den += c * i * i;
-    }
+    let mut depths: Vec<f64> = solution
+        .depth
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .collect();
     let middle = depths.len() / 2;
     let depth = if depths.is_empty() {
         f64::NAN
     } else {
         *depths.select_nth_unstable_by(middle, f64::total_cmp).1
     };
-    Ok(((num / den.max(f64::MIN_POSITIVE)).sqrt(), depth))
+    Ok((relative_residual(problem, &solution), depth))
 }
 
 /// Estimates `s` for a problem whose lights are off the optical centre (see

@@ -22,7 +22,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::problem::{Problem, SolveError, SolveObserver};
-use super::working::{Forward, working_copy};
+use super::working::{Forward, relative_residual, working_copy};
 use crate::material::Material;
 use crate::params::SolverParams;
 
@@ -163,22 +163,4 @@ pub fn resolve(
     }
     let fit = fit_material(problem, params, observer)?;
     Ok((params.clone().with_material(fit.material), Some(fit)))
-}
-
-/// `sqrt(sum c (I - R)^2 / sum c I^2)` over the solved pixels.
-fn relative_residual(problem: &Problem, solution: &super::Solution) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for q in 0..problem.image.len() {
-        if !solution.depth.as_slice()[q].is_finite() {
-            continue;
-        }
-        let c = problem.confidence.as_ref().map_or(1.0, |c| c.as_slice()[q]);
-        let (i, r) = (
-            problem.image.as_slice()[q],
-            solution.reprojection.as_slice()[q],
-        );
-        num += c * (i - r) * (i - r);
-        den += c * i * i;
-    }
-    (num / den.max(f64::MIN_POSITIVE)).sqrt()
 }

@@ -1,6 +1,7 @@
 //! What the searches share: a working copy of a problem at a smaller size,
-//! and an observer that passes only cancellation through (their trial
-//! solves are not levels of the user's solve).
+//! an observer that passes only cancellation through (their trial solves
+//! are not levels of the user's solve), and how well a trial explains its
+//! image.
 
 use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
@@ -38,4 +39,23 @@ impl SolveObserver for Forward<'_> {
     fn is_cancelled(&self) -> bool {
         self.0.is_cancelled()
     }
+}
+
+/// How well a trial solve explains its image: `sqrt(sum c (I - R)^2 /
+/// sum c I^2)` over the solved pixels (finite depth), `c` the confidence.
+pub(crate) fn relative_residual(problem: &Problem, solution: &super::Solution) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for q in 0..problem.image.len() {
+        if !solution.depth.as_slice()[q].is_finite() {
+            continue;
+        }
+        let c = problem.confidence.as_ref().map_or(1.0, |c| c.as_slice()[q]);
+        let (i, r) = (
+            problem.image.as_slice()[q],
+            solution.reprojection.as_slice()[q],
+        );
+        num += c * (i - r) * (i - r);
+        den += c * i * i;
+    }
+    (num / den.max(f64::MIN_POSITIVE)).sqrt()
 }
