@@ -227,9 +227,6 @@ pub fn measure_photographs(
     let (mut num, mut den, mut trusted, mut poor) = (0.0, 0.0, 0usize, 0usize);
     let (mut object, mut black, mut saturated) = (0usize, 0usize, 0usize);
     let mut values = Vec::new();
-    // Trusted pixels' brightness and whether the image there is brighter
-    // than the model by more than POOR_RESIDUAL (for the highlights).
-    let mut lit: Vec<(f64, bool)> = Vec::new();
     let scale = photographs.scale;
     // The smallest brightness a residual is measured against; an unusable
     // reference (a degenerate solve's scales) must not call every residual
@@ -254,16 +251,46 @@ pub fn measure_photographs(
             den += c * i * i;
             trusted += 1;
             poor += usize::from((i - r).abs() > POOR_RESIDUAL * i.max(floor));
-            lit.push((i, i - r > POOR_RESIDUAL * i.max(floor)));
         }
     }
     let share = |n: usize, of: usize| n as f64 / of.max(1) as f64;
-    let brightest = ((lit.len() as f64 * HIGHLIGHT_SHARE).ceil() as usize).min(lit.len());
-    let highlight_poor_share = if brightest == 0 {
-        0.0
-    } else {
-        lit.select_nth_unstable_by(brightest - 1, |a, b| b.0.total_cmp(&a.0));
-        share(lit[..brightest].iter().filter(|p| p.1).count(), brightest)
+    // The brightest trusted pixels (at or above the brightness of the
+    // HIGHLIGHT_SHARE-th from the top, found without a copy of the image)
+    // and how many of them the model leaves darker than they are.
+    let trusted_at = |q: usize| {
+        domain.as_slice()[q]
+            && confidence.map_or(1.0, |c| c.as_slice()[q]) > 0.0
+            && reprojection.as_slice()[q].is_finite()
+    };
+    let width = image.width().max(1);
+    let brightest = ((trusted as f64 * HIGHLIGHT_SHARE).ceil() as usize).min(trusted);
+    let threshold = crate::selection::kth_smallest(
+        image.height(),
+        |r, out| {
+            out.extend(
+                (r * width..(r + 1) * width)
+                    .filter(|&q| trusted_at(q))
+                    .map(|q| image.as_slice()[q].max(0.0)),
+            )
+        },
+        |count| count.saturating_sub(brightest.max(1)),
+        crate::cancel::Cancel::NEVER,
+    )
+    .ok()
+    .flatten();
+    let highlight_poor_share = match threshold {
+        Some(threshold) if brightest > 0 => {
+            let (mut among, mut poor_among) = (0usize, 0usize);
+            for q in (0..image.len()).filter(|&q| trusted_at(q)) {
+                let (i, r) = (image.as_slice()[q], reprojection.as_slice()[q]);
+                if i.max(0.0) >= threshold {
+                    among += 1;
+                    poor_among += usize::from(i - r > POOR_RESIDUAL * i.max(floor));
+                }
+            }
+            share(poor_among, among)
+        }
+        _ => 0.0,
     };
     let mut fit = ModelFit {
         rie_trusted: if den > 0.0 {
