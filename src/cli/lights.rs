@@ -108,49 +108,30 @@ pub struct MaterialArgs {
 }
 
 impl MaterialArgs {
-    /// The material asked for; `None` when `--reflectance` is not given
-    /// (a model's parameter without its model is refused).
+    /// The material asked for, read and checked by the parameter table's
+    /// entries of the same names (ranges, a model's parameter only with its
+    /// model); `None` when no option is given.
     pub fn material(&self) -> Result<Option<Material>> {
-        let defaults = sfs_core::params::SolverParams::default();
-        let material = match self.reflectance.as_deref() {
-            None => {
-                if self.roughness.is_some() || self.specular.is_some() || self.shininess.is_some() {
-                    anyhow::bail!(
-                        "--roughness, --specular and --shininess need --reflectance \
-                         oren-nayar or blinn-phong"
-                    );
-                }
-                return Ok(None);
+        let typed = [
+            ("reflectance", self.reflectance.clone()),
+            ("roughness", self.roughness.map(|v| v.to_string())),
+            ("specular", self.specular.map(|v| v.to_string())),
+            ("shininess", self.shininess.map(|v| v.to_string())),
+        ];
+        let mut given = Vec::new();
+        for (name, text) in typed {
+            if let (Some(spec), Some(text)) = (sfs_core::params::table::spec(name), text) {
+                given.push((spec, text));
             }
-            Some("oren-nayar") => {
-                if self.specular.is_some() || self.shininess.is_some() {
-                    anyhow::bail!("--specular and --shininess belong to --reflectance blinn-phong");
-                }
-                Material::OrenNayar {
-                    roughness_rad: self.roughness.unwrap_or(defaults.roughness_rad),
-                }
-            }
-            Some("blinn-phong") => {
-                if self.roughness.is_some() {
-                    anyhow::bail!("--roughness belongs to --reflectance oren-nayar");
-                }
-                Material::BlinnPhong {
-                    specular: self.specular.unwrap_or(defaults.specular),
-                    shininess: self.shininess.unwrap_or(defaults.shininess),
-                }
-            }
-            Some(_) => {
-                if self.roughness.is_some() || self.specular.is_some() || self.shininess.is_some() {
-                    anyhow::bail!(
-                        "--reflectance lambert takes no --roughness, --specular or --shininess"
-                    );
-                }
-                Material::Lambert
-            }
-        };
-        material
-            .validated()
-            .map(Some)
-            .map_err(|e| anyhow::anyhow!("invalid material: {e}"))
+        }
+        if given.is_empty() {
+            return Ok(None);
+        }
+        let mut params = sfs_core::params::SolverParams::default();
+        for (spec, text) in &given {
+            (spec.set)(&mut params, spec.parse(text)?);
+        }
+        super::params::refuse_unused(&params, &given)?;
+        Ok(params.fixed_material())
     }
 }

@@ -60,27 +60,33 @@ impl ParamArgs {
             values.push((*spec, spec.parse(text)?));
         }
         let params = sfs_core::params::table::params_from(values);
-        // A model's parameter without its model would be silently unused.
-        if let Some((spec, text)) = self
-            .given
-            .iter()
-            .find(|(spec, _)| !params.applies(spec.name))
-        {
-            return Err(ParamError {
-                name: spec.name,
-                value: text.clone(),
-                reason: format!(
-                    "--{} belongs to --reflectance {} (the chosen reflectance does not use it)",
-                    spec.name,
-                    if spec.name == "roughness" {
-                        "oren-nayar"
-                    } else {
-                        "blinn-phong"
-                    }
-                ),
-            });
-        }
+        refuse_unused(&params, &self.given)?;
         Ok(params)
+    }
+}
+
+/// Refuses a model's parameter given without its model (`--roughness`
+/// without oren-nayar, `--specular` or `--shininess` without blinn-phong):
+/// it would be silently unused. `given`: the options as typed.
+pub fn refuse_unused(
+    params: &SolverParams,
+    given: &[(&'static ParamSpec, String)],
+) -> Result<(), ParamError> {
+    match given.iter().find(|(spec, _)| !params.applies(spec.name)) {
+        Some((spec, text)) => Err(ParamError {
+            name: spec.name,
+            value: text.clone(),
+            reason: format!(
+                "--{} belongs to --reflectance {} (the chosen reflectance does not use it)",
+                spec.name,
+                if spec.name == "roughness" {
+                    "oren-nayar"
+                } else {
+                    "blinn-phong"
+                }
+            ),
+        }),
+        None => Ok(()),
     }
 }
 

@@ -6,7 +6,7 @@
 //! reflectance.json.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -17,7 +17,7 @@ use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::scene::{Scene, mesh, sombrero::sombrero_shaded};
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
-use sfs_core::solver::{Method, Problem, Solution, solve};
+use sfs_core::solver::{Method, Solution, solve};
 
 use super::{BenchArgs, wanted};
 
@@ -96,30 +96,19 @@ fn materials() -> Vec<Material> {
     ]
 }
 
-/// Renders `name` (sombrero or a mesh of `meshes`) with `material`.
+/// Renders `name` (sombrero or a mesh of `meshes`, as the robustness part
+/// names them) with `material`.
 fn render(name: &str, meshes: &Path, size: (usize, usize), material: Material) -> Result<Scene> {
     let (w, h) = size;
-    if name == "sombrero" {
+    let Some(file) = super::robustness::mesh_file(name)? else {
         return Ok(sombrero_shaded(w, h, &[], material));
-    }
-    let file = match name {
-        "bunny" => "stanford-bunny.obj",
-        other => return render_mesh(meshes.join(format!("{other}.obj")), name, size, material),
     };
-    render_mesh(meshes.join(file), name, size, material)
-}
-
-fn render_mesh(
-    path: PathBuf,
-    name: &str,
-    size: (usize, usize),
-    material: Material,
-) -> Result<Scene> {
+    let path = meshes.join(file);
     let mesh = mesh::load_obj(&path).with_context(|| format!("{name}: {}", path.display()))?;
     Ok(mesh::render_shaded(
         &mesh,
-        size.0,
-        size.1,
+        w,
+        h,
         &mesh::Placement::default(),
         &[],
         material,
@@ -127,16 +116,10 @@ fn render_mesh(
     )?)
 }
 
-/// Solves `scene` with `params`: the solution and its seconds.
+/// Solves `scene` (its light at the optical centre) with `params`: the
+/// solution and its seconds.
 fn solved(scene: &Scene, params: &SolverParams) -> Result<(Solution, f64)> {
-    let problem = Problem {
-        image: scene.image.clone(),
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
-        lights: scene.lights.clone(),
-    };
+    let problem = super::robustness::problem(scene, scene.image.clone());
     let started = Instant::now();
     let solution = solve(&problem, params, &mut ())?;
     Ok((solution, started.elapsed().as_secs_f64()))
