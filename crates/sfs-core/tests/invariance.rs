@@ -13,6 +13,8 @@
 //! results agree to round-off (the SOR works in f32); the last one only
 //! through the information in the pixels.
 
+mod common;
+use common::{ROUND_OFF, largest_relative_difference};
 use proptest::prelude::*;
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
@@ -44,17 +46,6 @@ fn solved(problem: &Problem) -> Solution {
     solve(problem, &SolverParams::default(), &mut ()).expect("solves")
 }
 
-/// Largest relative difference between `depth` times `factor` and `reference`.
-fn largest_relative_difference(depth: &Grid<f64>, factor: f64, reference: &Grid<f64>) -> f64 {
-    depth
-        .as_slice()
-        .iter()
-        .zip(reference.as_slice())
-        .filter(|(a, b)| a.is_finite() && b.is_finite())
-        .map(|(a, b)| (a * factor - b).abs() / b.abs())
-        .fold(0.0, f64::max)
-}
-
 /// A clean or noisy (sigma 20 of 255) 40x40 Sombrero: the noisy one takes
 /// the denoised fast-marching start and a larger automatic alpha.
 fn scene_and_image(noisy: bool) -> (Scene, Grid<f64>) {
@@ -66,9 +57,6 @@ fn scene_and_image(noisy: bool) -> (Scene, Grid<f64>) {
     };
     (scene, image)
 }
-
-/// Round-off only: the solver computes in f64 with an f32 SOR.
-const ROUND_OFF: f64 = 1e-4;
 
 proptest! {
     #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]

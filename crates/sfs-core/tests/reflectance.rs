@@ -4,6 +4,8 @@
 //! takes the materials it can and refuses the one it cannot, and
 //! `--reflectance auto` reports without deciding.
 
+mod common;
+use common::{ROUND_OFF, largest_relative_difference};
 use sfs_core::grid::Grid;
 use sfs_core::light::PointLight;
 use sfs_core::material::Material;
@@ -42,19 +44,6 @@ fn solved(problem: &Problem, material: Material) -> Solution {
     )
     .expect("solves")
 }
-
-fn largest_relative_difference(depth: &Grid<f64>, factor: f64, reference: &Grid<f64>) -> f64 {
-    depth
-        .as_slice()
-        .iter()
-        .zip(reference.as_slice())
-        .filter(|(a, b)| a.is_finite() && b.is_finite())
-        .map(|(a, b)| (a * factor - b).abs() / b.abs())
-        .fold(0.0, f64::max)
-}
-
-/// Round-off only: the solver computes in f64 with an f32 SOR.
-const ROUND_OFF: f64 = 1e-4;
 
 #[test]
 fn exposure_and_depth_units_are_symmetries_for_every_material() {
