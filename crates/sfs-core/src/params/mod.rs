@@ -426,6 +426,13 @@ impl SolverParams {
         self.fixed_material().unwrap_or_default()
     }
 
+    /// These parameters with `auto` taken as the material it solves with
+    /// (Lambert): for trial solves that must not compare the materials
+    /// again each time.
+    pub fn without_fit(&self) -> Self {
+        self.clone().with_material(self.material())
+    }
+
     /// These parameters set to `material` (its model and parameters).
     pub fn with_material(mut self, material: Material) -> Self {
         match material {

@@ -119,7 +119,7 @@ pub fn estimate_intensity_scale(
 ) -> Result<ScaleEstimate, SolveError> {
     // `auto` is only a report (the solve stays Lambertian): the trials run
     // as Lambert, not comparing the materials again in each.
-    let resolved = params.clone().with_material(params.material());
+    let resolved = params.without_fit();
     let params = &resolved;
     if problem.light_is_centred() {
         return Err(SolveError::Input(
@@ -424,7 +424,7 @@ pub fn solve_with_known_depths(
     }
     // `auto` searches as Lambert (what it stands for: the fit only
     // reports) and compares the materials once, at the scale found.
-    let resolved = params.clone().with_material(params.material());
+    let resolved = params.without_fit();
     let auto = params.fixed_material().is_none();
     let user_params = params;
     let params = &resolved;
@@ -473,7 +473,7 @@ pub fn solve_with_known_depths(
             }
         }
     }
-    let (solution, converged, solves) = if problem.light_is_centred() {
+    let (mut solution, converged, solves) = if problem.light_is_centred() {
         let mut solution = super::solve_method(problem, params, method, observer)?;
         let mut solves = 1;
         let solved = depths_at(&solution.depth, points)?;
@@ -494,7 +494,6 @@ pub fn solve_with_known_depths(
         problem.intensity_scale = s;
         (solution, converged, solves)
     };
-    let mut solution = solution;
     if auto {
         solution.material_fit = Some(super::material_fit::fit_material(
             problem,
