@@ -28,3 +28,18 @@ pub fn colour_map(t: f32) -> [u8; 3] {
     }
     rgb
 }
+
+/// The usual normal-map colour of a unit normal in the camera frame (x
+/// right, y down, z away from the camera): red = right, green = up, blue =
+/// towards the camera, each `(1 + component) / 2` in [0, 1]; black for a
+/// normal that is not finite.
+pub fn normal_rgb(normal: [f64; 3]) -> [f64; 3] {
+    if normal.iter().any(|v| !v.is_finite()) {
+        return [0.0; 3];
+    }
+    [
+        (0.5 * (1.0 + normal[0])).clamp(0.0, 1.0),
+        (0.5 * (1.0 - normal[1])).clamp(0.0, 1.0),
+        (0.5 * (1.0 - normal[2])).clamp(0.0, 1.0),
+    ]
+}

@@ -52,6 +52,7 @@ fn analytic(
         image: image.map(|v| v * k),
         depth_gt,
         object_mask,
+        normals: None,
         lights: Vec::new(),
         material: Default::default(),
     }

@@ -41,6 +41,8 @@ pub(super) struct Decided {
     pub intensity_scale: Option<f64>,
     /// The unit of depth, when the camera file says it.
     pub units: Option<String>,
+    /// Whether the lights' relative intensities were measured.
+    pub intensities_measured: bool,
     /// Sentences for the summary and the report.
     pub notes: Vec<String>,
 }
@@ -113,6 +115,14 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
         CameraSpec::Exif { guess } => from_exif(&input.images[0], full_size, *guess, &mut notes)?,
     };
     let lights = decide_lights(input, file.as_ref(), &mut notes)?;
+    let intensities_measured = match (&input.lights, &file) {
+        (LightSpec::Given(_), _) => input.given_intensities,
+        (_, Some((_, f))) => f
+            .lights
+            .iter()
+            .all(|e| e.intensity.is_some() || e.rgb_intensity.is_some()),
+        (_, None) => true,
+    };
     let intensity_scale = match input.intensity_scale {
         ScaleSpec::Given(s) => {
             let (s_min, s_max) = crate::params::INTENSITY_SCALE_RANGE;
@@ -146,6 +156,7 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
         lights,
         intensity_scale,
         units: file.and_then(|(_, f)| f.units),
+        intensities_measured,
         notes,
     })
 }

@@ -139,6 +139,17 @@ pub struct PhotoInput {
     /// notes and the memory guard's way out (`--max-side`, or "a working
     /// size (Camera panel) of").
     pub max_side_setting: String,
+    /// Photometric stereo: the photographs are a set, each taken by a light
+    /// of its own (the camera file's `image` names, or one given light per
+    /// photograph in order), kept apart instead of summed.
+    pub photometric_stereo: bool,
+    /// Whether the given lights' intensities were measured (with
+    /// [`LightSpec::Given`]; a camera file says so itself). Without them a
+    /// set's intensities are estimated.
+    pub given_intensities: bool,
+    /// A confidence image per photograph of a set (same order as
+    /// `images`; empty or `None`: none), combined with `confidence`.
+    pub photo_confidence: Vec<Option<PathBuf>>,
 }
 
 impl PhotoInput {
@@ -160,6 +171,9 @@ impl PhotoInput {
             max_side: None,
             pyramid_factor: memory::DEFAULT_PYRAMID_FACTOR,
             max_side_setting: "--max-side".into(),
+            photometric_stereo: false,
+            given_intensities: false,
+            photo_confidence: Vec::new(),
         }
     }
 
@@ -183,6 +197,7 @@ impl PhotoInput {
             .chain(self.ambient.as_deref())
             .chain(flat)
             .chain(self.albedo.as_deref())
+            .chain(self.photo_confidence.iter().flatten().map(PathBuf::as_path))
             .collect()
     }
 }
@@ -331,6 +346,10 @@ pub struct PreparedPhoto {
     /// Several photographs each taken by a light of its own (a camera
     /// file's `image` names): each one, in the order given; else empty.
     pub photos: Vec<SummedPhoto>,
+    /// Whether the lights' relative intensities were measured (a camera
+    /// file's `intensity` or `rgb_intensity` for every light, or given
+    /// intensities).
+    pub intensities_measured: bool,
 }
 
 impl PreparedPhoto {
@@ -474,6 +493,9 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
             full_size.0,
             full_size.1
         ));
+    }
+    if input.photometric_stereo {
+        check_set(input, &decided.lights)?;
     }
     let own_lights = lights_per_photograph(input, &decided.lights);
     check_memory(input, full_size, own_lights)?;
@@ -653,7 +675,122 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
         report,
         clipped: photo.clipped,
         photos,
+        intensities_measured: decided.intensities_measured,
     })
+}
+
+/// Refuses what cannot be a photometric-stereo set before any pixel is
+/// decoded: fewer than two photographs, or lights that are not one per
+/// photograph.
+fn check_set(input: &PhotoInput, lights: &[PointLight]) -> Result<(), PhotoError> {
+    if input.images.len() < 2 {
+        return Err(PhotoError::Input(format!(
+            "photometric stereo needs at least 2 photographs, each with its own light; got {}",
+            input
+                .images
+                .first()
+                .map_or("none".into(), |p| p.display().to_string())
+        )));
+    }
+    if input.albedo.is_some() {
+        return Err(PhotoError::Input(
+            "a photometric-stereo set finds the albedo itself: --albedo is for one photograph"
+                .into(),
+        ));
+    }
+    if let LightSpec::Given(given) = &input.lights
+        && given.len() != input.images.len()
+    {
+        return Err(PhotoError::Input(format!(
+            "{} photographs but {} lights: give one --light per photograph, in the same order",
+            input.images.len(),
+            given.len()
+        )));
+    }
+    if let LightSpec::CameraFile { picks } = &input.lights
+        && !picks.is_empty()
+    {
+        return Err(PhotoError::Input(
+            "--light-index picks lights that are on together; a photometric-stereo set takes              each photograph's own light from the camera file's `image` names"
+                .into(),
+        ));
+    }
+    if lights.len() != input.images.len() {
+        return Err(PhotoError::Input(format!(
+            "{} photographs but {} lights: each photograph of a set needs its own light (a              camera file whose `lights` name each image, or one --light per photograph)",
+            input.images.len(),
+            lights.len()
+        )));
+    }
+    for (k, (a, la)) in input.images.iter().zip(lights).enumerate() {
+        for (b, lb) in input.images[..k].iter().zip(lights) {
+            if la.position == lb.position {
+                return Err(PhotoError::Input(format!(
+                    "{} and {} have the same light (at {:?}): each photograph of a set must be                      lit from a different place",
+                    b.display(),
+                    a.display(),
+                    la.position
+                )));
+            }
+        }
+    }
+    if !input.photo_confidence.is_empty() && input.photo_confidence.len() != input.images.len() {
+        return Err(PhotoError::Input(format!(
+            "{} per-photograph masks for {} photographs",
+            input.photo_confidence.len(),
+            input.images.len()
+        )));
+    }
+    Ok(())
+}
+
+/// The photometric-stereo problem of a prepared set (see
+/// [`PhotoInput::photometric_stereo`]): each photograph's corrected image
+/// at the working size with its light and saturation, its own confidence
+/// file read at the working size, the set's mask and confidence.
+///
+/// # Errors
+/// A set without a light per photograph, an unreadable per-photograph
+/// mask, or an invalid set (the message names the photograph).
+pub fn photometric_problem(
+    prepared: &PreparedPhoto,
+    input: &PhotoInput,
+) -> Result<crate::solver::photometric::PhotometricProblem, PhotoError> {
+    use crate::solver::photometric::{PhotometricProblem, SetPhoto, validate};
+    if prepared.photos.len() != input.images.len() || input.images.len() < 2 {
+        return Err(PhotoError::Input(
+            "these photographs are not a set with a light each (solve them with              --photometric-stereo and a camera file that names each image, or one --light per              photograph)"
+                .into(),
+        ));
+    }
+    let working = prepared.size();
+    let full = prepared.full_size();
+    let mut photos = Vec::with_capacity(prepared.photos.len());
+    for (k, photo) in prepared.photos.iter().enumerate() {
+        let confidence = match input.photo_confidence.get(k) {
+            Some(Some(path)) => Some(read_mask_at(path, "photograph's mask", full, working)?),
+            _ => None,
+        };
+        photos.push(SetPhoto {
+            name: photo.path.display().to_string(),
+            image: photo.image.clone(),
+            light: photo.light,
+            saturated: Some(photo.clipped.clone()),
+            confidence,
+        });
+    }
+    let problem = PhotometricProblem {
+        photos,
+        camera: prepared.problem.camera,
+        object_mask: prepared.problem.object_mask.clone(),
+        confidence: prepared.problem.confidence.clone(),
+        intensities_known: prepared.intensities_measured,
+        intensity_scale: prepared
+            .intensity_scale_given
+            .then_some(prepared.problem.intensity_scale),
+    };
+    validate(&problem).map_err(|e| PhotoError::Input(e.to_string()))?;
+    Ok(problem)
 }
 
 /// Whether the lights decided for `input` are one per photograph, in the
@@ -666,8 +803,8 @@ fn lights_per_photograph(input: &PhotoInput, lights: &[PointLight]) -> bool {
         LightSpec::CameraFileOrCentred => true,
         LightSpec::Given(_) => false,
     };
-    from_names
-        && matches!(input.camera, CameraSpec::File(_))
+    let given_each = input.photometric_stereo && matches!(input.lights, LightSpec::Given(_));
+    (given_each || from_names && matches!(input.camera, CameraSpec::File(_)))
         && input.images.len() > 1
         && lights.len() == input.images.len()
         && input.images.iter().all(|p| p.file_name().is_some())

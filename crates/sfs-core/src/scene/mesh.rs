@@ -400,14 +400,16 @@ pub fn render_shaded(
     let mut image = vec![0.0; pixel_count];
     let mut depth = vec![f64::NAN; pixel_count];
     let mut mask = vec![false; pixel_count];
+    let mut normals = vec![[f64::NAN; 3]; pixel_count];
     let band_len = BAND_ROWS * width;
     depth
         .par_chunks_mut(band_len)
         .zip(image.par_chunks_mut(band_len))
         .zip(mask.par_chunks_mut(band_len))
+        .zip(normals.par_chunks_mut(band_len))
         .zip(bins.par_iter())
         .enumerate()
-        .for_each(|(band, (((depth, image), mask), bin))| {
+        .for_each(|(band, ((((depth, image), mask), normals), bin))| {
             let band = Band {
                 first_row: band * BAND_ROWS,
                 width,
@@ -421,7 +423,7 @@ pub fn render_shaded(
                 (lights, material),
                 depth,
                 image,
-                mask,
+                (mask, normals),
             );
         });
 
@@ -449,6 +451,7 @@ pub fn render_shaded(
         image: Grid::from_vec(width, height, image).ok_or_else(grid_error)?,
         depth_gt: Grid::from_vec(width, height, depth).ok_or_else(grid_error)?,
         object_mask: Grid::from_vec(width, height, mask).ok_or_else(grid_error)?,
+        normals: Some(Grid::from_vec(width, height, normals).ok_or_else(grid_error)?),
         lights: lights.to_vec(),
         material,
     })
@@ -514,7 +517,7 @@ impl Band<'_> {
         (lights, material): (&[PointLight], Material),
         depth: &mut [f64],
         image: &mut [f64],
-        mask: &mut [bool],
+        (mask, normals): (&mut [bool], &mut [[f64; 3]]),
     ) {
         let rows_here = depth.len() / self.width;
         let last_row = self.first_row + rows_here - 1;
@@ -565,6 +568,7 @@ impl Band<'_> {
             );
             depth[k] = z;
             mask[k] = true;
+            normals[k] = facing.to_array();
             image[k] = if intensity.is_finite() {
                 intensity
             } else {

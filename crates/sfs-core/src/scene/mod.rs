@@ -6,6 +6,7 @@ use crate::camera::Intrinsics;
 use crate::grid::Grid;
 
 pub mod mesh;
+pub mod photometric;
 pub mod shadow;
 pub mod sombrero;
 
@@ -24,6 +25,9 @@ pub struct Scene {
     pub depth_gt: Grid<f64>,
     /// True where the pixel sees the object.
     pub object_mask: Grid<bool>,
+    /// The unit normal each pixel was shaded with (camera frame, towards
+    /// the camera; NaN on the background), where the renderer knows it.
+    pub normals: Option<Grid<[f64; 3]>>,
     /// The lights it was rendered with (empty: one at the optical centre).
     pub lights: Vec<crate::light::PointLight>,
     /// The material it was rendered with (METHOD.md section 10).

@@ -59,10 +59,17 @@ pub fn sombrero_shaded(
     let camera = Intrinsics::centred(width as f64, width, height);
     let model = LightModel::with_material(SOMBRERO_INTENSITY_SCALE, lights, material);
     let mut depth_gt = Grid::filled(width, height, 0.0);
+    let mut normals = Grid::filled(width, height, [0.0; 3]);
     let image = Grid::from_fn(width, height, |c, r| {
         let (x_px, y_px) = camera.image_xy(c as f64, r as f64);
         let (z, zx, zy) = sombrero_depth(x_px, y_px, width);
         *depth_gt.at_mut(c, r) = z;
+        let n = glam::DVec3::new(
+            camera.focal_px * zx,
+            camera.focal_px * zy,
+            -(z + x_px * zx + y_px * zy),
+        );
+        *normals.at_mut(c, r) = n.normalize().to_array();
         let ray = PixelRay {
             x_px,
             y_px,
@@ -85,6 +92,7 @@ pub fn sombrero_shaded(
         image,
         depth_gt,
         object_mask: Grid::filled(width, height, true),
+        normals: Some(normals),
         lights: lights.to_vec(),
         material,
     }

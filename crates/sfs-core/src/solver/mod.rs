@@ -16,6 +16,7 @@ pub mod holes;
 pub(crate) mod light_frame;
 pub mod material_fit;
 pub mod multigrid;
+pub mod photometric;
 pub mod prepare;
 pub mod preview;
 pub mod problem;

@@ -235,6 +235,9 @@ pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<P
         max_side: options.max_side,
         pyramid_factor: sfs_core::memory::DEFAULT_PYRAMID_FACTOR,
         max_side_setting: "a working size (Camera panel) of".into(),
+        photometric_stereo: false,
+        given_intensities: false,
+        photo_confidence: Vec::new(),
     };
     let found_mask = options.mask.is_none() && mask_beside.is_some();
     (input, camera_beside, found_mask)
