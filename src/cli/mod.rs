@@ -13,6 +13,7 @@ mod eval;
 mod figures;
 mod lights;
 mod params;
+mod photometric;
 mod solve;
 mod synth;
 #[cfg(feature = "gui")]

@@ -125,6 +125,38 @@ pub struct SolveArgs {
     /// reprojection.png, residual.png, mesh.ply, report.json.
     #[arg(long)]
     pub out: PathBuf,
+    /// Photometric stereo: the photographs are a set of one object, each
+    /// taken by a light of its own (a camera file whose `lights` name each
+    /// image, or one --light per photograph in order); solved for depth,
+    /// normals and albedo (normals.npy/png, albedo.npy/png,
+    /// residual_NN.png per photograph). --mask and --confidence apply to
+    /// every photograph; --ambient is subtracted from each.
+    #[arg(long)]
+    pub photometric_stereo: bool,
+    /// With --photometric-stereo: a confidence image for one photograph of
+    /// the set (repeatable), combined with --confidence.
+    #[arg(long, value_name = "IMAGE=FILE", requires = "photometric_stereo")]
+    pub photo_confidence: Vec<String>,
+    /// With --photometric-stereo: also solve this photograph of the set
+    /// alone with the single-image method (the table's parameters apply
+    /// to it) and report how far its shape is from the set's
+    /// (single_depth.npy).
+    #[arg(long, value_name = "IMAGE", requires = "photometric_stereo")]
+    pub compare_single: Option<PathBuf>,
+    /// With --photometric-stereo: the smoothness weight (relative: second
+    /// derivatives of the log-depth times f^2), or `auto` (from the
+    /// photographs' noise).
+    #[arg(long, value_name = "auto|A", default_value = "auto")]
+    pub ps_smoothness: String,
+    /// With --photometric-stereo: the Cauchy scale of the residuals
+    /// relative to the brightness, or `auto` (from the residuals).
+    #[arg(long, value_name = "auto|S", default_value = "auto")]
+    pub ps_robust_scale: String,
+    /// With --photometric-stereo: do not trace cast shadows of the current
+    /// surface (attached shadows, saturation and outliers are still left
+    /// out).
+    #[arg(long, requires = "photometric_stereo")]
+    pub ps_no_cast_shadows: bool,
 }
 
 /// The default working size of `solve` (longest side, pixels): 1920x1080
@@ -351,6 +383,9 @@ impl SolveArgs {
                 pyramid_factor(sfs_core::resample::working_size(w, h, max_side))
             }),
             max_side_setting: "--max-side".into(),
+            photometric_stereo: false,
+            given_intensities: false,
+            photo_confidence: Vec::new(),
         })
     }
 }
@@ -416,6 +451,12 @@ struct SolveReport<'a> {
 
 /// Runs `solve`.
 pub fn run(args: &SolveArgs) -> Result<()> {
+    if args.photometric_stereo {
+        return super::photometric::run(args);
+    }
+    if args.ps_smoothness != "auto" || args.ps_robust_scale != "auto" {
+        bail!("--ps-smoothness and --ps-robust-scale need --photometric-stereo");
+    }
     let input = args.photo_input()?;
     // A solve that would not fit the memory is refused before any pixel is
     // decoded (in the pipeline); the destination is locked and checked

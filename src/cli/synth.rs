@@ -53,6 +53,25 @@ pub struct SynthArgs {
     /// Output folder (created if needed).
     #[arg(long, value_parser = super::parse_path)]
     pub out: PathBuf,
+    /// A photometric-stereo set instead of one image: N photographs
+    /// (led01.png, ...), each lit by one LED alone, on a ring 10 to 45
+    /// degrees off the line to the object, at 0.75 of its distance, mu = 1,
+    /// aimed at it; cast shadows traced. scene.json names each image's
+    /// light; normals_gt.npy and albedo_gt.npy hold the truth. With
+    /// --noise the ledNN.png are the noisy 8-bit photographs (the clean
+    /// ones are clean_ledNN.png).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=64))]
+    pub ps_leds: Option<u32>,
+    /// With --ps-leds: the albedo painted on the surface (image plane):
+    /// `patches` (a few albedos in cells), `lines` (thin dark strokes),
+    /// `smooth` (a slow gradient) or `uniform`.
+    #[arg(
+        long,
+        value_name = "KIND",
+        default_value = "patches",
+        requires = "ps_leds"
+    )]
+    pub albedo_pattern: String,
 }
 
 /// Renders a scene lit by the lights given.
@@ -112,6 +131,9 @@ const SYNTH_OUTPUTS: &[&str] = &[
 
 /// Runs `synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
+    if args.ps_leds.is_some() {
+        return run_set(args);
+    }
     if let Some(sigma) = args.noise
         && !(sigma.is_finite() && sigma >= 0.0)
     {
@@ -206,4 +228,139 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// Every file `synth --ps-leds` may write.
+fn set_outputs() -> Vec<String> {
+    [
+        "mask.png",
+        "depth_gt.npy",
+        "normals_gt.npy",
+        "albedo_gt.npy",
+        "scene.json",
+    ]
+    .iter()
+    .map(|s| (*s).to_owned())
+    .chain((1..=64).flat_map(|k| [format!("led{k:02}.png"), format!("clean_led{k:02}.png")]))
+    .collect()
+}
+
+/// `synth --ps-leds N`: a photometric-stereo set with its truth.
+fn run_set(args: &SynthArgs) -> Result<()> {
+    let count = args.ps_leds.unwrap_or(2) as usize;
+    if !args.lights.positions.is_empty() || !args.lights.indices.is_empty() {
+        anyhow::bail!("--ps-leds places its own LEDs: leave out --light and --light-index");
+    }
+    if args.shadows || args.inpaint_disc.is_some() {
+        anyhow::bail!(
+            "--ps-leds always traces cast shadows and writes no confidence: leave out --shadows \
+             and --inpaint-disc"
+        );
+    }
+    if let Some(sigma) = args.noise
+        && !(sigma.is_finite() && sigma >= 0.0)
+    {
+        anyhow::bail!("invalid parameter noise = {sigma}: must be finite and >= 0");
+    }
+    if !["patches", "lines", "smooth", "uniform"].contains(&args.albedo_pattern.as_str()) {
+        anyhow::bail!(
+            "--albedo-pattern {}: expected patches, lines, smooth or uniform",
+            args.albedo_pattern
+        );
+    }
+    let (width, height) = args.size;
+    sfs_core::memory::check(
+        &format!("rendering {count} photographs of {width}x{height} pixels"),
+        sfs_core::memory::synth_estimate(args.size).saturating_mul(count as u64 + 2),
+        "choose a smaller --size or fewer --ps-leds",
+    )?;
+    let owned = set_outputs();
+    let owned: Vec<&str> = owned.iter().map(String::as_str).collect();
+    let mut stage = OutputStage::new(&args.out, &owned)?;
+    // The object's centre: the Sombrero's rim depth, a mesh's distance.
+    let target = if args.scene == "sombrero" {
+        [0.0, 0.0, 2.0]
+    } else {
+        [0.0, 0.0, args.distance]
+    };
+    let leds = scene::photometric::standard_leds(count, target);
+    let albedo = if args.albedo_pattern == "uniform" {
+        Grid::filled(width, height, 1.0)
+    } else {
+        scene::photometric::albedo_pattern(width, height, &args.albedo_pattern)
+    };
+    let render = |lights: &[PointLight]| -> Result<Scene> {
+        let mut one = args.clone_for_render();
+        one.lights.positions = lights.iter().map(|l| l.position).collect();
+        one.lights.directions = lights.iter().filter_map(|l| l.direction).collect();
+        one.lights.mus = lights.iter().map(|l| l.mu).collect();
+        Ok(render_scene(&one)?.0)
+    };
+    let set = scene::photometric::render_set(render, &leds, &albedo, true)?;
+    let mut entries = Vec::new();
+    for (k, (image, light)) in set.images.iter().zip(&set.lights).enumerate() {
+        let name = format!("led{:02}.png", k + 1);
+        match args.noise {
+            Some(sigma) => {
+                io::write_png16(&stage.path(&format!("clean_{name}")), image)?;
+                let noisy = scene::add_noise(image, sigma, args.seed + k as u64);
+                io::write_png8(&stage.path(&name), &noisy)?;
+            }
+            None => io::write_png16(&stage.path(&name), image)?,
+        }
+        entries.push(LightEntry {
+            position: light.position,
+            direction: light.direction,
+            mu: light.mu,
+            intensity: Some(light.intensity),
+            rgb_intensity: None,
+            led: Some(k as u32 + 1),
+            image: Some(name),
+        });
+    }
+    io::write_mask_png(&stage.path("mask.png"), &set.object_mask)?;
+    io::write_npy_f64(&stage.path("depth_gt.npy"), &set.depth_gt)?;
+    io::write_npy_f32_vec3(&stage.path("normals_gt.npy"), &set.normals_gt)?;
+    io::write_npy_f64(&stage.path("albedo_gt.npy"), &set.albedo_gt)?;
+    let camera = CameraFile {
+        name: Some(set.name.clone()),
+        intensity_scale: Some(set.intensity_scale),
+        intensity_scale_measured: true,
+        lights: entries,
+        ..CameraFile::new(set.camera, width, height)
+    };
+    sfs_core::camera_file::write_camera(&stage.path("scene.json"), &camera)?;
+    stage
+        .commit()
+        .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    eprintln!(
+        "wrote a set of {count} photographs of {} ({width}x{height}, f = {:.1} px, {} albedo) \
+         to {}",
+        set.name,
+        set.camera.focal_px,
+        args.albedo_pattern,
+        args.out.display()
+    );
+    Ok(())
+}
+
+impl SynthArgs {
+    /// A copy for rendering one light of a set.
+    fn clone_for_render(&self) -> SynthArgs {
+        SynthArgs {
+            scene: self.scene.clone(),
+            size: self.size,
+            noise: None,
+            seed: self.seed,
+            inpaint_disc: None,
+            rotation: self.rotation,
+            distance: self.distance,
+            shadows: false,
+            lights: super::LightArgs::default(),
+            material: self.material.clone(),
+            out: self.out.clone(),
+            ps_leds: None,
+            albedo_pattern: self.albedo_pattern.clone(),
+        }
+    }
 }

@@ -6,7 +6,7 @@ use anyhow::{Result, anyhow};
 use clap::Args;
 
 use sfs_core::photo::Vignetting;
-use sfs_viewer::app::ViewerOptions;
+use sfs_viewer::app::{Panel2d, ViewerOptions};
 
 /// Options of `sfs-studio view`.
 #[derive(Debug, Args)]
@@ -14,8 +14,12 @@ use sfs_viewer::app::ViewerOptions;
 pub struct ViewArgs {
     /// Image to open (8/16-bit PNG, TIFF, JPEG). A `scene.json`,
     /// `mask.png` and `depth_gt.npy` beside it (a `synth` folder) are used.
-    #[arg(value_parser = super::parse_path)]
-    pub image: PathBuf,
+    /// Several images, or a folder whose `scene.json`/`calibration.json`
+    /// names each photograph by its light (`image`), open as one
+    /// photometric-stereo set (a folder's `mask.png` and `ambient.png` are
+    /// used).
+    #[arg(value_parser = super::parse_path, num_args = 1.., required = true, value_name = "IMAGE|FOLDER")]
+    pub images: Vec<PathBuf>,
     /// Camera file (keys of `synth`'s scene.json).
     #[arg(long, value_parser = super::parse_path)]
     pub camera: Option<PathBuf>,
@@ -64,6 +68,13 @@ pub struct ViewArgs {
     /// time each change to the first new level on screen.
     #[arg(long, default_value_t = 0)]
     pub latency_trials: usize,
+    /// The 2-D panel shown first: input, reprojection, residual, depth,
+    /// albedo, normals or photo-residual (a set's).
+    #[arg(long, value_name = "PANEL", value_parser = parse_panel)]
+    pub panel: Option<Panel2d>,
+    /// Show a set's albedo on the 3-D surface (its texture) once solved.
+    #[arg(long)]
+    pub albedo_texture: bool,
     /// Window size in points, WIDTHxHEIGHT.
     #[arg(long, value_parser = super::parse_size, default_value = "1280x800")]
     pub window: (usize, usize),
@@ -82,11 +93,17 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         }
         None => None,
     };
-    if !args.image.is_file() {
-        return Err(anyhow!("image {} does not exist", args.image.display()));
+    for path in &args.images {
+        let exists = path.is_file() || args.images.len() == 1 && path.is_dir();
+        if !exists {
+            return Err(anyhow!("image {} does not exist", path.display()));
+        }
     }
     let options = ViewerOptions {
-        image: Some(args.image.clone()),
+        image: args.images.first().cloned(),
+        set_images: args.images.iter().skip(1).cloned().collect(),
+        panel: args.panel,
+        albedo_texture: args.albedo_texture,
         camera: args.camera.clone(),
         mask: args.mask.clone(),
         ambient: args.ambient.clone(),
@@ -106,6 +123,26 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         ..ViewerOptions::default()
     };
     launch(options, args.window)
+}
+
+/// A `--panel` name.
+fn parse_panel(text: &str) -> Result<Panel2d, String> {
+    Ok(match text {
+        "input" => Panel2d::Input,
+        "reprojection" => Panel2d::Reprojection,
+        "residual" => Panel2d::Difference,
+        "depth" => Panel2d::Depth,
+        "depth-error" => Panel2d::DepthError,
+        "albedo" => Panel2d::Albedo,
+        "normals" => Panel2d::Normals,
+        "photo-residual" => Panel2d::PhotoResidual,
+        _ => {
+            return Err(format!(
+                "unknown panel {text:?}: input, reprojection, residual, depth, depth-error, \
+                 albedo, normals or photo-residual"
+            ));
+        }
+    })
 }
 
 /// Opens the viewer on the built-in sample.

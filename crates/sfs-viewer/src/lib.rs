@@ -9,3 +9,6 @@ pub mod app;
 pub mod mask_edit;
 pub mod render;
 pub mod worker;
+
+#[cfg(test)]
+mod test_sets;

@@ -29,6 +29,10 @@
 //!   estimate or known-depth search runs as Lambert, what `auto` stands
 //!   for, and the fit follows at the scale found. It reaches the UI in the
 //!   finished [`Solution::material_fit`].
+//! - A photometric-stereo set ([`Worker::submit_set`], a [`SetRequest`]) is
+//!   a job like any other (ids, superseding, cancellation, levels): it runs
+//!   the [`SetSolveFn`] ([`solve_photometric`] by default) and ends with
+//!   [`Event::SetFinished`] instead of `Finished`.
 
 use std::any::Any;
 use std::fmt;
@@ -45,6 +49,9 @@ use crossbeam_channel::{
 
 use sfs_core::params::{InitialDepth, SolverParams};
 use sfs_core::solver::calibrate::{self, KnownDepth, KnownDepthFit};
+use sfs_core::solver::photometric::{
+    PhotometricParams, PhotometricProblem, PhotometricSolution, solve_photometric,
+};
 use sfs_core::solver::pyramid;
 use sfs_core::solver::{
     IterationReport, LevelResult, Method, Problem, Solution, SolveError, SolveObserver,
@@ -87,6 +94,28 @@ pub struct SolveRequest {
     /// of the [`SolveFn`] (and of the scale estimate).
     pub known_depths: Vec<KnownDepth>,
 }
+
+/// One photometric-stereo solve to run: the set and the scheme's settings.
+#[derive(Clone, Debug)]
+pub struct SetRequest {
+    /// The photographs with their lights, camera, masks.
+    pub problem: PhotometricProblem,
+    /// The scheme's settings (validated by the solver: bad ones end in
+    /// `Failed`).
+    pub params: PhotometricParams,
+}
+
+/// The function a worker runs for each set ([`Worker::spawn`] uses
+/// [`solve_photometric`]).
+pub type SetSolveFn = Arc<
+    dyn Fn(
+            &PhotometricProblem,
+            &PhotometricParams,
+            &mut dyn SolveObserver,
+        ) -> Result<PhotometricSolution, SolveError>
+        + Send
+        + Sync,
+>;
 
 /// The function a worker runs for each job without known depths
 /// ([`Worker::spawn`] uses [`sfs_core::solver::solve`]; tests inject
@@ -144,6 +173,13 @@ pub enum Event {
         /// estimated (`None` when it estimated none).
         scale_determined: Option<bool>,
     },
+    /// A photometric-stereo set's solve completed.
+    SetFinished {
+        /// The job.
+        job: JobId,
+        /// Depth, normals, albedo and each photograph's fit.
+        solution: Box<PhotometricSolution>,
+    },
     /// The solver rejected the input or parameters, or panicked.
     Failed {
         /// The job.
@@ -166,17 +202,21 @@ impl Event {
             | Event::Progress { job, .. }
             | Event::Level { job, .. }
             | Event::Finished { job, .. }
+            | Event::SetFinished { job, .. }
             | Event::Failed { job, .. }
             | Event::Cancelled { job } => *job,
         }
     }
 
-    /// Whether this is the last event of its job (`Finished`, `Failed` or
-    /// `Cancelled`).
+    /// Whether this is the last event of its job (`Finished`,
+    /// `SetFinished`, `Failed` or `Cancelled`).
     pub fn is_terminal(&self) -> bool {
         matches!(
             self,
-            Event::Finished { .. } | Event::Failed { .. } | Event::Cancelled { .. }
+            Event::Finished { .. }
+                | Event::SetFinished { .. }
+                | Event::Failed { .. }
+                | Event::Cancelled { .. }
         )
     }
 }
@@ -185,8 +225,16 @@ impl Event {
 /// instead: the thread is inside `solve()` and reads no commands then, and
 /// it checks the same atomics before starting a queued job.
 enum Command {
-    Solve(JobId, Box<SolveRequest>),
+    Solve(JobId, Job),
     Shutdown,
+}
+
+/// What one job solves.
+enum Job {
+    /// One image (or a sum of photographs).
+    Single(Box<SolveRequest>),
+    /// A photometric-stereo set.
+    Set(Box<SetRequest>),
 }
 
 /// State both sides read while a solve runs.
@@ -304,6 +352,7 @@ struct Runner {
     commands: Receiver<Command>,
     outbox: Outbox,
     solve_fn: SolveFn,
+    set_fn: SetSolveFn,
 }
 
 impl Runner {
@@ -315,7 +364,10 @@ impl Runner {
             };
             let outcome = self
                 .newest(job, request)
-                .and_then(|(job, request)| self.serve(job, &request));
+                .and_then(|(job, request)| match request {
+                    Job::Single(request) => self.serve(job, &request),
+                    Job::Set(request) => self.serve_set(job, &request),
+                });
             if let Err(Stop) = outcome {
                 return;
             }
@@ -324,11 +376,7 @@ impl Runner {
 
     /// Drains queued commands, keeping the newest job; older ones are
     /// reported `Cancelled`.
-    fn newest(
-        &self,
-        mut job: JobId,
-        mut request: Box<SolveRequest>,
-    ) -> Result<(JobId, Box<SolveRequest>), Stop> {
+    fn newest(&self, mut job: JobId, mut request: Job) -> Result<(JobId, Job), Stop> {
         loop {
             match self.commands.try_recv() {
                 Ok(Command::Solve(next, next_request)) => {
@@ -339,6 +387,47 @@ impl Runner {
                 Err(TryRecvError::Empty) => return Ok((job, request)),
             }
         }
+    }
+
+    /// Runs one set's job and reports its end.
+    fn serve_set(&self, job: JobId, request: &SetRequest) -> Result<(), Stop> {
+        let shared = &self.outbox.shared;
+        if shared.shutdown.load(Ordering::SeqCst) {
+            return Err(Stop);
+        }
+        if shared.is_stale(job) {
+            return self.outbox.deliver(Event::Cancelled { job });
+        }
+        let level_sizes = planned_set_sizes(&request.problem, &request.params);
+        self.outbox.deliver(Event::Started { job, level_sizes })?;
+        let mut observer = ChannelObserver {
+            job,
+            outbox: &self.outbox,
+            stopped: false,
+            last_level: None,
+        };
+        let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
+            (self.set_fn)(&request.problem, &request.params, &mut observer)
+        }));
+        if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
+            return Err(Stop);
+        }
+        let event = match outcome {
+            Ok(Ok(solution)) => Event::SetFinished {
+                job,
+                solution: Box::new(solution),
+            },
+            Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
+            Ok(Err(error)) => Event::Failed {
+                job,
+                error: error.to_string(),
+            },
+            Err(payload) => Event::Failed {
+                job,
+                error: format!("the solver panicked: {}", panic_message(&*payload)),
+            },
+        };
+        self.outbox.deliver(event)
     }
 
     /// Runs one job and reports its end.
@@ -454,6 +543,26 @@ fn planned_level_sizes(problem: &Problem, params: &SolverParams) -> Vec<(usize, 
     sizes
 }
 
+/// The level sizes a set's solve plans, coarse to fine (its pyramid
+/// halves each side down to `min_side`); empty for a set without
+/// photographs. The solver may start below the coarsest (a level
+/// that cannot hold the object) and report fewer.
+fn planned_set_sizes(
+    problem: &PhotometricProblem,
+    params: &PhotometricParams,
+) -> Vec<(usize, usize)> {
+    let Some(first) = problem.photos.first() else {
+        return Vec::new();
+    };
+    let (width, height) = first.image.size();
+    if width < 3 || height < 3 {
+        return Vec::new();
+    }
+    let mut sizes = sfs_core::solver::photometric::level_sizes(width, height, params);
+    sizes.reverse();
+    sizes
+}
+
 /// The message of a panic payload (`panic!` gives `&str` or `String`).
 fn panic_message(payload: &(dyn Any + Send)) -> &str {
     if let Some(message) = payload.downcast_ref::<&str>() {
@@ -479,14 +588,23 @@ pub struct Worker {
 }
 
 impl Worker {
-    /// Starts the thread `sfs-solver` running [`sfs_core::solver::solve`].
+    /// Starts the thread `sfs-solver` running [`sfs_core::solver::solve`]
+    /// (and [`solve_photometric`] for sets).
     pub fn spawn(waker: Waker) -> io::Result<Self> {
         Self::spawn_with(waker, Arc::new(sfs_core::solver::solve))
     }
 
     /// Starts the thread with another solve function (a different
-    /// reflectance model, or fault injection in tests).
+    /// reflectance model, or fault injection in tests); sets run
+    /// [`solve_photometric`].
     pub fn spawn_with(waker: Waker, solve_fn: SolveFn) -> io::Result<Self> {
+        Self::spawn_with_set(waker, solve_fn, Arc::new(solve_photometric))
+    }
+
+    /// Starts the thread with a solve function for single images and one
+    /// for photometric-stereo sets (the app runs both on a pool that
+    /// leaves the UI a core).
+    pub fn spawn_with_set(waker: Waker, solve_fn: SolveFn, set_fn: SetSolveFn) -> io::Result<Self> {
         let (command_sender, command_receiver) = bounded(COMMAND_CAPACITY);
         let (event_sender, event_receiver) = bounded(EVENT_CAPACITY);
         let shared = Arc::new(Shared::default());
@@ -498,6 +616,7 @@ impl Worker {
                 shared: Arc::clone(&shared),
             },
             solve_fn,
+            set_fn,
         };
         let thread = thread::Builder::new()
             .name("sfs-solver".into())
@@ -518,15 +637,22 @@ impl Worker {
     /// promptly) takes them. If the thread has stopped, draining reports
     /// `Failed` for the job.
     pub fn submit(&mut self, request: SolveRequest) -> JobId {
+        self.send_job(Job::Single(Box::new(request)))
+    }
+
+    /// Queues a photometric-stereo set's solve, as [`Self::submit`] queues
+    /// one image's (the same ids, superseding and cancellation); it ends
+    /// with [`Event::SetFinished`].
+    pub fn submit_set(&mut self, request: SetRequest) -> JobId {
+        self.send_job(Job::Set(Box::new(request)))
+    }
+
+    fn send_job(&mut self, request: Job) -> JobId {
         self.last_id += 1;
         let job = JobId(self.last_id);
         self.shared.latest.store(job.0, Ordering::SeqCst);
         self.unfinished = Some(job);
-        if self
-            .commands
-            .send(Command::Solve(job, Box::new(request)))
-            .is_err()
-        {
+        if self.commands.send(Command::Solve(job, request)).is_err() {
             // The thread has ended; `thread_stopped` turns the closed event
             // channel into `Failed` for `unfinished`, which is this job.
         }
@@ -783,6 +909,7 @@ mod tests {
             Event::Progress { .. } => "Progress",
             Event::Level { .. } => "Level",
             Event::Finished { .. } => "Finished",
+            Event::SetFinished { .. } => "SetFinished",
             Event::Failed { .. } => "Failed",
             Event::Cancelled { .. } => "Cancelled",
         };
@@ -1158,5 +1285,91 @@ mod tests {
         assert!(rest.len() == 1 && rest[0].job() == job);
         failure(rest.first());
         assert!(!worker.is_busy());
+    }
+
+    /// The synthetic set written as files, read through the photo
+    /// pipeline as the viewer reads it.
+    fn set_request(dir: &std::path::Path) -> SetRequest {
+        let images = crate::test_sets::write_set(dir);
+        let input = sfs_core::photo::PhotoInput {
+            camera: sfs_core::photo::CameraSpec::File(dir.join("scene.json")),
+            lights: sfs_core::photo::LightSpec::CameraFileOrCentred,
+            object_mask: Some(dir.join("mask.png")),
+            photometric_stereo: true,
+            images,
+            ..sfs_core::photo::PhotoInput::new(dir.join("led1.png"))
+        };
+        let prepared = sfs_core::photo::prepare(&input).unwrap_or_else(|e| panic!("{e}"));
+        let problem = sfs_core::photo::photometric_problem(&prepared, &input)
+            .unwrap_or_else(|e| panic!("{e}"));
+        SetRequest {
+            problem,
+            params: PhotometricParams::default(),
+        }
+    }
+
+    #[test]
+    fn a_set_streams_its_levels_and_finishes_with_depth_normals_and_albedo() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let request = set_request(dir.path());
+        assert_eq!(request.problem.photos.len(), crate::test_sets::PHOTOS);
+        let (mut worker, _) = spawn_counting();
+        let job = worker.submit_set(request.clone());
+        let events = events_until_end(&mut worker, job);
+        let Some(Event::Started { level_sizes, .. }) = events.first() else {
+            panic!("first event is {}", kind(events.first()));
+        };
+        let side = crate::test_sets::SIDE;
+        assert_eq!(level_sizes.last(), Some(&(side, side)));
+        let levels: Vec<&LevelResult> = events
+            .iter()
+            .filter_map(|e| match e {
+                Event::Level { result, .. } => Some(result),
+                _ => None,
+            })
+            .collect();
+        assert!(!levels.is_empty(), "no level streamed");
+        assert!(levels.windows(2).all(|p| p[0].level < p[1].level));
+        assert_eq!(levels.last().map(|l| l.depth.size()), Some((side, side)));
+        let Some(Event::SetFinished { solution, .. }) = events.last() else {
+            panic!("last event is {}", kind(events.last()));
+        };
+        assert_eq!(solution.depth.size(), (side, side));
+        assert_eq!(solution.photos.len(), crate::test_sets::PHOTOS);
+        let object = request.problem.object_mask.as_ref().expect("mask.png read");
+        let on_object = |k: usize| *object.as_slice().get(k).unwrap_or(&false);
+        let solved = solution
+            .depth
+            .as_slice()
+            .iter()
+            .zip(solution.normals.as_slice())
+            .zip(solution.albedo.as_slice())
+            .enumerate()
+            .filter(|(k, ((z, n), a))| {
+                on_object(*k) && z.is_finite() && **z > 0.0 && n[2].is_finite() && a.is_finite()
+            })
+            .count();
+        let inside = object.as_slice().iter().filter(|&&o| o).count();
+        assert!(
+            solved * 10 > inside * 9,
+            "{solved} of {inside} object pixels solved"
+        );
+        // A newer set supersedes it; a cancelled one says so.
+        let old = worker.submit_set(request.clone());
+        worker.cancel(old);
+        let events = events_until_end(&mut worker, old);
+        assert!(
+            matches!(events.last(), Some(Event::Cancelled { .. })),
+            "{}",
+            kind(events.last())
+        );
+        // A set that cannot be solved fails with a message; the worker lives on.
+        let mut broken = request;
+        broken.problem.photos.truncate(1);
+        let job = worker.submit_set(broken);
+        let error = failure(events_until_end(&mut worker, job).last()).to_owned();
+        assert!(error.contains("at least 2"), "{error}");
+        let job = worker.submit(sombrero_request(32));
+        assert!(finished(events_until_end(&mut worker, job).last()));
     }
 }

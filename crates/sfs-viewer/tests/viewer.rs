@@ -9,7 +9,7 @@ use eframe::egui;
 use eframe::egui::accesskit::Role;
 use egui_kittest::Harness;
 use egui_kittest::kittest::Queryable;
-use sfs_viewer::app::{Export, ViewerApp, ViewerOptions, sample_image_path};
+use sfs_viewer::app::{Export, Panel2d, ViewerApp, ViewerOptions, sample_image_path};
 
 fn options(data_dir: &std::path::Path) -> ViewerOptions {
     ViewerOptions {
@@ -608,4 +608,111 @@ fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_
     harness.get_by_label_contains("material fit (");
     harness.get_by_label_contains(&fit.summary);
     harness.get_by_label(&format!("best 5 of {} candidates", fit.trials.len()));
+}
+
+#[path = "../src/test_sets.rs"]
+mod test_sets;
+
+/// Paints a stroke across the middle of the input panel.
+fn stroke_across_the_input(harness: &mut Harness<'_, ViewerApp>) {
+    let tab = harness.get_by_label("input + mask").rect();
+    // (the 48x48 image fills the panel's width, centred in its height)
+    let start = egui::pos2(tab.left() + 40.0, tab.bottom() + 330.0);
+    let end = start + egui::vec2(150.0, 40.0);
+    harness.hover_at(start);
+    harness.step();
+    harness.drag_at(start);
+    harness.step();
+    for k in 1..=8 {
+        harness.hover_at(start + (end - start) * (k as f32 / 8.0));
+        harness.step();
+    }
+    harness.drop_at(end);
+    harness.step();
+    harness.step();
+}
+
+#[test]
+fn a_set_folder_opens_as_one_document_solves_and_shows_its_panels() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let set = tempfile::tempdir().expect("temp dir");
+    let images = test_sets::write_set(set.path());
+    let mut harness = harness(ViewerOptions {
+        image: Some(set.path().to_path_buf()),
+        ..options(dir.path())
+    });
+    harness.step();
+    let app = harness.state();
+    let doc = app.document().expect("the set opens");
+    assert_eq!(
+        doc.set.as_ref().map(|s| s.paths.clone()),
+        Some(images.clone())
+    );
+    step_until(&mut harness, |app| app.solve_state().set.is_some());
+    let app = harness.state();
+    let solution = app.solve_state().set.as_ref().expect("solved");
+    assert_eq!(solution.photos.len(), test_sets::PHOTOS);
+    assert!(!app.solve_state().arrived.is_empty(), "levels streamed");
+    assert!(app.solve_state().failure.is_none());
+    // The fit table names each photograph; the set's panels show.
+    harness.get_by_label("led3.png");
+    for (panel, caption) in [
+        (
+            Panel2d::Normals,
+            "normals: red = right, green = up, blue = towards the camera",
+        ),
+        (
+            Panel2d::PhotoResidual,
+            "residual I − R of led1.png under its own light",
+        ),
+    ] {
+        harness.state_mut().show_panel(panel);
+        harness.step();
+        // (a label and its text run)
+        assert!(
+            harness.query_all_by_value(caption).next().is_some(),
+            "{caption}"
+        );
+    }
+    harness.state_mut().show_panel(Panel2d::Albedo);
+    harness.step();
+    // The albedo on the surface (rebuilds the last level), then a
+    // photograph's own layer painted with the brush reaches the problem.
+    harness.state_mut().settings_mut().view.photo_texture = true;
+    harness.state_mut().settings_mut().view.albedo_texture = true;
+    harness.step();
+    harness.state_mut().show_panel(Panel2d::Input);
+    harness.state_mut().paint_photo(Some(2));
+    harness.step();
+    stroke_across_the_input(&mut harness);
+    let problem = harness.state().set_problem().expect("a set");
+    let own = problem.photos[2]
+        .confidence
+        .as_ref()
+        .expect("its own layer");
+    assert!(own.as_slice().iter().any(|&c| c < 1.0));
+    assert!(problem.photos[0].confidence.is_none());
+    assert!(problem.confidence.is_none(), "the set-wide layer untouched");
+    // The edit re-solves the set; then photograph 1 alone, compared.
+    step_until(&mut harness, |app| {
+        app.solve_state().set.is_some() && !app.solve_state().running
+    });
+    harness.state_mut().solve_single(0);
+    step_until(&mut harness, |app| {
+        let c = app.compare_state();
+        !c.running && (c.comparison.is_some() || c.failure.is_some())
+    });
+    let compare = harness.state().compare_state();
+    assert!(compare.failure.is_none(), "{:?}", compare.failure);
+    let c = compare.comparison.as_ref().expect("compared");
+    assert!(c.pixels > 100 && c.rse_to_set.is_finite(), "{c:?}");
+    harness.state_mut().show_panel(Panel2d::SingleDifference);
+    harness.step();
+
+    // Several photographs given at once: the same set.
+    harness
+        .state_mut()
+        .open_paths(&egui::Context::default(), &images[..3]);
+    let doc = harness.state().document().expect("open");
+    assert_eq!(doc.set.as_ref().map(|s| s.paths.len()), Some(3));
 }

@@ -16,6 +16,7 @@ use clap::Args;
 mod holes;
 mod lights;
 mod paper_figures;
+mod ps;
 mod reflectance;
 mod report;
 mod robustness;
@@ -58,7 +59,9 @@ pub struct BenchArgs {
     /// shadows.json), `reflectance` (Lambert, Oren-Nayar and Blinn-Phong
     /// renders solved with the matched model, as Lambertian and with auto,
     /// and the shared face with each model; reflectance.md,
-    /// reflectance.json) or `speed` (time, memory and
+    /// reflectance.json), `ps` (near-light photometric stereo on renders
+    /// with a patch albedo and on the shared face; ps.md, ps.json) or
+    /// `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
     #[arg(long, value_enum, default_value = "all")]
@@ -95,6 +98,10 @@ pub enum Part {
     /// Lambertian and with auto; the shared face with each model
     /// (reflectance.md, reflectance.json).
     Reflectance,
+    /// Near-light photometric stereo: renders with a patch albedo under 3,
+    /// 4 and 8 LEDs, clean and noisy, the invariances, and the shared face's
+    /// seven photographs (ps.md, ps.json, face-*.png).
+    Ps,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -189,6 +196,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else if args.part == Part::Reflectance {
         reflectance::run(args)?;
         args.out.join("reflectance.md")
+    } else if args.part == Part::Ps {
+        ps::run(args)?;
+        args.out.join("ps.md")
     } else if args.part == Part::Shadows {
         shadows::run(args)?;
         args.out.join("shadows.md")

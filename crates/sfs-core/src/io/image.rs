@@ -486,6 +486,21 @@ fn save_linear_png(
     writer.finish().map_err(|e| write_error(path, e))
 }
 
+/// Writes an 8-bit RGB PNG of display colours (each channel in [0, 1],
+/// clamped, NaN as 0; written as sRGB-encoded display values, e.g. a
+/// normal map).
+pub fn write_rgb_png8(path: &Path, image: &Grid<[f64; 3]>) -> Result<(), IoError> {
+    let (w, h) = image_dims(path, image.width(), image.height())?;
+    let data: Vec<u8> = image
+        .as_slice()
+        .iter()
+        .flat_map(|rgb| rgb.map(|v| quantise(v, 255.0) as u8))
+        .collect();
+    let buffer = ImageBuffer::<image::Rgb<u8>, Vec<u8>>::from_raw(w, h, data)
+        .ok_or_else(|| write_error(path, "internal error: pixel count does not match the size"))?;
+    save_png(path, DynamicImage::ImageRgb8(buffer))
+}
+
 /// Writes a binary mask as an 8-bit grey PNG, 255 for true and 0 for false.
 pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
     let data = mask

@@ -18,12 +18,12 @@ pub mod npy;
 
 pub use self::image::{
     SrgbMode, exif_orientation, image_size, photo_size, read_image, read_mask, read_photo,
-    srgb_decision, write_depth_png16, write_mask_png, write_png8, write_png16,
+    srgb_decision, write_depth_png16, write_mask_png, write_png8, write_png16, write_rgb_png8,
 };
 pub use atomic::write_atomic;
 pub use json::write_json;
 pub use mesh::{write_depth_obj, write_depth_ply};
-pub use npy::{read_npy, write_npy_f32, write_npy_f64};
+pub use npy::{read_npy, read_npy_vec3, write_npy_f32, write_npy_f32_vec3, write_npy_f64};
 
 /// An input/output failure; its message always names the file concerned.
 ///

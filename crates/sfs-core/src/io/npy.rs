@@ -40,6 +40,34 @@ pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
     write_npy(path, grid, |v| v as f32)
 }
 
+/// Writes a grid of 3-vectors as an H x W x 3 C-order `.npy` of
+/// little-endian float32 (e.g. normals). NaN is written as NaN; a value
+/// that is infinite or too large for float32 is an error.
+pub fn write_npy_f32_vec3(path: &Path, grid: &Grid<[f64; 3]>) -> Result<(), IoError> {
+    let limit = f64::from(f32::MAX);
+    if let Some(v) = grid.as_slice().iter().flatten().find(|v| v.abs() > limit) {
+        return Err(write_error(
+            path,
+            format!("the array holds {v:e}, which the file's number type cannot hold"),
+        ));
+    }
+    let err = |e: std::io::Error| write_error(path, e);
+    let file = fs::File::create(path).map_err(err)?;
+    let mut out = BufWriter::new(file);
+    let shape = [grid.height() as u64, grid.width() as u64, 3];
+    let mut writer = WriteOptions::<f32>::new()
+        .default_dtype()
+        .shape(&shape)
+        .writer(&mut out)
+        .begin_nd()
+        .map_err(err)?;
+    writer
+        .extend(grid.as_slice().iter().flatten().map(|&v| v as f32))
+        .map_err(err)?;
+    writer.finish().map_err(err)?;
+    out.flush().map_err(err)
+}
+
 /// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
 /// float64. NaN is written as NaN; an infinite value is an error.
 pub fn write_npy_f64(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
@@ -79,6 +107,41 @@ where
 /// truncated file or an array with no elements is an error naming the file
 /// and what was found.
 pub fn read_npy(path: &Path) -> Result<Grid<f64>, IoError> {
+    let (shape, values, order) = read_array(path, 2)?;
+    let (rows, cols) = (shape[0], shape[1]);
+    let grid = match order {
+        Order::C => Grid::from_vec(cols, rows, values),
+        // Fortran order: the first axis (rows) varies fastest.
+        Order::Fortran => Some(Grid::from_fn(cols, rows, |c, r| values[c * rows + r])),
+    };
+    grid.ok_or_else(|| IoError::Npy {
+        path: path.to_path_buf(),
+        reason: "internal error: value count does not match the shape".into(),
+    })
+}
+
+/// Reads an H x W x 3 `.npy` array (C order; e.g. normals) as a grid of
+/// 3-vectors; element types as [`read_npy`].
+pub fn read_npy_vec3(path: &Path) -> Result<Grid<[f64; 3]>, IoError> {
+    let (shape, values, order) = read_array(path, 3)?;
+    let bad = |reason: String| IoError::Npy {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if shape[2] != 3 || order != Order::C {
+        return Err(bad(format!(
+            "expected an H x W x 3 array in C order, found shape {shape:?}"
+        )));
+    }
+    let (rows, cols) = (shape[0], shape[1]);
+    Ok(Grid::from_fn(cols, rows, |c, r| {
+        let q = 3 * (r * cols + c);
+        [values[q], values[q + 1], values[q + 2]]
+    }))
+}
+
+/// The shape (of `dims` axes), values and memory order of a `.npy` file.
+fn read_array(path: &Path, dims: usize) -> Result<(Vec<usize>, Vec<f64>, Order), IoError> {
     let bad = |reason: String| IoError::Npy {
         path: path.to_path_buf(),
         reason,
@@ -91,19 +154,20 @@ pub fn read_npy(path: &Path) -> Result<Grid<f64>, IoError> {
     let header =
         NpyHeader::from_reader(&mut cursor).map_err(|e| bad(format!("bad header: {e}")))?;
     let shape = header.shape().to_vec();
-    if shape.len() != 2 {
+    if shape.len() != dims {
         return Err(bad(format!(
-            "expected a 2-D array, found {}-D with shape {:?}",
+            "expected a {dims}-D array, found {}-D with shape {:?}",
             shape.len(),
             shape
         )));
     }
-    let (rows, cols) = match (usize::try_from(shape[0]), usize::try_from(shape[1])) {
-        (Ok(r), Ok(c)) => (r, c),
-        _ => return Err(bad(format!("shape {shape:?} is too large"))),
-    };
-    let count = rows
-        .checked_mul(cols)
+    let sizes: Vec<usize> = shape
+        .iter()
+        .map(|&n| usize::try_from(n).map_err(|_| bad(format!("shape {shape:?} is too large"))))
+        .collect::<Result<_, _>>()?;
+    let count = sizes
+        .iter()
+        .try_fold(1usize, |acc, &n| acc.checked_mul(n))
         .ok_or_else(|| bad(format!("shape {shape:?} is too large")))?;
     if count == 0 {
         return Err(bad(format!("the array is empty (shape {shape:?})")));
@@ -151,12 +215,7 @@ pub fn read_npy(path: &Path) -> Result<Grid<f64>, IoError> {
             values.len()
         )));
     }
-    let grid = match order {
-        Order::C => Grid::from_vec(cols, rows, values),
-        // Fortran order: the first axis (rows) varies fastest.
-        Order::Fortran => Some(Grid::from_fn(cols, rows, |c, r| values[c * rows + r])),
-    };
-    grid.ok_or_else(|| bad("internal error: value count does not match the shape".into()))
+    Ok((sizes, values, order))
 }
 
 #[cfg(test)]

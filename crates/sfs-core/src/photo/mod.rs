@@ -539,12 +539,25 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
     }
     let mut clipped_share = None;
     if let Some(clipped) = &photo.clipped {
-        clipped_share = Some(untrust_clipped(
-            clipped,
-            object_mask.as_ref(),
-            &mut confidence,
-            &mut decided.notes,
-        )?);
+        if input.photometric_stereo {
+            // A set leaves each photograph's saturated pixels out of that
+            // photograph alone: the set's confidence stays as given.
+            let mut unused = confidence.clone();
+            clipped_share = untrust_clipped(
+                clipped,
+                object_mask.as_ref(),
+                &mut unused,
+                &mut decided.notes,
+            )
+            .ok();
+        } else {
+            clipped_share = Some(untrust_clipped(
+                clipped,
+                object_mask.as_ref(),
+                &mut confidence,
+                &mut decided.notes,
+            )?);
+        }
     }
     let mut suggestion = None;
     if input.auto_confidence {
@@ -581,13 +594,15 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
                     light.intensity /= divisor;
                 }
             }
-            decided.notes.push(format!(
-                "the sum of the {} photographs passes the top of one photograph's range where \
+            if !input.photometric_stereo {
+                decided.notes.push(format!(
+                    "the sum of the {} photographs passes the top of one photograph's range where \
                  none was saturated: it and the lights' intensities are divided by {divisor}, \
                  so that the solver does not take it for clipped (the images written are the \
                  sum / {divisor})",
-                input.images.len()
-            ));
+                    input.images.len()
+                ));
+            }
         }
         sum_divisor = Some(divisor);
     }

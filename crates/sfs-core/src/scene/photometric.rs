@@ -70,6 +70,25 @@ pub fn led_ring(
         .collect()
 }
 
+/// The LEDs of the benchmark's and `synth`'s sets: `count` LEDs on a ring
+/// around the line from the camera to `target`, at 0.75 of the target's
+/// distance from it (between the camera and the object, as in the shared
+/// near_ps rig), their angles off that line spread evenly over 10 to 45
+/// degrees, Lambertian emitters (`mu = 1`) aimed at the target.
+pub fn standard_leds(count: usize, target: [f64; 3]) -> Vec<PointLight> {
+    let distance = 0.75 * DVec3::from_array(target).length();
+    let angles: Vec<f64> = (0..count)
+        .map(|k| {
+            if count > 1 {
+                10.0 + 35.0 * k as f64 / (count - 1) as f64
+            } else {
+                25.0
+            }
+        })
+        .collect();
+    led_ring(count, target, distance, &angles, 1.0)
+}
+
 /// An albedo pattern of the image plane in [0.35, 1]: `patches` (a few
 /// albedos in soft-edged cells), `lines` (thin dark strokes on 0.9) or
 /// `smooth` (a slow gradient with ripples).

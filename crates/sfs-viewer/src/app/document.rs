@@ -7,6 +7,13 @@
 //! core's photo pipeline ([`photo::prepare`]), the command line's too.
 //! Loading is all-or-nothing: a failure leaves the previous document
 //! untouched and returns a message naming the file.
+//!
+//! A photometric-stereo set (a folder whose camera file names its
+//! photographs, or several photographs) is one document too: the same
+//! pipeline keeps its photographs apart ([`PhotoInput::photometric_stereo`]),
+//! the document's image is their mean, the painted masks apply to all of
+//! them, and each photograph has a confidence layer of its own
+//! ([`PhotoSet`]).
 
 use std::path::{Path, PathBuf};
 
@@ -23,6 +30,7 @@ use sfs_core::photo::{
 };
 use sfs_core::solver::Problem;
 use sfs_core::solver::calibrate::KnownDepth;
+use sfs_core::solver::photometric::PhotometricProblem;
 
 /// A distance the user knows: the surface seen at pixel
 /// `(column_px, row_px)` of the photograph (its own, full size) lies at
@@ -171,6 +179,43 @@ pub struct OpenOptions {
     pub confidence: Option<PathBuf>,
 }
 
+/// The photographs of a photometric-stereo set, each with its own light,
+/// and each one's own confidence layer.
+pub struct PhotoSet {
+    /// The set as the photo pipeline built it
+    /// ([`photo::photometric_problem`]); a solve gets it with the painted
+    /// masks, the camera as edited and each photograph's layer
+    /// ([`Document::set_problem`]).
+    pub problem: PhotometricProblem,
+    /// Each photograph's file, in the set's order.
+    pub paths: Vec<PathBuf>,
+    /// Each photograph's own confidence layer (painted or loaded), in the
+    /// set's order; only their confidence layers are used.
+    pub photo_masks: Vec<Masks>,
+}
+
+impl PhotoSet {
+    /// Each photograph's short name (its file name).
+    pub fn names(&self) -> Vec<String> {
+        self.paths.iter().map(|p| file_name(p)).collect()
+    }
+
+    /// A number that changes with every edit of any photograph's layer.
+    pub fn revision(&self) -> u64 {
+        self.photo_masks.iter().fold(0u64, |sum, m| {
+            sum.wrapping_mul(31).wrapping_add(m.revision())
+        })
+    }
+}
+
+/// A path's file name (the whole path when it has none).
+pub fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
 /// An open image with its camera, masks and optional ground truth.
 pub struct Document {
     /// The image file.
@@ -199,6 +244,9 @@ pub struct Document {
     /// Distances the user knows, in pixels of the photograph, in the order
     /// given (at most one per pixel); not empty, they set the depth scale.
     pub known_depths: Vec<KnownDistance>,
+    /// A photometric-stereo set (`None`: one image). `path` is then the
+    /// set's folder and `image` the mean of its photographs.
+    pub set: Option<PhotoSet>,
 }
 
 /// The photo pipeline's input for opening `path` in the viewer, with the
@@ -240,6 +288,84 @@ pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<P
         photo_confidence: Vec::new(),
     };
     let found_mask = options.mask.is_none() && mask_beside.is_some();
+    (input, camera_beside, found_mask)
+}
+
+/// The camera file of a folder: its `scene.json`, else its
+/// `calibration.json`.
+fn camera_file_in(folder: &Path) -> Option<PathBuf> {
+    ["scene.json", "calibration.json"]
+        .iter()
+        .map(|name| folder.join(name))
+        .find(|p| p.is_file())
+}
+
+/// The photographs of a set folder: those its camera file's lights name
+/// (`image`) that are present in it, in the lights' order.
+///
+/// # Errors
+/// No camera file, one that cannot be read, or fewer than two named
+/// photographs present (the message names the folder and the file).
+pub fn set_images_in(folder: &Path) -> Result<Vec<PathBuf>> {
+    let camera = camera_file_in(folder).ok_or_else(|| {
+        anyhow::anyhow!(
+            "{} holds no scene.json or calibration.json: a photometric-stereo folder needs a \
+             camera file whose lights name each photograph (`image`)",
+            folder.display()
+        )
+    })?;
+    let file = sfs_core::camera_file::read_camera(&camera)
+        .with_context(|| format!("cannot read {}", camera.display()))?;
+    let images: Vec<PathBuf> = file
+        .lights
+        .iter()
+        .filter_map(|light| light.image.as_ref())
+        .map(|name| folder.join(name))
+        .filter(|p| p.is_file())
+        .collect();
+    if images.len() < 2 {
+        anyhow::bail!(
+            "{} names {} photograph{} present in {}: a photometric-stereo set needs at least 2, \
+             each named by its light's `image`",
+            camera.display(),
+            images.len(),
+            if images.len() == 1 { "" } else { "s" },
+            folder.display()
+        );
+    }
+    Ok(images)
+}
+
+/// The photo pipeline's input for opening `images` as a photometric-stereo
+/// set: as [`viewer_input`] for one image (camera file and `mask.png`
+/// beside the first, where `options` names none), the photographs kept
+/// apart; with `ambient_beside`, an `ambient.png` beside them is the
+/// ambient frame (a set folder). Also the camera file found beside and
+/// whether the object mask was found beside.
+pub fn set_input(
+    images: &[PathBuf],
+    options: &OpenOptions,
+    ambient_beside: bool,
+) -> (PhotoInput, Option<PathBuf>, bool) {
+    let first = images.first().cloned().unwrap_or_default();
+    let (mut input, camera_beside, found_mask) = viewer_input(&first, options);
+    let folder = first.parent().unwrap_or(Path::new("."));
+    input.images = images.to_vec();
+    if input
+        .object_mask
+        .as_ref()
+        .is_some_and(|m| images.contains(m))
+    {
+        input.object_mask = None;
+    }
+    let ambient = folder.join("ambient.png");
+    if ambient_beside && input.ambient.is_none() && ambient.is_file() && !images.contains(&ambient)
+    {
+        input.ambient = Some(ambient);
+    }
+    input.photometric_stereo = true;
+    input.albedo = None;
+    let found_mask = found_mask && input.object_mask.is_some();
     (input, camera_beside, found_mask)
 }
 
@@ -306,6 +432,148 @@ fn masks_of(prepared: &PreparedPhoto) -> Result<Masks> {
 }
 
 impl Document {
+    /// Opens what `paths` name: one image; a folder (a photometric-stereo
+    /// set: the photographs its camera file's lights name, with its
+    /// `mask.png` and `ambient.png`); or several images (a set, camera file
+    /// and mask found beside the first).
+    pub fn open_paths(paths: &[PathBuf], options: &OpenOptions) -> Result<Self> {
+        match paths {
+            [] => anyhow::bail!("nothing to open"),
+            [folder] if folder.is_dir() => {
+                let images = set_images_in(folder)?;
+                Self::open_set(folder, &images, options, true)
+            }
+            [image] => Self::open(image, options),
+            images => {
+                if let Some(folder) = images.iter().find(|p| p.is_dir()) {
+                    anyhow::bail!(
+                        "{} is a folder: open a set as one folder or as several photographs",
+                        folder.display()
+                    );
+                }
+                let folder = images[0].parent().unwrap_or(Path::new(".")).to_path_buf();
+                Self::open_set(&folder, images, options, false)
+            }
+        }
+    }
+
+    /// Opens `images` as one photometric-stereo set (`folder`: the
+    /// document's path, its autosave's key) through the photo pipeline,
+    /// each photograph with the light its camera file names for it; the
+    /// document's image is the photographs' mean. A file of `options` that
+    /// cannot be used is left out with a note.
+    pub fn open_set(
+        folder: &Path,
+        images: &[PathBuf],
+        options: &OpenOptions,
+        ambient_beside: bool,
+    ) -> Result<Self> {
+        let (input, camera_beside, found_mask) = set_input(images, options, ambient_beside);
+        let mut notes = Vec::new();
+        let (input, prepared) = prepare_lenient(input, camera_beside, &mut notes)?;
+        let problem = photo::photometric_problem(&prepared, &input)
+            .with_context(|| format!("cannot open the set in {}", folder.display()))?;
+        notes.extend(prepared.report.notes.iter().cloned());
+        if let Some(mask) = &input.object_mask
+            && found_mask
+        {
+            notes.push(format!("object mask from {}", mask.display()));
+        }
+        if let Some(ambient) = &input.ambient {
+            notes.push(format!("ambient frame {}", ambient.display()));
+        }
+        notes.push(format!(
+            "photometric-stereo set of {} photographs, each with its own light",
+            problem.photos.len()
+        ));
+        let (w, h) = prepared.size();
+        let image = mean_image(&problem, (w, h));
+        // Saturation is each photograph's own (left out of that photograph
+        // only): the painted confidence starts from the confidence file
+        // alone, not from the pipeline's sum, where a pixel saturated in
+        // one photograph is untrusted in all.
+        let confidence = match &input.confidence {
+            Some(path) => {
+                photo::read_mask_at(path, "confidence mask", prepared.full_size(), (w, h))?
+                    .map(|&v| v as f32)
+            }
+            None => Grid::filled(w, h, 1.0f32),
+        };
+        let object = prepared
+            .problem
+            .object_mask
+            .clone()
+            .unwrap_or_else(|| Grid::filled(w, h, true));
+        let masks = Masks::from_layers(confidence, object)?;
+        let photo_masks = problem
+            .photos
+            .iter()
+            .map(|p| {
+                let confidence = p
+                    .confidence
+                    .as_ref()
+                    .map_or_else(|| Grid::filled(w, h, 1.0f32), |c| c.map(|&v| v as f32));
+                Masks::from_layers(confidence, Grid::filled(w, h, true))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(Self {
+            path: folder.to_path_buf(),
+            camera: CameraState::from_prepared(&prepared),
+            masks,
+            srgb: prepared.report.srgb,
+            srgb_reason: prepared.report.srgb_reason.clone(),
+            full_size: prepared.full_size(),
+            report: prepared.report,
+            image,
+            input: input.clone(),
+            ground_truth: None,
+            notes,
+            known_depths: Vec::new(),
+            set: Some(PhotoSet {
+                problem,
+                paths: input.images.clone(),
+                photo_masks,
+            }),
+        })
+    }
+
+    /// The set's problem as a solve of the document now gets it: the
+    /// painted object mask and confidence for every photograph, each
+    /// photograph's own layer as its confidence (none where it trusts every
+    /// pixel), the camera as edited; the intensity scale when it was given
+    /// (the albedo is then absolute). `None` for one image.
+    pub fn set_problem(&self) -> Option<PhotometricProblem> {
+        let set = self.set.as_ref()?;
+        let mut problem = set.problem.clone();
+        problem.camera = self.camera.intrinsics();
+        problem.object_mask = self.masks.object_for_solver();
+        problem.confidence = self.masks.confidence_for_solver();
+        for (photo, masks) in problem.photos.iter_mut().zip(&set.photo_masks) {
+            photo.confidence = masks.confidence_for_solver();
+        }
+        problem.intensity_scale = self
+            .camera
+            .scale_given
+            .then_some(self.camera.intensity_scale);
+        Some(problem)
+    }
+
+    /// The photo pipeline's input for solving photograph `index` of the set
+    /// alone with the single-image method: that photograph, the set's
+    /// camera file (its light found by its name), mask and corrections.
+    pub fn single_input(&self, index: usize) -> Option<PhotoInput> {
+        let set = self.set.as_ref()?;
+        let path = set.paths.get(index)?;
+        Some(PhotoInput {
+            images: vec![path.clone()],
+            photometric_stereo: false,
+            given_intensities: false,
+            photo_confidence: Vec::new(),
+            lights: LightSpec::CameraFileOrCentred,
+            ..self.input.clone()
+        })
+    }
+
     /// Opens `path` through the photo pipeline with `options` (a file of
     /// `options` that cannot be used is left out with a note); a
     /// `scene.json` or `calibration.json`, a `mask.png` and a `depth_gt.npy`
@@ -363,6 +631,7 @@ impl Document {
             ground_truth,
             notes,
             known_depths: Vec::new(),
+            set: None,
         })
     }
 
@@ -454,6 +723,26 @@ impl Document {
             .collect()
     }
 
+    /// A number that changes with every mask edit: the painted layers and
+    /// a set's photographs' own.
+    pub fn mask_revision(&self) -> u64 {
+        let own = self.set.as_ref().map_or(0, PhotoSet::revision);
+        self.masks.revision() ^ own.rotate_left(17)
+    }
+
+    /// The layers the mask tools paint into, with the image flood fill and
+    /// threshold read: the set-wide masks (`photo` `None`, or one image),
+    /// or photograph `photo`'s own layer (only its confidence is used)
+    /// with that photograph.
+    pub fn paint_target(&mut self, photo: Option<usize>) -> (&mut Masks, &Grid<f64>) {
+        match (photo, &mut self.set) {
+            (Some(k), Some(set)) if k < set.photo_masks.len() && k < set.problem.photos.len() => {
+                (&mut set.photo_masks[k], &set.problem.photos[k].image)
+            }
+            _ => (&mut self.masks, &self.image),
+        }
+    }
+
     /// Image size `(width, height)`.
     pub fn size(&self) -> (usize, usize) {
         self.image.size()
@@ -498,13 +787,28 @@ impl Document {
         {
             self.masks.lower_confidence(confidence)?;
         }
+        // A set is read again as a set: its photographs apart, its image
+        // their mean; the photographs' own layers stay.
+        let set_problem = match &self.set {
+            Some(_) => Some(
+                photo::photometric_problem(&prepared, &input)
+                    .with_context(|| format!("cannot re-read {}", self.path.display()))?,
+            ),
+            None => None,
+        };
         if camera_changed {
             self.camera = CameraState::from_prepared(&prepared);
         }
         self.srgb = prepared.report.srgb;
         self.srgb_reason = prepared.report.srgb_reason.clone();
         self.report = prepared.report;
-        self.image = prepared.problem.image;
+        match (set_problem, &mut self.set) {
+            (Some(problem), Some(set)) => {
+                self.image = mean_image(&problem, prepared.problem.image.size());
+                set.problem = problem;
+            }
+            _ => self.image = prepared.problem.image,
+        }
         self.input = input;
         Ok(())
     }
@@ -529,6 +833,19 @@ impl Document {
         };
         Ok(())
     }
+}
+
+/// The mean of a set's photographs (what its mean prediction, the
+/// solver's reprojection, is compared with).
+fn mean_image(problem: &PhotometricProblem, (w, h): (usize, usize)) -> Grid<f64> {
+    let n = problem.photos.len().max(1) as f64;
+    let mut mean = Grid::filled(w, h, 0.0);
+    for photo in problem.photos.iter().filter(|p| p.image.size() == (w, h)) {
+        for (m, v) in mean.as_mut_slice().iter_mut().zip(photo.image.as_slice()) {
+            *m += v / n;
+        }
+    }
+    mean
 }
 
 /// The built-in sample (the Sombrero with its camera file and ground truth):
@@ -740,5 +1057,108 @@ mod tests {
         assert!(err.contains("flat.png"), "{err}");
         assert_eq!(doc.image, image);
         assert_eq!(doc.input.vignetting, Vignetting::None);
+    }
+
+    #[test]
+    fn a_folder_or_several_photographs_open_as_one_set() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let images = crate::test_sets::write_set(dir.path());
+        let side = crate::test_sets::SIDE;
+        // The folder: the photographs its scene.json names, mask.png beside.
+        let folder = Document::open_paths(&[dir.path().to_path_buf()], &OpenOptions::default())
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        let set = folder.set.as_ref().expect("a set");
+        assert_eq!(set.paths, images);
+        assert_eq!(set.problem.photos.len(), crate::test_sets::PHOTOS);
+        assert_eq!(set.names()[0], "led1.png");
+        assert_eq!(folder.size(), (side, side));
+        assert_eq!(folder.path, dir.path());
+        assert!(folder.input.photometric_stereo);
+        assert!(folder.input.object_mask.is_some(), "mask.png beside");
+        // Its image is the photographs' mean.
+        let mean: f64 = set
+            .problem
+            .photos
+            .iter()
+            .map(|p| p.image.at(24, 20))
+            .sum::<f64>()
+            / set.problem.photos.len() as f64;
+        assert!((folder.image.at(24, 20) - mean).abs() < 1e-12);
+        // Several photographs: the same set.
+        let listed = Document::open_paths(&images, &OpenOptions::default())
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        let listed_set = listed.set.as_ref().expect("a set");
+        assert_eq!(listed_set.paths, images);
+        for (a, b) in listed_set.problem.photos.iter().zip(&set.problem.photos) {
+            assert_eq!(a.image, b.image);
+            assert_eq!(a.light, b.light);
+        }
+        // One of them alone is one image, as before.
+        let single = Document::open_paths(&images[..1], &OpenOptions::default())
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        assert!(single.set.is_none());
+        assert_eq!(single.camera.lights.len(), 1, "its own light, by its name");
+        // A folder without a camera file says so and opens nothing.
+        let empty = tempfile::tempdir().expect("temp dir");
+        let error = Document::open_paths(&[empty.path().to_path_buf()], &OpenOptions::default())
+            .err()
+            .map(|e| format!("{e:#}"))
+            .unwrap_or_default();
+        assert!(error.contains("scene.json"), "{error}");
+    }
+
+    #[test]
+    fn painted_masks_and_a_photographs_own_layer_reach_the_sets_problem() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        crate::test_sets::write_set(dir.path());
+        let mut doc = Document::open_paths(&[dir.path().to_path_buf()], &OpenOptions::default())
+            .unwrap_or_else(|e| panic!("{e:#}"));
+        let untouched = doc.set_problem().expect("a set");
+        assert!(untouched.photos.iter().all(|p| p.confidence.is_none()));
+        assert!(untouched.confidence.is_none());
+        let revision = doc.mask_revision();
+        // Photograph 2's own layer: a rectangle of confidence 0.
+        let (masks, image) = doc.paint_target(Some(1));
+        assert_eq!(
+            image.size(),
+            (crate::test_sets::SIDE, crate::test_sets::SIDE)
+        );
+        assert!(masks.fill_rect(
+            crate::mask_edit::Layer::Confidence,
+            crate::mask_edit::Mode::Paint,
+            [10.0, 10.0],
+            [20.0, 20.0],
+        ));
+        assert_ne!(
+            doc.mask_revision(),
+            revision,
+            "an edit of a photograph's layer counts"
+        );
+        // The set-wide object mask: a column painted as background.
+        let (masks, _) = doc.paint_target(None);
+        masks.fill_rect(
+            crate::mask_edit::Layer::Object,
+            crate::mask_edit::Mode::Paint,
+            [0.0, 0.0],
+            [3.0, 48.0],
+        );
+        let problem = doc.set_problem().expect("a set");
+        let own = problem.photos[1]
+            .confidence
+            .as_ref()
+            .expect("its own layer");
+        assert_eq!(*own.at(15, 15), 0.0);
+        assert_eq!(*own.at(30, 30), 1.0);
+        assert!(
+            problem
+                .photos
+                .iter()
+                .enumerate()
+                .all(|(k, p)| k == 1 || p.confidence.is_none())
+        );
+        let object = problem.object_mask.as_ref().expect("the object mask");
+        assert!(!*object.at(1, 24), "painted background");
+        assert!(*object.at(24, 24));
+        sfs_core::solver::photometric::validate(&problem).unwrap_or_else(|e| panic!("{e}"));
     }
 }

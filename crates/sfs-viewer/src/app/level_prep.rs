@@ -36,6 +36,9 @@ pub struct LevelInputs {
     /// How the input panel shows the image: the reprojection (in the
     /// image's units) is shown the same way, so the two compare.
     pub display: images::DisplayMapping,
+    /// The grey the surface carries as its texture instead of the image
+    /// (a set's albedo, NaN where there is none), at the image's size.
+    pub texture: Option<Arc<Grid<f64>>>,
 }
 
 /// A level to prepare for display: its mesh and its 2-D panel images.
@@ -190,7 +193,12 @@ fn prepare_level(job: MeshJob) -> BuiltMesh {
         depth_error,
     };
     let level_difference = images::abs_difference(&inputs.image, &level.reprojection);
-    let photo = exposure_normalised(at_level(&inputs.image, size), &depth);
+    let texture = inputs
+        .texture
+        .as_deref()
+        .filter(|t| t.size() == inputs.image.size())
+        .unwrap_or(&inputs.image);
+    let photo = exposure_normalised(at_level(texture, size), &depth);
     let options = MeshOptions {
         stride: view_stride(size),
         ..MeshOptions::default()
@@ -369,6 +377,7 @@ mod tests {
             ground_truth: None,
             object: Some(Arc::new(object.clone())),
             display: images::DisplayMapping { exposure: 2.0 },
+            texture: None,
         };
         let built = prepare_level(MeshJob {
             generation: 7,

@@ -18,6 +18,7 @@ mod level_prep;
 mod measure;
 mod panels;
 mod session;
+mod set_view;
 mod settings;
 mod view3d;
 
@@ -31,11 +32,12 @@ use crate::worker::Worker;
 use sfs_core::params::Alpha;
 
 pub use document::{
-    CameraSource, CameraState, Document, KnownDistance, OpenOptions, sample_image_path,
+    CameraSource, CameraState, Document, KnownDistance, OpenOptions, PhotoSet, sample_image_path,
+    set_images_in,
 };
 pub use panels::{Action, Panel2d};
-pub use session::{EnergyPoint, Export, LevelView, Progress, SolveState, per_pixel};
-pub use settings::{InitialChoice, ParamSettings, Settings, Tool};
+pub use session::{CompareState, EnergyPoint, Export, LevelView, Progress, SolveState, per_pixel};
+pub use settings::{InitialChoice, ParamSettings, SetParamSettings, Settings, Tool};
 
 /// eframe application id (storage folder name).
 pub const APP_ID: &str = "sfs-studio";
@@ -43,8 +45,15 @@ pub const APP_ID: &str = "sfs-studio";
 /// How the viewer starts.
 #[derive(Clone, Debug, Default)]
 pub struct ViewerOptions {
-    /// Image to open (`None`: the built-in sample).
+    /// Image to open (`None`: the built-in sample), or a folder holding a
+    /// photometric-stereo set.
     pub image: Option<PathBuf>,
+    /// Further photographs: with `image`, one photometric-stereo set.
+    pub set_images: Vec<PathBuf>,
+    /// The 2-D panel shown first (`None`: the input).
+    pub panel: Option<Panel2d>,
+    /// Show a set's albedo on the surface (the 3-D view's texture).
+    pub albedo_texture: bool,
     /// Camera JSON to open the image with.
     pub camera: Option<PathBuf>,
     /// Object mask PNG to open the image with.
@@ -128,10 +137,15 @@ impl ViewerApp {
         if let Some(max_side) = options.max_side {
             settings.max_side = max_side;
         }
+        if options.albedo_texture {
+            settings.view.photo_texture = true;
+            settings.view.albedo_texture = true;
+        }
         let ctx = cc.egui_ctx.clone();
         let waker = move || ctx.request_repaint();
         let mut notice = None;
-        let worker = match Worker::spawn_with(Box::new(waker.clone()), solver_leaving_a_core()) {
+        let (single, set) = solver_leaving_a_core();
+        let worker = match Worker::spawn_with_set(Box::new(waker.clone()), single, set) {
             Ok(w) => Some(w),
             Err(e) => {
                 notice = Some(format!("cannot start the solver thread: {e}"));
@@ -173,7 +187,12 @@ impl ViewerApp {
                     confidence: options.confidence.clone(),
                     ..app.open_options()
                 };
-                app.open_with(&cc.egui_ctx, &path, &open);
+                let mut paths = vec![path];
+                paths.extend(options.set_images.iter().cloned());
+                app.open_paths_with(&cc.egui_ctx, &paths, &open);
+                if let Some(panel) = options.panel {
+                    app.panels.show_panel(panel);
+                }
                 // Start at once, not after the debounce.
                 app.start_solve();
             }
@@ -228,9 +247,30 @@ impl ViewerApp {
 
     /// Opens an image with `options` (files, corrections, working size).
     pub fn open_with(&mut self, ctx: &egui::Context, path: &Path, options: &OpenOptions) {
-        match self.session.open(path, options) {
+        self.open_paths_with(ctx, &[path.to_path_buf()], options);
+    }
+
+    /// Opens one image, a set folder, or several photographs as one
+    /// photometric-stereo set (File > Open photometric set, dropped files,
+    /// the command line). On failure the previous document stays and the
+    /// error is shown.
+    pub fn open_paths(&mut self, ctx: &egui::Context, paths: &[PathBuf]) {
+        self.open_paths_with(ctx, paths, &self.open_options());
+    }
+
+    /// [`Self::open_paths`] with `options`.
+    pub fn open_paths_with(
+        &mut self,
+        ctx: &egui::Context,
+        paths: &[PathBuf],
+        options: &OpenOptions,
+    ) {
+        match self.session.open_paths(paths, options) {
             Ok(notes) => {
-                self.settings.remember(path.to_path_buf());
+                // A set folder is remembered (it opens again as the set).
+                if let [path] = paths {
+                    self.settings.remember(path.clone());
+                }
                 self.panels.document_opened(ctx, &self.session);
                 self.notice = (!notes.is_empty()).then(|| notes.join("; "));
             }
@@ -262,7 +302,44 @@ impl ViewerApp {
     /// Submits a solve of the open document with the current parameters
     /// and masks now.
     pub fn start_solve(&mut self) {
-        self.session.start_solve(self.settings.params.to_params());
+        self.session.start_solve(
+            self.settings.params.to_params(),
+            self.settings.set_params.to_params(),
+        );
+    }
+
+    /// Solves photograph `index` of the open set alone with the
+    /// single-image method, to compare with the set.
+    pub fn solve_single(&mut self, index: usize) {
+        self.session
+            .solve_single(index, self.settings.params.to_params());
+    }
+
+    /// The comparison of one photograph solved alone with the set.
+    pub fn compare_state(&self) -> &CompareState {
+        &self.session.compare
+    }
+
+    /// The open document, to edit (tests: masks, a photograph's layer).
+    pub fn document_mut(&mut self) -> Option<&mut Document> {
+        self.session.document.as_mut()
+    }
+
+    /// The photometric-stereo problem a solve of the open set gets now
+    /// (`None`: no set open).
+    pub fn set_problem(&self) -> Option<sfs_core::solver::photometric::PhotometricProblem> {
+        self.session.document.as_ref()?.set_problem()
+    }
+
+    /// Chooses which layers the mask tools paint: the set-wide masks
+    /// (`None`) or photograph `index`'s own confidence.
+    pub fn paint_photo(&mut self, index: Option<usize>) {
+        self.panels.set_paint_photo(index);
+    }
+
+    /// Current settings.
+    pub fn settings_mut(&mut self) -> &mut Settings {
+        &mut self.settings
     }
 
     /// Writes the finished result; the outcome goes to the status line.
@@ -279,9 +356,34 @@ impl ViewerApp {
         self.measure.request_screenshot(ctx, path);
     }
 
-    /// A dropped file: a camera JSON applies to the open image, a PNG whose
-    /// name contains `mask` or `confidence` loads into that layer, anything
-    /// else opens as a new image.
+    /// Dropped files: several photographs at once open as one
+    /// photometric-stereo set, else each one as [`Self::drop_file`] says.
+    pub fn drop_files(&mut self, ctx: &egui::Context, paths: &[PathBuf]) {
+        let photos: Vec<PathBuf> = paths
+            .iter()
+            .filter(|p| {
+                let name = p
+                    .file_name()
+                    .map(|n| n.to_string_lossy().to_lowercase())
+                    .unwrap_or_default();
+                !(name.ends_with(".json") || name.contains("mask") || name.contains("confidence"))
+            })
+            .cloned()
+            .collect();
+        if photos.len() > 1 {
+            // Several photographs at once: one set (its camera file and
+            // mask beside them).
+            self.open_paths(ctx, &photos);
+            return;
+        }
+        for path in paths {
+            self.drop_file(ctx, path);
+        }
+    }
+
+    /// One dropped file: a camera JSON applies to the open image, a PNG
+    /// whose name contains `mask` or `confidence` loads into that layer, a
+    /// folder opens as a set, anything else opens as a new image.
     pub fn drop_file(&mut self, ctx: &egui::Context, path: &Path) {
         let name = path
             .file_name()
@@ -295,14 +397,16 @@ impl ViewerApp {
         } else if has_doc && name.contains("mask") {
             self.load_mask(Layer::Object, path);
         } else {
-            self.open(ctx, path);
+            self.open_paths(ctx, &[path.to_path_buf()]);
         }
     }
 
     /// Runs what the panels asked for.
     fn apply(&mut self, ctx: &egui::Context, action: Action) {
         match action {
-            Action::Open(path) => self.open(ctx, &path),
+            Action::Open(path) => self.open_paths(ctx, &[path]),
+            Action::OpenSet(paths) => self.open_paths(ctx, &paths),
+            Action::SolveSingle(index) => self.solve_single(index),
             Action::LoadCamera(path) => self.load_camera(&path),
             Action::LoadMask(layer, path) => self.load_mask(layer, &path),
             Action::SaveMask(layer, path) => {
@@ -339,12 +443,19 @@ impl ViewerApp {
     /// The debounced solve, the autosave, prepared levels, and the
     /// measurement hooks.
     fn housekeeping(&mut self, ctx: &egui::Context) {
-        let params = &self.settings.params;
+        let (params, set_params) = (&self.settings.params, &self.settings.set_params);
         let pointer_down = ctx.input(|i| i.pointer.any_down());
+        let view = &self.settings.view;
+        if let Some(level) = self
+            .session
+            .set_albedo_texture(view.photo_texture && view.albedo_texture)
+        {
+            self.levels.submit(level.result, level.inputs);
+        }
         if let Some(error) = self.session.tick(
             self.panels.gesture_in_progress(),
             pointer_down,
-            || params.to_params(),
+            || (params.to_params(), set_params.to_params()),
             |after| ctx.request_repaint_after(after),
         ) {
             self.notice = Some(error);
@@ -408,15 +519,20 @@ impl ViewerApp {
             (undo, redo, std::mem::take(&mut i.raw.dropped_files))
         });
         if let Some(doc) = &mut self.session.document {
+            let (masks, _) = doc.paint_target(self.panels.paint_photo());
             if redo {
-                doc.masks.redo();
+                masks.redo();
             } else if undo {
-                doc.masks.undo();
+                masks.undo();
             }
         }
-        for file in dropped {
-            let path = file.path().to_path_buf();
-            self.drop_file(ctx, &path);
+        let dropped: Vec<PathBuf> = dropped
+            .iter()
+            .map(|file| file.path().to_path_buf())
+            .filter(|path| !path.as_os_str().is_empty())
+            .collect();
+        if !dropped.is_empty() {
+            self.drop_files(ctx, &dropped);
         }
         if let Some(error) = self.measure.save_screenshots(ctx).pop() {
             self.notice = Some(error);
@@ -427,17 +543,28 @@ impl ViewerApp {
 /// The solver on a rayon pool of all cores but one (at least one thread):
 /// the UI thread and a software rasteriser keep a core, so frames stay
 /// short while a solve runs. Falls back to the global pool.
-fn solver_leaving_a_core() -> crate::worker::SolveFn {
+fn solver_leaving_a_core() -> (crate::worker::SolveFn, crate::worker::SetSolveFn) {
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(cores.saturating_sub(1).max(1))
         .thread_name(|i| format!("sfs-solver-{i}"))
         .build()
-        .ok();
-    std::sync::Arc::new(move |problem, params, observer| match &pool {
-        Some(pool) => pool.install(|| sfs_core::solver::solve(problem, params, observer)),
-        None => sfs_core::solver::solve(problem, params, observer),
-    })
+        .ok()
+        .map(std::sync::Arc::new);
+    let set_pool = pool.clone();
+    let single: crate::worker::SolveFn =
+        std::sync::Arc::new(move |problem, params, observer| match &pool {
+            Some(pool) => pool.install(|| sfs_core::solver::solve(problem, params, observer)),
+            None => sfs_core::solver::solve(problem, params, observer),
+        });
+    let set: crate::worker::SetSolveFn = std::sync::Arc::new(move |problem, params, observer| {
+        use sfs_core::solver::photometric::solve_photometric;
+        match &set_pool {
+            Some(pool) => pool.install(|| solve_photometric(problem, params, observer)),
+            None => solve_photometric(problem, params, observer),
+        }
+    });
+    (single, set)
 }
 
 impl eframe::App for ViewerApp {

@@ -10,6 +10,7 @@ use super::document::{CameraSource, Document, KnownDistance};
 use super::images;
 use super::level_prep::BuiltMesh;
 use super::session::{Export, Session};
+use super::set_view::SetView;
 use super::settings::{InitialChoice, Settings, SurfaceColour, Tool};
 use super::view3d::SurfaceView;
 use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
@@ -32,14 +33,26 @@ pub enum Panel2d {
     Depth,
     /// `|depth - ground truth|` (with ground truth).
     DepthError,
+    /// A set's albedo, grey.
+    Albedo,
+    /// A set's normals, normal-map colours.
+    Normals,
+    /// One photograph's residual under its own light (a set).
+    PhotoResidual,
+    /// The depth of one photograph solved alone against the set's.
+    SingleDifference,
 }
 
 /// What the panels ask the app to do after the frame (what needs more
 /// than the document being edited: files, the worker, the window).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Action {
-    /// Open an image.
+    /// Open an image (or a set folder).
     Open(PathBuf),
+    /// Open several photographs (or a folder) as one photometric-stereo set.
+    OpenSet(Vec<PathBuf>),
+    /// Solve photograph `index` of the set alone and compare.
+    SolveSingle(usize),
     /// Apply a camera file.
     LoadCamera(PathBuf),
     /// Load a mask PNG into a layer.
@@ -125,6 +138,7 @@ pub struct Panels {
     textures: Textures,
     hover: Option<String>,
     surface: SurfaceView,
+    set: SetView,
 }
 
 /// A file dialog (kept behind one function: headless tests never open one).
@@ -134,6 +148,11 @@ fn pick_open(filters: &[(&str, &[&str])]) -> Option<PathBuf> {
         dialog = dialog.add_filter(*name, extensions);
     }
     dialog.pick_file()
+}
+
+/// A folder dialog (behind one function, as [`pick_open`]).
+fn pick_folder() -> Option<PathBuf> {
+    rfd::FileDialog::new().pick_folder()
 }
 
 /// A save dialog with a suggested file name.
@@ -172,7 +191,20 @@ impl Panels {
             textures: Textures::default(),
             hover: None,
             surface: SurfaceView::new(surface_available),
+            set: SetView::default(),
         }
+    }
+
+    /// Which layers the mask tools paint: the set-wide masks (`None`) or a
+    /// set's photograph's own confidence.
+    pub fn paint_photo(&self) -> Option<usize> {
+        self.set.paint_photo
+    }
+
+    /// Chooses the layers the mask tools paint (see [`Self::paint_photo`]).
+    pub fn set_paint_photo(&mut self, photo: Option<usize>) {
+        self.set.paint_photo = photo;
+        self.textures.overlay = None;
     }
 
     /// Selects a 2-D panel.
@@ -195,6 +227,18 @@ impl Panels {
     pub fn document_opened(&mut self, ctx: &egui::Context, session: &Session) {
         self.textures = Textures::default();
         self.known = KnownDistanceTool::default();
+        self.set.clear();
+        if session.document.as_ref().is_some_and(|d| d.set.is_none())
+            && matches!(
+                self.panel,
+                Panel2d::Albedo
+                    | Panel2d::Normals
+                    | Panel2d::PhotoResidual
+                    | Panel2d::SingleDifference
+            )
+        {
+            self.panel = Panel2d::Input;
+        }
         self.surface.clear();
         self.zoom = 1.0;
         self.pan = egui::Vec2::ZERO;
@@ -278,6 +322,18 @@ impl Panels {
                     && let Some(path) = pick_open(&[("images", IMAGE_EXTENSIONS)])
                 {
                     cx.actions.push(Action::Open(path));
+                }
+                if ui
+                    .button("Open photometric set (folder)…")
+                    .on_hover_text(
+                        "A folder whose scene.json or calibration.json names each photograph \
+                         by its light (`image`): the photographs open as one set, with the \
+                         folder's mask.png and ambient.png",
+                    )
+                    .clicked()
+                    && let Some(folder) = pick_folder()
+                {
+                    cx.actions.push(Action::OpenSet(vec![folder]));
                 }
                 if ui.button("Open built-in sample").clicked()
                     && let Some(path) = super::sample_image_path()
@@ -420,9 +476,23 @@ impl Panels {
     pub(super) fn controls_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         self.progress_ui(ui, cx);
         ui.separator();
-        egui::CollapsingHeader::new("Parameters")
-            .default_open(true)
-            .show(ui, |ui| self.params_ui(ui, cx));
+        let is_set = cx
+            .session
+            .document
+            .as_ref()
+            .is_some_and(|d| d.set.is_some());
+        if is_set {
+            egui::CollapsingHeader::new("Photometric stereo")
+                .default_open(true)
+                .show(ui, |ui| self.set.controls_ui(ui, cx));
+        }
+        egui::CollapsingHeader::new(if is_set {
+            "Parameters (single-image method)"
+        } else {
+            "Parameters"
+        })
+        .default_open(!is_set)
+        .show(ui, |ui| self.params_ui(ui, cx));
         egui::CollapsingHeader::new("Mask")
             .default_open(true)
             .show(ui, |ui| self.mask_ui(ui, cx));
@@ -481,6 +551,8 @@ impl Panels {
                 }
             } else if let Some(done) = &s.finished {
                 ui.label(format!("done in {:.2} s", done.seconds));
+            } else if let Some(done) = &s.set {
+                ui.label(format!("set done in {:.2} s", done.seconds));
             } else if s.failure.is_some() {
                 ui.colored_label(ui.visuals().error_fg_color, "solve failed");
             } else {
@@ -699,13 +771,33 @@ impl Panels {
     }
 
     fn mask_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let names = cx
+            .session
+            .document
+            .as_ref()
+            .and_then(|d| d.set.as_ref())
+            .map(|s| s.names());
+        if let Some(names) = &names {
+            let before = self.set.paint_photo;
+            self.set.paint_selector_ui(ui, names);
+            if self.set.paint_photo != before {
+                self.textures.overlay = None;
+            }
+        }
+        let own_layer = self.set.paint_photo.is_some() && names.is_some();
         let b = &mut cx.settings.brush;
-        ui.horizontal(|ui| {
-            ui.label("paint into");
-            ui.selectable_value(&mut b.layer, Layer::Confidence, "confidence")
-                .on_hover_text("c = 0 where painted: the data term is not trusted there");
-            ui.selectable_value(&mut b.layer, Layer::Object, "object")
-                .on_hover_text("painted pixels are background: no surface there");
+        if own_layer {
+            // A photograph's own layer holds confidence only.
+            b.layer = Layer::Confidence;
+        }
+        ui.add_enabled_ui(!own_layer, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("paint into");
+                ui.selectable_value(&mut b.layer, Layer::Confidence, "confidence")
+                    .on_hover_text("c = 0 where painted: the data term is not trusted there");
+                ui.selectable_value(&mut b.layer, Layer::Object, "object")
+                    .on_hover_text("painted pixels are background: no surface there");
+            })
         });
         ui.horizontal(|ui| {
             ui.selectable_value(&mut b.mode, Mode::Paint, "paint");
@@ -733,27 +825,29 @@ impl Panels {
             .on_hover_text("show in violet what the last solve took out of the data term as shadow (no light reaches it)");
         let layer = b.layer;
         let threshold = &mut b.threshold;
+        let paint_photo = self.set.paint_photo;
         let Some(doc) = &mut cx.session.document else {
             return;
         };
         ui.horizontal(|ui| {
+            let (masks, _) = doc.paint_target(paint_photo);
             if ui.button("clear").clicked() {
-                doc.masks.clear(layer);
+                masks.clear(layer);
             }
             if ui.button("invert").clicked() {
-                doc.masks.invert(layer);
+                masks.invert(layer);
             }
             if ui
-                .add_enabled(doc.masks.can_undo(), egui::Button::new("undo"))
+                .add_enabled(masks.can_undo(), egui::Button::new("undo"))
                 .clicked()
             {
-                doc.masks.undo();
+                masks.undo();
             }
             if ui
-                .add_enabled(doc.masks.can_redo(), egui::Button::new("redo"))
+                .add_enabled(masks.can_redo(), egui::Button::new("redo"))
                 .clicked()
             {
-                doc.masks.redo();
+                masks.redo();
             }
         });
         if ui
@@ -796,6 +890,13 @@ impl Panels {
             ui.label("no image");
             return;
         };
+        if doc.set.is_some() {
+            ui.weak(
+                "not for a set: a photometric-stereo set's depth is metric from its lights' \
+                 positions",
+            );
+            return;
+        }
         let units = doc.depth_units().to_owned();
         let points: Vec<(KnownDistance, (f64, f64))> = doc
             .known_depths
@@ -1182,10 +1283,22 @@ impl Panels {
             ui.selectable_value(&mut v.colour, SurfaceColour::Error, "error");
         });
         ui.checkbox(&mut v.wireframe, "wireframe");
-        ui.checkbox(&mut v.photo_texture, "photograph as texture")
-            .on_hover_text(
-                "Show the input image on the surface instead of the shading or colour map",
+        let is_set = cx
+            .session
+            .document
+            .as_ref()
+            .is_some_and(|d| d.set.is_some());
+        ui.horizontal(|ui| {
+            ui.checkbox(&mut v.photo_texture, "texture").on_hover_text(
+                "Show the input image (a set: the photographs' mean) or a set's albedo on \
+                     the surface instead of the shading or colour map",
             );
+            ui.add_enabled_ui(v.photo_texture && is_set, |ui| {
+                ui.selectable_value(&mut v.albedo_texture, false, "photograph");
+                ui.selectable_value(&mut v.albedo_texture, true, "albedo")
+                    .on_hover_text("the set's albedo, once it is solved");
+            });
+        });
         ui.add(egui::Slider::new(&mut v.light_yaw_deg, -80.0..=80.0).text("light yaw (°)"));
         ui.add(egui::Slider::new(&mut v.light_pitch_deg, -80.0..=80.0).text("light pitch (°)"));
         if ui.button("reset view").clicked() {
@@ -1202,14 +1315,30 @@ impl Panels {
     }
 
     pub(super) fn image_panel_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
+        let set_names = cx
+            .session
+            .document
+            .as_ref()
+            .and_then(|d| d.set.as_ref())
+            .map(|s| s.names());
         ui.horizontal_wrapped(|ui| {
-            for (panel, name) in [
+            let mut panels = vec![
                 (Panel2d::Input, "input + mask"),
                 (Panel2d::Reprojection, "reprojection"),
                 (Panel2d::Difference, "residual I − R"),
                 (Panel2d::Depth, "depth"),
                 (Panel2d::DepthError, "depth error"),
-            ] {
+            ];
+            if set_names.is_some() {
+                panels.retain(|(p, _)| *p != Panel2d::DepthError);
+                panels.extend([
+                    (Panel2d::Albedo, "albedo"),
+                    (Panel2d::Normals, "normals"),
+                    (Panel2d::PhotoResidual, "photo residual"),
+                    (Panel2d::SingleDifference, "alone − set"),
+                ]);
+            }
+            for (panel, name) in panels {
                 let enabled = panel != Panel2d::DepthError
                     || cx
                         .session
@@ -1219,6 +1348,14 @@ impl Panels {
                 ui.add_enabled_ui(enabled, |ui| {
                     ui.selectable_value(&mut self.panel, panel, name);
                 });
+            }
+            if self.panel == Panel2d::PhotoResidual
+                && let Some(names) = &set_names
+            {
+                self.set.residual_selector_ui(ui, names);
+            }
+            if let Some(caption) = self.set.caption(self.panel, cx.session) {
+                ui.weak(caption);
             }
             if matches!(self.panel, Panel2d::Input | Panel2d::Reprojection)
                 && cx.session.document.is_some()
@@ -1244,6 +1381,22 @@ impl Panels {
             Panel2d::Difference => split(&self.textures.difference),
             Panel2d::Depth => split(&self.textures.depth),
             Panel2d::DepthError => split(&self.textures.depth_error),
+            Panel2d::Albedo
+            | Panel2d::Normals
+            | Panel2d::PhotoResidual
+            | Panel2d::SingleDifference => {
+                match self.set.texture(ui.ctx(), self.panel, cx.session) {
+                    // Albedo is grey and normals are colours: no colour bar.
+                    Some((texture, range)) => {
+                        let bar = matches!(
+                            self.panel,
+                            Panel2d::PhotoResidual | Panel2d::SingleDifference
+                        );
+                        (Some(texture), bar.then_some(range))
+                    }
+                    None => (None, None),
+                }
+            }
         };
         let bar_width = if range.is_some() { 90.0 } else { 0.0 };
         let available = ui.available_size() - egui::vec2(bar_width, 0.0);
@@ -1366,7 +1519,13 @@ impl Panels {
         let Some(doc) = &cx.session.document else {
             return;
         };
-        let key = doc.masks.revision() ^ (cx.settings.brush.overlay_opacity.to_bits() as u64) << 32;
+        // A set's photograph's own layer, when the tools paint it.
+        let masks = match (self.set.paint_photo, &doc.set) {
+            (Some(k), Some(set)) => set.photo_masks.get(k).unwrap_or(&doc.masks),
+            _ => &doc.masks,
+        };
+        let key = (masks.revision() ^ (cx.settings.brush.overlay_opacity.to_bits() as u64) << 32)
+            .wrapping_add(self.set.paint_photo.map_or(0, |k| k as u64 + 1) << 56);
         if self
             .textures
             .overlay
@@ -1379,7 +1538,7 @@ impl Panels {
             opacity: cx.settings.brush.overlay_opacity,
             ..OverlayStyle::default()
         };
-        let rgba = doc.masks.overlay_rgba(&style);
+        let rgba = masks.overlay_rgba(&style);
         let (w, h) = doc.size();
         let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
         self.textures.overlay = Some((
@@ -1431,6 +1590,7 @@ impl Panels {
         origin: egui::Pos2,
     ) {
         let b = cx.settings.brush.clone();
+        let paint_photo = self.set.paint_photo;
         let Some(doc) = &mut cx.session.document else {
             return;
         };
@@ -1469,6 +1629,7 @@ impl Panels {
             }
             return;
         }
+        let (masks, image) = doc.paint_target(paint_photo);
         match b.tool {
             Tool::Brush => {
                 if response.drag_started_by(primary)
@@ -1479,7 +1640,7 @@ impl Panels {
                         hardness: b.hardness,
                         mode: b.mode,
                     };
-                    match doc.masks.begin_stroke(b.layer, brush, to_image(p)) {
+                    match masks.begin_stroke(b.layer, brush, to_image(p)) {
                         Ok(()) => self.gesture = Some(Gesture::Stroke),
                         Err(e) => cx.actions.push(Action::Notice(e.to_string())),
                     }
@@ -1489,7 +1650,7 @@ impl Panels {
                     && let Some(p) = pointer
                 {
                     let d = response.drag_delta();
-                    doc.masks.stroke_segment(to_image(p - d), to_image(p));
+                    masks.stroke_segment(to_image(p - d), to_image(p));
                 }
                 if response.clicked_by(primary)
                     && let Some(p) = pointer
@@ -1500,8 +1661,8 @@ impl Panels {
                         hardness: b.hardness,
                         mode: b.mode,
                     };
-                    if doc.masks.begin_stroke(b.layer, brush, to_image(p)).is_ok() {
-                        doc.masks.end_stroke();
+                    if masks.begin_stroke(b.layer, brush, to_image(p)).is_ok() {
+                        masks.end_stroke();
                     }
                 }
                 if let Some(p) = response.hover_pos() {
@@ -1551,13 +1712,8 @@ impl Panels {
             Tool::FloodFill => {
                 if response.clicked_by(primary)
                     && let Some(p) = pointer
-                    && let Err(e) = doc.masks.flood_fill(
-                        b.layer,
-                        b.mode,
-                        &doc.image,
-                        to_image(p),
-                        b.flood_tolerance,
-                    )
+                    && let Err(e) =
+                        masks.flood_fill(b.layer, b.mode, image, to_image(p), b.flood_tolerance)
                 {
                     cx.actions.push(Action::Notice(e.to_string()));
                 }
@@ -1566,15 +1722,15 @@ impl Panels {
         if response.drag_stopped_by(primary) {
             match self.gesture.take() {
                 Some(Gesture::Stroke) => {
-                    doc.masks.end_stroke();
+                    masks.end_stroke();
                 }
                 Some(Gesture::Rectangle(start)) => {
                     if let Some(p) = pointer {
-                        doc.masks.fill_rect(b.layer, b.mode, start, to_image(p));
+                        masks.fill_rect(b.layer, b.mode, start, to_image(p));
                     }
                 }
                 Some(Gesture::Lasso(points)) => {
-                    doc.masks.fill_lasso(b.layer, b.mode, &points);
+                    masks.fill_lasso(b.layer, b.mode, &points);
                 }
                 None => {}
             }

@@ -1,7 +1,8 @@
 //! The document session: the open image with its camera and masks, the
 //! autosave of the masks and of the known distances, and the solve of that
 //! document (the worker, the debounced re-solve, the state of the job on
-//! screen, the fit of the known distances). No drawing; uses `document`,
+//! screen, the fit of the known distances; for a photometric-stereo set its
+//! solve, and one photograph solved alone to compare). No drawing; uses `document`,
 //! `worker`, `solver`, `metrics`, `mask_edit`, `io`, and `images` for the
 //! display mapping it keeps.
 
@@ -12,12 +13,15 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 
 use crate::mask_edit::{self, Layer, Masks};
-use crate::worker::{Event, JobId, SolveRequest, Worker};
+use crate::worker::{Event, JobId, SetRequest, SolveRequest, Worker};
 use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::solver::calibrate::KnownDepthFit;
+use sfs_core::solver::photometric::{
+    PhotometricParams, PhotometricSolution, SingleComparison, compare_single,
+};
 use sfs_core::solver::{LevelResult, Solution};
 
 use super::document::{Document, KnownDistance, OpenOptions};
@@ -137,6 +141,29 @@ pub struct SolveState {
     pub failure: Option<String>,
     /// Jobs finished so far (any outcome).
     pub completed_jobs: usize,
+    /// A set's final result: depth, normals, albedo, each photograph's fit.
+    pub set: Option<Box<PhotometricSolution>>,
+}
+
+/// One photograph of a set solved alone with the single-image method, and
+/// how far its shape is from the set's.
+#[derive(Default)]
+pub struct CompareState {
+    /// Its job (it supersedes the set's, which has finished).
+    pub job: Option<JobId>,
+    /// The photograph (index in the set).
+    pub photo: usize,
+    /// Running.
+    pub running: bool,
+    /// [`compare_single`]'s numbers.
+    pub comparison: Option<SingleComparison>,
+    /// `k z_single - z_set` (`k`: the comparison's scale), NaN where either
+    /// has no surface.
+    pub difference: Option<Grid<f64>>,
+    /// Why it could not be solved or compared.
+    pub failure: Option<String>,
+    /// Comparisons finished so far (keys the panel's texture).
+    pub completed: usize,
 }
 
 /// What `Session::export` writes.
@@ -186,6 +213,13 @@ pub struct Session {
     autosave_due: Option<Instant>,
     /// The inputs of the running job, for the level preparation.
     level_inputs: Option<LevelInputs>,
+    /// One photograph of the set solved alone, compared with the set.
+    pub compare: CompareState,
+    /// The last level of the job on screen (shown again with another
+    /// texture).
+    last_level: Option<LevelResult>,
+    /// The surface carries a set's albedo instead of the image.
+    albedo_texture: bool,
 }
 
 impl Session {
@@ -201,15 +235,46 @@ impl Session {
             mask_revision_solved: 0,
             autosave_due: None,
             level_inputs: None,
+            compare: CompareState::default(),
+            last_level: None,
+            albedo_texture: false,
         }
     }
 
     /// Opens an image (masks and known distances restored from the
     /// autosave) and asks for a solve; returns notes for the status line.
     /// On failure the previous document stays and the error is returned.
-    pub fn open(&mut self, path: &Path, options: &OpenOptions) -> Result<Vec<String>, String> {
-        let mut doc = Document::open(path, options).map_err(|e| format!("{e:#}"))?;
+    ///
+    /// `paths` name one image, a set folder, or several photographs as one
+    /// set ([`Document::open_paths`]); a set's photographs' own layers are
+    /// restored too.
+    pub fn open_paths(
+        &mut self,
+        paths: &[PathBuf],
+        options: &OpenOptions,
+    ) -> Result<Vec<String>, String> {
+        let mut doc = Document::open_paths(paths, options).map_err(|e| format!("{e:#}"))?;
         let mut notes = std::mem::take(&mut doc.notes);
+        if let (Some(dir), Some(set)) = (self.autosave_dir(&doc), &mut doc.set) {
+            let size = doc.masks.size();
+            let mut restored = 0;
+            for (k, masks) in set.photo_masks.iter_mut().enumerate() {
+                match Masks::restore(&photo_layer_dir(&dir, k), size) {
+                    Ok(Some(saved)) => {
+                        *masks = saved;
+                        restored += 1;
+                    }
+                    Ok(None) => {}
+                    Err(e) => notes.push(format!("photograph {}'s layer not restored: {e}", k + 1)),
+                }
+            }
+            if restored > 0 {
+                notes.push(format!(
+                    "restored {restored} photograph{}'s own confidence from the autosave",
+                    if restored == 1 { "" } else { "s" }
+                ));
+            }
+        }
         if let Some(dir) = self.autosave_dir(&doc) {
             match Masks::restore(&dir, doc.size()) {
                 Ok(Some(masks)) => {
@@ -247,6 +312,8 @@ impl Session {
         self.document = Some(doc);
         self.refresh_display();
         self.solve = SolveState::default();
+        self.compare = CompareState::default();
+        self.last_level = None;
         self.request_solve();
         Ok(notes)
     }
@@ -326,13 +393,15 @@ impl Session {
         self.data_dir.as_ref().map(|d| {
             let dir = mask_edit::autosave_dir(&doc.path, d);
             let (w, h) = doc.size();
-            if (w, h) == doc.full_size {
-                dir
-            } else {
-                let mut name = dir.file_name().unwrap_or_default().to_os_string();
-                name.push(format!("-{w}x{h}"));
-                dir.with_file_name(name)
+            let mut name = dir.file_name().unwrap_or_default().to_os_string();
+            // A set's folder: never the autosave of an image of that name.
+            if let Some(set) = &doc.set {
+                name.push(format!("-set{}", set.paths.len()));
             }
+            if (w, h) != doc.full_size {
+                name.push(format!("-{w}x{h}"));
+            }
+            dir.with_file_name(name)
         })
     }
 
@@ -469,12 +538,31 @@ impl Session {
         }
     }
 
-    /// Submits a solve of the open document with `params` and the masks now.
-    pub fn start_solve(&mut self, params: SolverParams) {
+    /// Submits a solve of the open document with `params` (a set's with
+    /// `set_params`) and the masks now.
+    pub fn start_solve(&mut self, params: SolverParams, set_params: PhotometricParams) {
         self.dirty_since = None;
         let (Some(doc), Some(worker)) = (&self.document, &mut self.worker) else {
             return;
         };
+        if let Some(problem) = doc.set_problem() {
+            self.level_inputs = Some(LevelInputs {
+                image: Arc::new(doc.image.clone()),
+                ground_truth: None,
+                object: problem.object_mask.clone().map(Arc::new),
+                display: self.display,
+                texture: None,
+            });
+            self.mask_revision_solved = doc.mask_revision();
+            let job = worker.submit_set(SetRequest {
+                problem,
+                params: set_params,
+            });
+            self.compare.running = false;
+            self.compare.job = None;
+            self.begin_job(job);
+            return;
+        }
         let object = doc.masks.object_for_solver();
         let refused = sfs_core::model_fit::too_dark_to_solve(&doc.image, object.as_ref())
             .map(Err)
@@ -502,8 +590,9 @@ impl Session {
             ground_truth: doc.ground_truth.clone().map(Arc::new),
             object: problem.object_mask.clone().map(Arc::new),
             display: self.display,
+            texture: None,
         });
-        self.mask_revision_solved = doc.masks.revision();
+        self.mask_revision_solved = doc.mask_revision();
         let estimate_scale = !doc.camera.scale_given;
         let job = worker.submit(SolveRequest {
             problem,
@@ -511,6 +600,11 @@ impl Session {
             estimate_scale,
             known_depths,
         });
+        self.begin_job(job);
+    }
+
+    /// The state of a job just submitted.
+    fn begin_job(&mut self, job: JobId) {
         let solve = &mut self.solve;
         solve.job = Some(job);
         solve.submitted = Some(Instant::now());
@@ -523,6 +617,8 @@ impl Session {
         solve.shadow_share = None;
         solve.known_depth_fit = None;
         solve.search_solve = 0;
+        solve.set = None;
+        self.last_level = None;
     }
 
     /// Drains the worker's events (a few milliseconds at most) into the
@@ -536,6 +632,10 @@ impl Session {
         let events: Vec<Event> = worker.drain(EVENT_BUDGET).collect();
         let mut levels = Vec::new();
         for event in events {
+            if Some(event.job()) == latest && Some(event.job()) == self.compare.job {
+                self.receive_comparison(event);
+                continue;
+            }
             if Some(event.job()) != latest || Some(event.job()) != self.solve.job {
                 continue; // a superseded job
             }
@@ -625,6 +725,16 @@ impl Session {
                     self.solve.running = false;
                     self.solve.completed_jobs += 1;
                 }
+                Event::SetFinished { solution, .. } => {
+                    self.solve.set = Some(solution);
+                    self.solve.running = false;
+                    self.solve.completed_jobs += 1;
+                    if self.albedo_texture
+                        && let Some(level) = self.textured_level()
+                    {
+                        levels.push(level);
+                    }
+                }
                 Event::Failed { error, .. } => {
                     self.solve.failure = Some(error);
                     self.solve.running = false;
@@ -651,6 +761,16 @@ impl Session {
     }
 
     fn receive_level(&mut self, result: LevelResult) {
+        self.last_level = Some(result.clone());
+        if self.solve.set.is_none() && self.document.as_ref().is_some_and(|d| d.set.is_some()) {
+            // A set's solve reports levels, not iterations.
+            self.solve.progress.level = result.level;
+            self.solve.progress.levels = result.levels;
+            self.solve.progress.size = result.depth.size();
+            self.solve.progress.elapsed = result.elapsed;
+            self.solve.progress.energy_per_pixel =
+                per_pixel(result.energy.total, result.depth.size());
+        }
         self.next_solve_of_search(result.level);
         let size = result.depth.size();
         self.solve.arrived.push(size);
@@ -671,6 +791,125 @@ impl Session {
         });
     }
 
+    /// Whether the surface carries a set's albedo instead of the image; a
+    /// change returns the last level again with that texture, to prepare
+    /// for display.
+    pub fn set_albedo_texture(&mut self, albedo: bool) -> Option<ArrivedLevel> {
+        if self.albedo_texture == albedo {
+            return None;
+        }
+        self.albedo_texture = albedo;
+        self.textured_level()
+    }
+
+    /// The last level with the texture chosen (the set's albedo when there
+    /// is one and it is chosen, else the image).
+    fn textured_level(&self) -> Option<ArrivedLevel> {
+        let result = self.last_level.clone()?;
+        let mut inputs = self.level_inputs.clone()?;
+        inputs.texture = self
+            .solve
+            .set
+            .as_ref()
+            .filter(|_| self.albedo_texture)
+            .map(|s| Arc::new(s.albedo.clone()));
+        Some(ArrivedLevel {
+            result,
+            inputs,
+            first_of_job: false,
+        })
+    }
+
+    /// Solves photograph `index` of the open set alone with the
+    /// single-image method and `params`, through the same pipeline (that
+    /// photograph, the set's camera file: its light found by its name; the
+    /// painted masks), to compare with the set's finished shape. Needs the
+    /// set's result; a failure is kept in [`CompareState::failure`].
+    pub fn solve_single(&mut self, index: usize, params: SolverParams) {
+        self.compare.photo = index;
+        self.compare.comparison = None;
+        self.compare.difference = None;
+        self.compare.failure = None;
+        let (Some(doc), Some(worker)) = (&self.document, &mut self.worker) else {
+            return;
+        };
+        if self.solve.set.is_none() {
+            self.compare.failure = Some("solve the set first".into());
+            return;
+        }
+        let prepared = doc
+            .single_input(index)
+            .ok_or_else(|| format!("the set has no photograph {}", index + 1))
+            .and_then(|input| sfs_core::photo::prepare(&input).map_err(|e| format!("{e}")));
+        let prepared = match prepared {
+            Ok(prepared) if prepared.size() == doc.size() => prepared,
+            Ok(prepared) => {
+                self.compare.failure = Some(format!(
+                    "the photograph alone is read at {}x{}, the set at {}x{}",
+                    prepared.size().0,
+                    prepared.size().1,
+                    doc.size().0,
+                    doc.size().1
+                ));
+                return;
+            }
+            Err(e) => {
+                self.compare.failure = Some(e);
+                return;
+            }
+        };
+        let problem = sfs_core::solver::Problem {
+            camera: doc.camera.intrinsics(),
+            object_mask: doc.masks.object_for_solver(),
+            confidence: doc.masks.confidence_for_solver(),
+            ..prepared.problem
+        };
+        let job = worker.submit(SolveRequest {
+            problem,
+            params,
+            estimate_scale: !prepared.intensity_scale_given,
+            known_depths: Vec::new(),
+        });
+        self.compare.job = Some(job);
+        self.compare.running = true;
+    }
+
+    /// An event of the comparison's job.
+    fn receive_comparison(&mut self, event: Event) {
+        match event {
+            Event::Finished { solution, .. } => {
+                self.compare.running = false;
+                self.compare.completed += 1;
+                let (Some(set), Some(doc)) = (&self.solve.set, &self.document) else {
+                    return;
+                };
+                let camera = doc.camera.intrinsics();
+                match compare_single(&set.depth, &solution.depth, camera) {
+                    Some(comparison) => {
+                        let k = comparison.scale_to_set;
+                        self.compare.difference =
+                            Some(set.depth.zip_map(&solution.depth, |s, z| k * z - s));
+                        self.compare.comparison = Some(comparison);
+                    }
+                    None => {
+                        self.compare.failure =
+                            Some("the two surfaces share no solved pixel".into());
+                    }
+                }
+            }
+            Event::Failed { error, .. } => {
+                self.compare.running = false;
+                self.compare.completed += 1;
+                self.compare.failure = Some(error);
+            }
+            Event::Cancelled { .. } => {
+                self.compare.running = false;
+                self.compare.completed += 1;
+            }
+            _ => {}
+        }
+    }
+
     /// The timers: a mask edit (once no `gesture` is in progress) asks for
     /// a solve and an autosave; a pending solve starts with `params` when
     /// the pointer is up or after the debounce; a due autosave is written.
@@ -680,11 +919,11 @@ impl Session {
         &mut self,
         gesture: bool,
         pointer_down: bool,
-        params: impl FnOnce() -> SolverParams,
+        params: impl FnOnce() -> (SolverParams, PhotometricParams),
         repaint_after: impl Fn(Duration),
     ) -> Option<String> {
         if let Some(doc) = &self.document {
-            let revision = doc.masks.revision();
+            let revision = doc.mask_revision();
             if revision != self.mask_revision_solved && !gesture {
                 if self.dirty_since.is_none() {
                     self.dirty_since = Some(Instant::now());
@@ -701,7 +940,8 @@ impl Session {
             // while a slider is dragged, a pause of DEBOUNCE starts a solve.
             let dragging = pointer_down && !gesture;
             if !dragging || waited >= DEBOUNCE {
-                self.start_solve(params());
+                let (params, set_params) = params();
+                self.start_solve(params, set_params);
             } else {
                 repaint_after(DEBOUNCE.saturating_sub(waited));
             }
@@ -726,11 +966,38 @@ impl Session {
         };
         doc.masks
             .autosave(&dir, &doc.path)
-            .map_err(|e| format!("mask autosave failed: {e}"))
+            .map_err(|e| format!("mask autosave failed: {e}"))?;
+        if let Some(set) = &doc.set {
+            for (k, (masks, path)) in set.photo_masks.iter().zip(&set.paths).enumerate() {
+                masks
+                    .autosave(&photo_layer_dir(&dir, k), path)
+                    .map_err(|e| format!("mask autosave failed: {e}"))?;
+            }
+        }
+        Ok(())
     }
 
     /// Writes the finished result; returns what to say on the status line.
     pub fn export(&self, path: &Path, what: Export) -> Result<String, String> {
+        if let (Some(set), Some(doc)) = (&self.solve.set, &self.document) {
+            let camera = doc.camera.intrinsics();
+            let result = match what {
+                Export::DepthNpy => io::write_npy_f32(path, &set.depth),
+                Export::DepthPng => io::write_depth_png16(path, &set.depth).map(|_| ()),
+                Export::MeshPly => {
+                    io::write_depth_ply(path, &set.depth, &camera, Some(&set.albedo))
+                }
+                Export::MeshObj => io::write_depth_obj(path, &set.depth, &camera),
+                Export::Reprojection => {
+                    return Err("a set's solve keeps each photograph's residual, not a \
+                                reprojection: export the depth or the mesh"
+                        .into());
+                }
+            };
+            return result
+                .map(|()| format!("wrote {}", path.display()))
+                .map_err(|e| e.to_string());
+        }
         let (Some(solution), Some(doc)) = (&self.solve.finished, &self.document) else {
             return Err("nothing to export yet: the solve has not finished".into());
         };
@@ -784,4 +1051,10 @@ fn restore_known_depths(path: &Path, doc: &Document) -> Result<Vec<KnownDistance
                 && p.row_px < fh as f64
         })
         .collect())
+}
+
+/// The autosave folder of a set's photograph `index`'s own layer, inside
+/// the set's.
+fn photo_layer_dir(dir: &Path, index: usize) -> PathBuf {
+    dir.join(format!("photo-{}", index + 1))
 }

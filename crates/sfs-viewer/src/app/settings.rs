@@ -9,6 +9,7 @@ use crate::mask_edit::{Layer, Mode};
 use std::collections::BTreeMap;
 
 use sfs_core::params::{InitialDepth, PARAMS, SolverParams};
+use sfs_core::solver::photometric::PhotometricParams;
 
 /// Key of the settings in eframe's storage.
 pub const STORAGE_KEY: &str = "sfs-studio-settings";
@@ -160,8 +161,12 @@ pub struct ViewPrefs {
     pub colour: SurfaceColour,
     /// Draw edges instead of the filled surface.
     pub wireframe: bool,
-    /// Show the photograph on the surface instead of [`Self::colour`].
+    /// Show a texture on the surface instead of [`Self::colour`]: the
+    /// photograph, or a set's albedo ([`Self::albedo_texture`]).
     pub photo_texture: bool,
+    /// With [`Self::photo_texture`], a set's albedo instead of the
+    /// photograph (once the set is solved).
+    pub albedo_texture: bool,
     /// Light direction: yaw in degrees (view space, 0 = headlight).
     pub light_yaw_deg: f32,
     /// Light direction: pitch in degrees.
@@ -174,8 +179,34 @@ impl Default for ViewPrefs {
             colour: SurfaceColour::Shaded,
             wireframe: false,
             photo_texture: false,
+            albedo_texture: false,
             light_yaw_deg: 25.0,
             light_pitch_deg: 20.0,
+        }
+    }
+}
+
+/// The photometric-stereo scheme's settings the viewer keeps (the rest
+/// are [`PhotometricParams`]'s defaults).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct SetParamSettings {
+    /// Smoothness weight (relative); `None`: automatic from the
+    /// photographs' noise.
+    pub alpha: Option<f64>,
+}
+
+impl SetParamSettings {
+    /// Smallest and largest smoothness the control offers.
+    pub const ALPHA_RANGE: (f64, f64) = (1e-9, 1e-1);
+
+    /// The scheme's settings: the defaults with this smoothness (a stored
+    /// value that is not a positive number in range is taken as auto).
+    pub fn to_params(&self) -> PhotometricParams {
+        let (low, high) = Self::ALPHA_RANGE;
+        PhotometricParams {
+            alpha: self.alpha.filter(|a| (low..=high).contains(a)),
+            ..PhotometricParams::default()
         }
     }
 }
@@ -189,6 +220,8 @@ pub struct Settings {
     pub max_side: usize,
     /// Solver parameters.
     pub params: ParamSettings,
+    /// A photometric-stereo set's parameters.
+    pub set_params: SetParamSettings,
     /// Brush and overlay.
     pub brush: BrushSettings,
     /// 3-D view.
@@ -206,6 +239,7 @@ impl Default for Settings {
         Self {
             max_side: DEFAULT_MAX_SIDE,
             params: ParamSettings::default(),
+            set_params: SetParamSettings::default(),
             brush: BrushSettings::default(),
             view: ViewPrefs::default(),
             recent_files: Vec::new(),
@@ -250,6 +284,23 @@ mod tests {
         let json = serde_json::to_string(&s).unwrap_or_default();
         let back: Settings = serde_json::from_str(&json).unwrap_or_default();
         assert_eq!(back, s);
+    }
+
+    #[test]
+    fn the_sets_smoothness_round_trips_and_a_bad_stored_one_is_auto() {
+        let mut s = Settings::default();
+        assert_eq!(s.set_params.to_params().alpha, None);
+        s.set_params.alpha = Some(3e-6);
+        let json = serde_json::to_string(&s).expect("serialises");
+        let back: Settings = serde_json::from_str(&json).expect("deserialises");
+        assert_eq!(back.set_params.to_params().alpha, Some(3e-6));
+        for bad in [-1.0, 0.0, f64::NAN, 5.0] {
+            let stored = SetParamSettings { alpha: Some(bad) };
+            assert_eq!(stored.to_params().alpha, None, "{bad}");
+        }
+        // Settings stored before sets existed read with the defaults.
+        let old: Settings = serde_json::from_str(r#"{"max_side": 800}"#).expect("reads");
+        assert_eq!(old.set_params, SetParamSettings::default());
     }
 
     #[test]

@@ -101,7 +101,7 @@ pub(super) struct SmoothnessAt {
 pub(super) fn light_vector(light: &PointLight, intensity: f64, point: DVec3) -> (DVec3, DVec3) {
     let d = DVec3::from_array(light.position) - point;
     let r2 = d.length_squared();
-    if !(r2 > 0.0) {
+    if r2.is_nan() || r2 <= 0.0 {
         return (DVec3::ZERO, DVec3::ZERO);
     }
     let r = r2.sqrt();

@@ -416,7 +416,7 @@ pub(super) fn conjugate_gradients(
     let mut d = z.clone();
     let mut rz = dot(&r, &z);
     let r0 = dot(&r, &r).sqrt();
-    if !(r0 > 0.0) || !r0.is_finite() {
+    if !r0.is_finite() || r0 <= 0.0 {
         return Ok(0);
     }
     let mut ad = vec![0.0; n];
@@ -424,7 +424,7 @@ pub(super) fn conjugate_gradients(
         cancel.check()?;
         operator.apply(&d, &mut scratch, &mut ad);
         let dad = dot(&d, &ad);
-        if !(dad > 0.0) || !dad.is_finite() {
+        if !dad.is_finite() || dad <= 0.0 {
             return Ok(iteration);
         }
         let step = rz / dad;

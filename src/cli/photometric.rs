@@ -1,0 +1,601 @@
+//! `solve --photometric-stereo`: a set of photographs, each lit by its own
+//! light, read through the one photo pipeline and solved for depth, normals
+//! and albedo; optionally one photograph of the set solved alone with the
+//! single-image method and compared with the set's shape.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use serde::Serialize;
+
+use super::solve::SolveArgs;
+use crate::output::OutputStage;
+use sfs_core::grid::Grid;
+use sfs_core::io;
+use sfs_core::photo::{self, LightSpec, PhotoInput, PhotoReport};
+use sfs_core::scene::photometric::{albedo_error, mean_angle_deg};
+use sfs_core::solver::photometric::{
+    self as ps, PhotoResult, PhotometricParams, PhotometricSolution, SingleComparison,
+};
+use sfs_core::solver::{self, LevelResult, SolveObserver};
+
+/// The fixed outputs of a set's solve (each photograph's residual is
+/// `residual_NN.png`, NN its place in the set from 01).
+const FIXED_OUTPUTS: &[&str] = &[
+    "depth.npy",
+    "depth16.png",
+    "mesh.ply",
+    "normals.npy",
+    "normals.png",
+    "albedo.npy",
+    "albedo.png",
+    "single_depth.npy",
+    "single_depth16.png",
+    "report.json",
+];
+
+/// Every file a set's solve may write (for the output folder's stale-file
+/// removal).
+fn outputs() -> Vec<String> {
+    FIXED_OUTPUTS
+        .iter()
+        .map(|s| (*s).to_owned())
+        .chain((1..=64).map(|k| format!("residual_{k:02}.png")))
+        .collect()
+}
+
+/// The set's settings from the options.
+fn params(args: &SolveArgs) -> Result<PhotometricParams> {
+    let value = |text: &str, name: &str| -> Result<Option<f64>> {
+        if text.eq_ignore_ascii_case("auto") {
+            return Ok(None);
+        }
+        let v: f64 = text
+            .parse()
+            .map_err(|_| anyhow::anyhow!("--{name} {text}: not a number or `auto`"))?;
+        if !(v.is_finite() && v >= 0.0) {
+            bail!("--{name} {text}: must be a non-negative number or `auto`");
+        }
+        Ok(Some(v))
+    };
+    let robust_scale = value(&args.ps_robust_scale, "ps-robust-scale")?;
+    if robust_scale == Some(0.0) {
+        bail!("--ps-robust-scale 0: the Cauchy scale must be positive (or `auto`)");
+    }
+    Ok(PhotometricParams {
+        alpha: value(&args.ps_smoothness, "ps-smoothness")?,
+        robust_scale,
+        cast_shadows: !args.ps_no_cast_shadows,
+        ..PhotometricParams::default()
+    })
+}
+
+/// Refuses the single-image options a set does not take.
+fn refuse_single_options(args: &SolveArgs) -> Result<()> {
+    let refuse = |option: &str, why: &str| -> Result<()> {
+        bail!("{option} does not apply to --photometric-stereo: {why}")
+    };
+    if !args.known_depth.is_empty() {
+        refuse(
+            "--known-depth",
+            "the lights' fall-off fixes a set's depth unit",
+        )?;
+    }
+    if args.init_depth.is_some() {
+        refuse(
+            "--init-depth",
+            "a set starts from the best of a range of distances",
+        )?;
+    }
+    if args.method != super::solve::MethodArg::Linearised {
+        refuse("--method", "a set is solved by its own linearised scheme")?;
+    }
+    if args.auto_confidence {
+        refuse(
+            "--auto-confidence",
+            "a set leaves out shadows, saturation and outliers per photograph itself",
+        )?;
+    }
+    if args.intensity_scale.is_some() && args.compare_single.is_none() {
+        refuse(
+            "--intensity-scale",
+            "a set needs no intensity scale (its albedo absorbs it); it applies to \
+             --compare-single",
+        )?;
+    }
+    Ok(())
+}
+
+/// The input of a set: the pipeline's input of the options, kept apart,
+/// with each photograph's own confidence.
+fn set_input(args: &SolveArgs) -> Result<PhotoInput> {
+    let mut input = args.photo_input()?;
+    input.photometric_stereo = true;
+    input.given_intensities = !args.lights.intensities.is_empty();
+    if !args.photo_confidence.is_empty() {
+        let mut each: Vec<Option<PathBuf>> = vec![None; args.images.len()];
+        for given in &args.photo_confidence {
+            let Some((image, file)) = given.split_once('=') else {
+                bail!("--photo-confidence {given}: expected IMAGE=FILE");
+            };
+            let k = find_image(&args.images, Path::new(image)).with_context(|| {
+                format!("--photo-confidence {given}: {image} is not one of the photographs")
+            })?;
+            if each[k].is_some() {
+                bail!("--photo-confidence: {image} is given twice");
+            }
+            each[k] = Some(PathBuf::from(file));
+        }
+        input.photo_confidence = each;
+    }
+    Ok(input)
+}
+
+/// The index of `wanted` among `images` (the same path, or the same file
+/// name).
+fn find_image(images: &[PathBuf], wanted: &Path) -> Option<usize> {
+    images.iter().position(|p| p == wanted).or_else(|| {
+        let name = wanted.file_name()?;
+        let matches: Vec<usize> = images
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.file_name() == Some(name))
+            .map(|(k, _)| k)
+            .collect();
+        (matches.len() == 1).then(|| matches[0])
+    })
+}
+
+/// Progress: one line per level on a terminal.
+struct Levels {
+    quiet: bool,
+}
+
+impl SolveObserver for Levels {
+    fn on_level(&mut self, result: &LevelResult) {
+        if !self.quiet && std::io::stderr().is_terminal() {
+            eprintln!(
+                "level {}/{} ({}x{}) done at {:.2} s",
+                result.level + 1,
+                result.levels,
+                result.geometry.width,
+                result.geometry.height,
+                result.elapsed.as_secs_f64()
+            );
+        }
+    }
+}
+
+/// One photograph's entry in the report.
+#[derive(Serialize)]
+struct PhotoEntry<'a> {
+    /// Its residual picture.
+    residual_png: String,
+    #[serde(flatten)]
+    fit: &'a PhotoResult,
+}
+
+/// Errors against a render's ground truth (`--gt DIR`: `depth_gt.npy`, and
+/// `normals_gt.npy` and `albedo_gt.npy` when there).
+#[derive(Serialize)]
+struct SetErrors {
+    rse: f64,
+    mean_normal_error_deg: Option<f64>,
+    albedo_median_relative_error: Option<f64>,
+}
+
+/// The single-image solve of one photograph of the set, compared.
+#[derive(Serialize)]
+struct SingleReport {
+    image: PathBuf,
+    seconds: f64,
+    intensity_scale: f64,
+    intensity_scale_estimated: bool,
+    #[serde(flatten)]
+    comparison: Option<SingleComparison>,
+}
+
+/// `report.json` of a set.
+#[derive(Serialize)]
+struct SetReport<'a> {
+    mode: &'static str,
+    input: &'a PhotoReport,
+    parameters: serde_json::Value,
+    intensities_estimated: bool,
+    alpha_used: f64,
+    robust_scale_used: f64,
+    brightness: f64,
+    initial_depth: f64,
+    distances_tried: &'a [(f64, f64)],
+    levels: &'a [solver::LevelReport],
+    iterations: usize,
+    final_energy: &'a sfs_core::model::Energy,
+    seconds: f64,
+    depth_range: Option<[f64; 2]>,
+    depth16_png_range: Option<[f64; 2]>,
+    albedo_relative: bool,
+    albedo_png_white: f64,
+    photographs: Vec<PhotoEntry<'a>>,
+    single_image: Option<SingleReport>,
+    errors: Option<SetErrors>,
+    warnings: &'a [String],
+}
+
+/// Runs `solve --photometric-stereo`.
+pub fn run(args: &SolveArgs) -> Result<()> {
+    refuse_single_options(args)?;
+    let params = params(args)?;
+    let input = set_input(args)?;
+    let compare = match &args.compare_single {
+        Some(image) => Some(find_image(&args.images, image).with_context(|| {
+            format!(
+                "--compare-single {}: not one of the photographs of the set",
+                image.display()
+            )
+        })?),
+        None => None,
+    };
+    let prepared = photo::prepare(&input)?;
+    let problem = photo::photometric_problem(&prepared, &input)?;
+    let owned = outputs();
+    let owned: Vec<&str> = owned.iter().map(String::as_str).collect();
+    let mut stage = OutputStage::new(&args.out, &owned)?;
+    stage.keep_inputs(input.files());
+    let camera = prepared.problem.camera;
+    let solution = ps::solve_photometric(&problem, &params, &mut Levels { quiet: args.quiet })
+        .with_context(|| format!("cannot solve the set of {} photographs", args.images.len()))?;
+    let mut warnings = set_warnings(&solution);
+
+    io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
+    let depth16 = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
+    io::write_npy_f32_vec3(&stage.path("normals.npy"), &solution.normals)?;
+    io::write_rgb_png8(
+        &stage.path("normals.png"),
+        &solution.normals.map(|n| sfs_core::colour::normal_rgb(*n)),
+    )?;
+    io::write_npy_f32(&stage.path("albedo.npy"), &solution.albedo)?;
+    let white = albedo_white(&solution);
+    io::write_png16(
+        &stage.path("albedo.png"),
+        &solution
+            .albedo
+            .map(|a| if a.is_finite() { a / white } else { 0.0 }),
+    )?;
+    io::write_depth_ply(
+        &stage.path("mesh.ply"),
+        &solution.depth,
+        &camera,
+        Some(
+            &solution
+                .albedo
+                .map(|a| if a.is_finite() { a / white } else { 0.0 }),
+        ),
+    )?;
+    let mut photographs = Vec::new();
+    for (k, fit) in solution.photos.iter().enumerate() {
+        let name = format!("residual_{:02}.png", k + 1);
+        // I - R: grey 0.5 explained, +-0.5 is +-4 Cauchy scales.
+        let span = 8.0 * solution.robust_scale * solution.brightness;
+        io::write_png8(
+            &stage.path(&name),
+            &fit.residual
+                .map(|r| if r.is_finite() { 0.5 + r / span } else { 0.5 }),
+        )?;
+        photographs.push(PhotoEntry {
+            residual_png: name,
+            fit,
+        });
+    }
+    let single = match compare {
+        Some(k) => Some(solve_single(
+            args, &input, k, &solution, camera, &mut stage,
+        )?),
+        None => None,
+    };
+    if let Some(single) = &single
+        && single.comparison.is_none()
+    {
+        warnings.push(format!(
+            "the single-image solve of {} shares no pixel with the set's: nothing to compare",
+            single.image.display()
+        ));
+    }
+    let errors = match &args.gt {
+        Some(dir) => Some(ground_truth_errors(dir, &solution)?),
+        None => None,
+    };
+    let range = depth_range(&solution.depth);
+    let report = SetReport {
+        mode: "photometric_stereo",
+        input: &prepared.report,
+        parameters: serde_json::json!({
+            "smoothness": args.ps_smoothness,
+            "robust_scale": args.ps_robust_scale,
+            "cast_shadows": params.cast_shadows,
+            "iterations_per_level": params.iterations,
+            "lambda": params.lambda,
+        }),
+        intensities_estimated: solution.intensities_estimated,
+        alpha_used: solution.alpha,
+        robust_scale_used: solution.robust_scale,
+        brightness: solution.brightness,
+        initial_depth: solution.initial_depth,
+        distances_tried: &solution.distances_tried,
+        levels: &solution.levels,
+        iterations: solution.iterations,
+        final_energy: &solution.energy,
+        seconds: solution.seconds,
+        depth_range: range,
+        depth16_png_range: depth16.map(|(near, far)| [near, far]),
+        albedo_relative: solution.albedo_relative,
+        albedo_png_white: white,
+        photographs,
+        single_image: single,
+        errors,
+        warnings: &warnings,
+    };
+    io::write_json(&stage.path("report.json"), &report)?;
+    stage
+        .commit()
+        .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    if !args.quiet {
+        print_summary(args, &prepared.report, &report, &solution);
+    }
+    for warning in &warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(())
+}
+
+/// The albedo shown white in `albedo.png`: 1 for an absolute albedo, else
+/// its 99th percentile (the report says which).
+fn albedo_white(solution: &PhotometricSolution) -> f64 {
+    if !solution.albedo_relative {
+        return 1.0;
+    }
+    let mut values: Vec<f64> = solution
+        .albedo
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|a| a.is_finite() && *a > 0.0)
+        .collect();
+    if values.is_empty() {
+        return 1.0;
+    }
+    let k = ((values.len() - 1) as f64 * 0.99) as usize;
+    let white = *values.select_nth_unstable_by(k, f64::total_cmp).1;
+    if white > 0.0 { white } else { 1.0 }
+}
+
+/// The depth's 2nd to 98th percentile.
+fn depth_range(depth: &Grid<f64>) -> Option<[f64; 2]> {
+    let mut values: Vec<f64> = depth
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .collect();
+    if values.is_empty() {
+        return None;
+    }
+    values.sort_by(f64::total_cmp);
+    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
+    Some([at(0.02), at(0.98)])
+}
+
+/// What the user should know of a set's fit, in plain words.
+fn set_warnings(solution: &PhotometricSolution) -> Vec<String> {
+    let mut warnings = Vec::new();
+    for photo in &solution.photos {
+        if photo.used_share < 0.3 {
+            warnings.push(format!(
+                "{} is used on only {:.0} % of the object ({:.0} % shadow, {:.0} % untrusted or \
+                 saturated, {:.0} % not explained by the model): check its light and exposure",
+                photo.name,
+                100.0 * photo.used_share,
+                100.0 * photo.shadow_share,
+                100.0 * photo.untrusted_share,
+                100.0 * photo.robust_share
+            ));
+        }
+    }
+    if solution.intensities_estimated {
+        let spread = solution
+            .photos
+            .iter()
+            .map(|p| p.intensity)
+            .fold((f64::MAX, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        if spread.0 > 0.0 && spread.1 / spread.0 > 10.0 {
+            warnings.push(format!(
+                "the estimated intensities of the lights differ by {:.0}x: a photograph may be \
+                 mislabelled or its light misplaced",
+                spread.1 / spread.0
+            ));
+        }
+    }
+    warnings
+}
+
+/// Errors against `--gt DIR`.
+fn ground_truth_errors(dir: &Path, solution: &PhotometricSolution) -> Result<SetErrors> {
+    let depth = io::read_npy(&dir.join("depth_gt.npy"))?;
+    if depth.size() != solution.depth.size() {
+        bail!(
+            "ground truth in {} is {}x{} but the set is solved at {}x{}",
+            dir.display(),
+            depth.width(),
+            depth.height(),
+            solution.depth.width(),
+            solution.depth.height()
+        );
+    }
+    let rse = sfs_core::metrics::rse(&solution.depth, &depth)?;
+    let mask = depth.map(|z| z.is_finite());
+    let normals = read_normals(&dir.join("normals_gt.npy"), depth.size())?;
+    let albedo = match dir.join("albedo_gt.npy") {
+        path if path.is_file() => Some(io::read_npy(&path)?),
+        _ => None,
+    };
+    Ok(SetErrors {
+        rse,
+        mean_normal_error_deg: normals.map(|n| mean_angle_deg(&solution.normals, &n, &mask)),
+        albedo_median_relative_error: albedo
+            .filter(|a| a.size() == depth.size())
+            .map(|a| albedo_error(&solution.albedo, &a, &mask)),
+    })
+}
+
+/// `normals_gt.npy` (H x W x 3) when present.
+fn read_normals(path: &Path, size: (usize, usize)) -> Result<Option<Grid<[f64; 3]>>> {
+    if !path.is_file() {
+        return Ok(None);
+    }
+    let normals = io::read_npy_vec3(path)?;
+    if normals.size() != size {
+        bail!(
+            "{}: {}x{} normals for a {}x{} solve",
+            path.display(),
+            normals.width(),
+            normals.height(),
+            size.0,
+            size.1
+        );
+    }
+    Ok(Some(normals))
+}
+
+/// Solves photograph `k` of the set alone with the single-image method
+/// (through the same pipeline: its own light by its name, the same camera,
+/// mask, ambient frame and working size), writes its depth and compares.
+fn solve_single(
+    args: &SolveArgs,
+    set: &PhotoInput,
+    k: usize,
+    solution: &PhotometricSolution,
+    camera: sfs_core::camera::Intrinsics,
+    stage: &mut OutputStage,
+) -> Result<SingleReport> {
+    let image = set.images[k].clone();
+    let lights = match &set.lights {
+        LightSpec::Given(lights) => LightSpec::Given(vec![lights[k]]),
+        other => other.clone(),
+    };
+    let input = PhotoInput {
+        images: vec![image.clone()],
+        lights,
+        photometric_stereo: false,
+        photo_confidence: Vec::new(),
+        confidence: set
+            .photo_confidence
+            .get(k)
+            .cloned()
+            .flatten()
+            .or_else(|| set.confidence.clone()),
+        ..set.clone()
+    };
+    let prepared =
+        photo::prepare(&input).with_context(|| format!("--compare-single {}", image.display()))?;
+    let mut problem = prepared.problem;
+    let size = problem.image.size();
+    let single_params = args.params(size)?;
+    let mut estimated = false;
+    if !prepared.intensity_scale_given && !problem.light_is_centred() {
+        let estimate =
+            solver::calibrate::estimate_intensity_scale(&problem, &single_params, &mut ())
+                .with_context(|| format!("--compare-single {}", image.display()))?;
+        problem.intensity_scale = estimate.intensity_scale;
+        estimated = true;
+    }
+    let single = solver::solve_method(&problem, &single_params, &args.method.method(), &mut ())
+        .with_context(|| format!("--compare-single {}: cannot solve it", image.display()))?;
+    io::write_npy_f32(&stage.path("single_depth.npy"), &single.depth)?;
+    io::write_depth_png16(&stage.path("single_depth16.png"), &single.depth)?;
+    Ok(SingleReport {
+        image,
+        seconds: single.seconds,
+        intensity_scale: problem.intensity_scale,
+        intensity_scale_estimated: estimated,
+        comparison: ps::compare_single(&solution.depth, &single.depth, camera),
+    })
+}
+
+/// The summary on the terminal.
+fn print_summary(
+    args: &SolveArgs,
+    input: &PhotoReport,
+    report: &SetReport<'_>,
+    solution: &PhotometricSolution,
+) {
+    for note in &input.notes {
+        eprintln!("{note}");
+    }
+    let units = input.camera.units.as_deref().unwrap_or("depth units");
+    eprintln!(
+        "solved a set of {} photographs ({}x{}) in {:.2} s ({} levels, {} linearisations) -> {}",
+        solution.photos.len(),
+        input.width,
+        input.height,
+        solution.seconds,
+        solution.levels.len(),
+        solution.iterations,
+        args.out.display()
+    );
+    if let Some([near, far]) = report.depth_range {
+        eprintln!(
+            "depth {near:.4}..{far:.4} {units} (2nd to 98th percentile; range {:.4} {units}), \
+             started from {:.4} {units}",
+            far - near,
+            solution.initial_depth
+        );
+    }
+    for photo in &solution.photos {
+        eprintln!(
+            "  {}: intensity {:.3}{}, residual {:.3}, used {:.0} %, shadow {:.0} %, untrusted \
+             {:.0} %, down-weighted {:.0} %",
+            photo.name,
+            photo.intensity,
+            if solution.intensities_estimated {
+                " (estimated)"
+            } else {
+                ""
+            },
+            photo.relative_residual,
+            100.0 * photo.used_share,
+            100.0 * photo.shadow_share,
+            100.0 * photo.untrusted_share,
+            100.0 * photo.robust_share
+        );
+    }
+    if let Some(single) = &report.single_image
+        && let Some(c) = &single.comparison
+    {
+        eprintln!(
+            "{} alone (single-image method, {:.2} s): RSE to the set {:.4} ({:.4} after scaling \
+             by {:.3}), mean normal angle {:.1} deg, depth range {:.4} against the set's {:.4} \
+             {units}",
+            single.image.display(),
+            single.seconds,
+            c.rse_to_set,
+            c.rse_to_set_scaled,
+            c.scale_to_set,
+            c.mean_normal_angle_deg,
+            c.single_depth_range,
+            c.set_depth_range
+        );
+    }
+    if let Some(e) = &report.errors {
+        eprintln!(
+            "against the ground truth: RSE {:.5}{}{}",
+            e.rse,
+            e.mean_normal_error_deg
+                .map_or_else(String::new, |v| format!(", mean normal error {v:.2} deg")),
+            e.albedo_median_relative_error
+                .map_or_else(String::new, |v| format!(
+                    ", albedo median error {:.2} %",
+                    100.0 * v
+                ))
+        );
+    }
+}
