@@ -1723,3 +1723,139 @@ fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
         &["fast marching", "oren-nayar"],
     );
 }
+
+// ---------------------------------------------------------------------------
+// Photometric stereo
+// ---------------------------------------------------------------------------
+
+/// `synth --ps-leds 4` writes a set with its truth; `solve
+/// --photometric-stereo` reads it through the pipeline, writes depth,
+/// normals, albedo and a residual per photograph, measures against the
+/// truth and compares one photograph's single-image solve; bad sets are
+/// refused naming the file, with nothing written.
+#[test]
+fn photometric_stereo_end_to_end() {
+    let dir = tempdir().expect("temp dir");
+    let set = dir.path().join("set");
+    let out = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "48x48",
+        "--ps-leds",
+        "4",
+        "--out",
+        &s(&set),
+    ]);
+    assert_success(&out, "synth --ps-leds");
+    let files = entries(&set);
+    for name in [
+        "led01.png",
+        "led04.png",
+        "mask.png",
+        "depth_gt.npy",
+        "normals_gt.npy",
+        "albedo_gt.npy",
+        "scene.json",
+    ] {
+        assert!(files.contains(&name.to_owned()), "{files:?}");
+    }
+    let images: Vec<String> = (1..=4)
+        .map(|k| s(&set.join(format!("led{k:02}.png"))))
+        .collect();
+    let solved = dir.path().join("solved");
+    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    args.extend(images.iter().cloned());
+    args.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--mask".into(),
+        s(&set.join("mask.png")),
+        "--gt".into(),
+        s(&set),
+        "--compare-single".into(),
+        "led02.png".into(),
+        "--out".into(),
+        s(&solved),
+    ]);
+    let out = sfs(&args);
+    assert_success(&out, "solve --photometric-stereo");
+    let written = entries(&solved);
+    for name in [
+        "depth.npy",
+        "normals.npy",
+        "normals.png",
+        "albedo.npy",
+        "albedo.png",
+        "residual_01.png",
+        "residual_04.png",
+        "single_depth.npy",
+        "mesh.ply",
+        "report.json",
+    ] {
+        assert!(written.contains(&name.to_owned()), "{written:?}");
+    }
+    let report = read_json(&solved.join("report.json"));
+    assert_eq!(report["mode"], "photometric_stereo");
+    assert_eq!(report["photographs"].as_array().map(Vec::len), Some(4));
+    let rse = report["errors"]["rse"].as_f64().expect("rse");
+    let normals = report["errors"]["mean_normal_error_deg"]
+        .as_f64()
+        .expect("normal error");
+    let albedo = report["errors"]["albedo_median_relative_error"]
+        .as_f64()
+        .expect("albedo error");
+    assert!(rse < 0.05 && normals < 5.0 && albedo < 0.05, "{report}");
+    assert!(
+        report["single_image"]["rse_to_set"].as_f64().is_some(),
+        "{report}"
+    );
+    assert!(stderr(&out).contains("alone (single-image method"));
+
+    // Bad sets: the message names what is wrong, nothing is written.
+    let bad = dir.path().join("bad");
+    let mut one: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    one.push(images[0].clone());
+    one.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&one, &bad, &["at least 2 photographs"]);
+    let mut twice: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    twice.extend(images[..2].iter().cloned());
+    twice.extend([
+        "--focal".into(),
+        "48".into(),
+        "--light".into(),
+        "0.1,0,0".into(),
+        "--light".into(),
+        "0.1,0,0".into(),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&twice, &bad, &["led01.png", "led02.png", "same light"]);
+    let mut counts: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    counts.extend(images[..3].iter().cloned());
+    counts.extend([
+        "--focal".into(),
+        "48".into(),
+        "--light".into(),
+        "0.1,0,0".into(),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&counts, &bad, &["3 photographs but 1 lights"]);
+    let mut unknown: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    unknown.extend(images.iter().cloned());
+    unknown.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--photo-confidence".into(),
+        "led09.png=x.png".into(),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&unknown, &bad, &["led09.png", "not one of the photographs"]);
+}

@@ -33,23 +33,54 @@ pub(super) struct Level {
     pub weights: Vec<Vec<f64>>,
 }
 
-/// What the iterations change besides the depth.
-#[derive(Clone)]
-pub(super) struct Shared<'a> {
-    pub lights: &'a [PointLight],
-    /// Each photograph's intensity (relative; the lights' own when given).
-    pub intensities: &'a [f64],
-    /// Cast shadow per photograph and pixel (empty: none computed).
-    pub cast: &'a [Vec<bool>],
-    /// The Cauchy scale of the residuals, image units.
+/// The scales a solve's passes share: the Cauchy scale of the residuals
+/// and the dark level (image units), the reference brightness the data term
+/// is divided by, the smoothness weight `alpha` (relative) and Charbonnier
+/// `lambda`.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Scales {
     pub robust_scale: f64,
     /// Values at or below this are dark (a shadow can explain them).
     pub dark_level: f64,
-    /// The reference brightness the data term is divided by.
     pub brightness: f64,
-    /// The smoothness weight `alpha` (relative) and Charbonnier `lambda`.
     pub alpha: f64,
     pub lambda: f64,
+}
+
+/// What the passes read besides the depth: the lights, each photograph's
+/// intensity (relative; the lights' own when given), the cast shadow per
+/// photograph and pixel (empty: none computed) and the scales.
+#[derive(Clone)]
+pub(super) struct Shared<'a> {
+    pub lights: &'a [PointLight],
+    pub intensities: &'a [f64],
+    pub cast: &'a [Vec<bool>],
+    pub robust_scale: f64,
+    pub dark_level: f64,
+    pub brightness: f64,
+    pub alpha: f64,
+    pub lambda: f64,
+}
+
+impl<'a> Shared<'a> {
+    /// The passes' view of a state.
+    pub fn new(
+        lights: &'a [PointLight],
+        intensities: &'a [f64],
+        cast: &'a [Vec<bool>],
+        scales: Scales,
+    ) -> Self {
+        Self {
+            lights,
+            intensities,
+            cast,
+            robust_scale: scales.robust_scale,
+            dark_level: scales.dark_level,
+            brightness: scales.brightness,
+            alpha: scales.alpha,
+            lambda: scales.lambda,
+        }
+    }
 }
 
 /// One observation at a pixel: its gradient coefficients, `L_z`, the

@@ -40,7 +40,7 @@ use crate::grid::Grid;
 use crate::light::PointLight;
 use crate::model::{Energy, LevelGeometry};
 use crate::resample::{resize_area, scale_intrinsics};
-use level::{Level, MAX_PHOTOS, Observation, Shared};
+use level::{Level, MAX_PHOTOS, Observation, Scales, Shared};
 use linear::{Operator, Stencil, conjugate_gradients, gradient};
 
 pub use level::{LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, USED};
@@ -298,6 +298,8 @@ const STOP_COARSE: f64 = 1e-4;
 /// ones found, in at most [`FINE_ITERATIONS`] linearisations.
 const FINE_SIDE: usize = 300;
 const FINE_ITERATIONS: usize = 4;
+/// Semi-calibrated: rounds of (shape, intensities) per coarse level.
+const INTENSITY_ROUNDS: usize = 4;
 /// Distances kept from the coarsest level for the next.
 const FINALISTS: usize = 3;
 /// Linearisations per distance tried.
@@ -339,6 +341,13 @@ pub fn solve_photometric(
     // Dark: within three noise deviations of black, and at least 2 % of
     // the brightness (a render has no noise).
     let dark_level = (3.0 * sigma).max(0.02 * brightness);
+    let scales_at = |robust_scale: f64| Scales {
+        robust_scale,
+        dark_level,
+        brightness,
+        alpha,
+        lambda: params.lambda,
+    };
     let lights: Vec<PointLight> = problem.photos.iter().map(|p| p.light).collect();
     let mut intensities: Vec<f64> = lights.iter().map(|l| l.intensity).collect();
     let estimate_intensities = !problem.intensities_known;
@@ -372,12 +381,14 @@ pub fn solve_photometric(
         let level_start = Instant::now();
         let mut scale = robust_scale.unwrap_or(1e3 * brightness);
         if index == 0 {
+            // The start is chosen with equal (or the given) intensities: on
+            // a plane the intensities would absorb the shape.
             let start = choose_start(
                 &levels_data,
                 &lights,
                 &intensities,
-                estimate_intensities,
-                (brightness, scale, alpha, params.lambda, dark_level),
+                false,
+                scales_at(scale),
                 params,
                 observer,
             )?;
@@ -413,24 +424,51 @@ pub fn solve_photometric(
             cast = cast_shadows(level, &lights, &zeta, std::mem::take(&mut cast));
         }
         let level_cast = cast_for(&cast, level);
+        let fine = level.width.max(level.height) > FINE_SIDE;
+        let how = LevelRun {
+            max_iterations: if fine {
+                FINE_ITERATIONS.min(params.iterations)
+            } else {
+                params.iterations
+            },
+            search_distance: index == 0,
+            report: Some((index, level_count, start)),
+        };
+        // Semi-calibrated: on the coarse levels the intensities are refitted
+        // to the shape each time it has settled, and the shape solved again
+        // (refitting them inside the linearisations runs away along the
+        // coupling of a light's intensity and the surface's tilt).
+        if estimate_intensities && !fine {
+            for _ in 0..INTENSITY_ROUNDS {
+                run_level(
+                    level,
+                    &lights,
+                    &mut intensities,
+                    false,
+                    &level_cast,
+                    scales_at(scale),
+                    &mut zeta,
+                    &mut m,
+                    LevelRun {
+                        report: None,
+                        ..how
+                    },
+                    observer,
+                )?;
+                let shared = Shared::new(&lights, &intensities, &level_cast, scales_at(scale));
+                intensities = level.refit_intensities(&shared, &zeta, &m);
+            }
+        }
         let (e, energies, its) = run_level(
             level,
             &lights,
             &mut intensities,
-            estimate_intensities,
+            false,
             &level_cast,
-            (brightness, scale, alpha, params.lambda, dark_level),
+            scales_at(scale),
             &mut zeta,
             &mut m,
-            LevelRun {
-                max_iterations: if level.width.max(level.height) > FINE_SIDE {
-                    FINE_ITERATIONS.min(params.iterations)
-                } else {
-                    params.iterations
-                },
-                search_distance: index == 0,
-                report: Some((index, level_count, start)),
-            },
+            how,
             observer,
         )?;
         iterations += its;
@@ -441,16 +479,7 @@ pub fn solve_photometric(
             energies,
             seconds: level_start.elapsed().as_secs_f64(),
         });
-        let shared = Shared {
-            lights: &lights,
-            intensities: &intensities,
-            cast: &level_cast,
-            robust_scale: scale,
-            dark_level,
-            brightness,
-            alpha,
-            lambda: params.lambda,
-        };
+        let shared = Shared::new(&lights, &intensities, &level_cast, scales_at(scale));
         let depth = depth_grid(level, &zeta);
         let reprojection = mean_prediction(level, &shared, &zeta, &m);
         observer.on_level(&LevelResult {
@@ -469,16 +498,7 @@ pub fn solve_photometric(
     };
     let final_cast = cast_for(&cast, level);
     let scale = robust_scale.unwrap_or(1e3 * brightness);
-    let shared = Shared {
-        lights: &lights,
-        intensities: &intensities,
-        cast: &final_cast,
-        robust_scale: scale,
-        dark_level,
-        brightness,
-        alpha,
-        lambda: params.lambda,
-    };
+    let shared = Shared::new(&lights, &intensities, &final_cast, scales_at(scale));
     let solution = finish(
         problem,
         level,
@@ -521,7 +541,7 @@ fn choose_start(
     lights: &[PointLight],
     intensities: &[f64],
     estimate_intensities: bool,
-    scales: (f64, f64, f64, f64, f64),
+    scales: Scales,
     params: &PhotometricParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Start, SolveError> {
@@ -621,7 +641,7 @@ fn run_level(
     intensities: &mut Vec<f64>,
     estimate_intensities: bool,
     cast: &[Vec<bool>],
-    (brightness, robust_scale, alpha, lambda, dark_level): (f64, f64, f64, f64, f64),
+    scales: Scales,
     zeta: &mut Vec<f64>,
     m: &mut Vec<f64>,
     how: LevelRun,
@@ -636,16 +656,7 @@ fn run_level(
     let mut before: Option<Energy> = None;
     loop {
         check_cancelled(observer)?;
-        let shared = Shared {
-            lights,
-            intensities,
-            cast,
-            robust_scale,
-            dark_level,
-            brightness,
-            alpha,
-            lambda,
-        };
+        let shared = Shared::new(lights, intensities, cast, scales);
         // The energy of the surface as it stands comes with its
         // linearisation.
         let (forms, m_now, data) = level.linearise(&shared, zeta, m);
@@ -654,7 +665,7 @@ fn run_level(
         let now = Energy {
             data,
             smoothness: smoothness.energy,
-            total: data + alpha * smoothness.energy,
+            total: data + scales.alpha * smoothness.energy,
         };
         if let Some(previous) = before {
             energies.push(now.total);
@@ -977,16 +988,18 @@ fn auto_robust_scale(
     m: &[f64],
     brightness: f64,
 ) -> f64 {
-    let shared = Shared {
+    let shared = Shared::new(
         lights,
         intensities,
         cast,
-        robust_scale: 1e3 * brightness,
-        dark_level,
-        brightness,
-        alpha: 0.0,
-        lambda: 1.0,
-    };
+        Scales {
+            robust_scale: 1e3 * brightness,
+            dark_level,
+            brightness,
+            alpha: 0.0,
+            lambda: 1.0,
+        },
+    );
     let _w = level.width;
     let pixels = level.domain.iter().filter(|&&d| d).count().max(1);
     let stride = (pixels / 20_000).max(1);
