@@ -1321,34 +1321,40 @@ impl Panels {
             .as_ref()
             .and_then(|d| d.set.as_ref())
             .map(|s| s.names());
+        let mut rows = vec![vec![
+            (Panel2d::Input, "input + mask"),
+            (Panel2d::Reprojection, "reprojection"),
+            (Panel2d::Difference, "residual I − R"),
+            (Panel2d::Depth, "depth"),
+            (Panel2d::DepthError, "depth error"),
+        ]];
+        if set_names.is_some() {
+            // A set's own panels on a row of their own: nine tabs do not
+            // fit one row of the image panel.
+            rows[0].retain(|(p, _)| *p != Panel2d::DepthError);
+            rows.push(vec![
+                (Panel2d::Albedo, "albedo"),
+                (Panel2d::Normals, "normals"),
+                (Panel2d::PhotoResidual, "photo residual"),
+                (Panel2d::SingleDifference, "alone − set"),
+            ]);
+        }
+        for panels in rows {
+            ui.horizontal_wrapped(|ui| {
+                for (panel, name) in panels {
+                    let enabled = panel != Panel2d::DepthError
+                        || cx
+                            .session
+                            .document
+                            .as_ref()
+                            .is_some_and(|d| d.ground_truth.is_some());
+                    ui.add_enabled_ui(enabled, |ui| {
+                        ui.selectable_value(&mut self.panel, panel, name);
+                    });
+                }
+            });
+        }
         ui.horizontal_wrapped(|ui| {
-            let mut panels = vec![
-                (Panel2d::Input, "input + mask"),
-                (Panel2d::Reprojection, "reprojection"),
-                (Panel2d::Difference, "residual I − R"),
-                (Panel2d::Depth, "depth"),
-                (Panel2d::DepthError, "depth error"),
-            ];
-            if set_names.is_some() {
-                panels.retain(|(p, _)| *p != Panel2d::DepthError);
-                panels.extend([
-                    (Panel2d::Albedo, "albedo"),
-                    (Panel2d::Normals, "normals"),
-                    (Panel2d::PhotoResidual, "photo residual"),
-                    (Panel2d::SingleDifference, "alone − set"),
-                ]);
-            }
-            for (panel, name) in panels {
-                let enabled = panel != Panel2d::DepthError
-                    || cx
-                        .session
-                        .document
-                        .as_ref()
-                        .is_some_and(|d| d.ground_truth.is_some());
-                ui.add_enabled_ui(enabled, |ui| {
-                    ui.selectable_value(&mut self.panel, panel, name);
-                });
-            }
             if self.panel == Panel2d::PhotoResidual
                 && let Some(names) = &set_names
             {
