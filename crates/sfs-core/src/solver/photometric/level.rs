@@ -340,7 +340,6 @@ impl Level {
         zeta: &[f64],
         m_previous: &[f64],
     ) -> (Vec<GradientForm>, Vec<f64>, f64) {
-        let _w = self.width;
         let b2 = shared.brightness * shared.brightness;
         let results: Vec<(GradientForm, f64, f64)> = (0..zeta.len())
             .into_par_iter()
@@ -449,8 +448,8 @@ impl Level {
         shift: f64,
         stride: usize,
     ) -> f64 {
-        let _w = self.width;
-        (0..zeta.len())
+        // Collected, then summed in order: the same bits on every run.
+        let values: Vec<f64> = (0..zeta.len())
             .into_par_iter()
             .step_by(stride.max(1))
             .with_min_len(256)
@@ -462,7 +461,8 @@ impl Level {
                 let n = self.observe(shared, zeta, p, shift, &mut obs).n;
                 Self::fit_pixel(shared, &mut obs[..n], 0.0).robust
             })
-            .sum()
+            .collect();
+        values.iter().sum()
     }
 
     /// Each photograph's residuals `m u - I` (0 off the domain), whether it
@@ -474,7 +474,6 @@ impl Level {
         zeta: &[f64],
         m_previous: &[f64],
     ) -> Vec<Vec<(f64, f64, u8)>> {
-        let _w = self.width;
         let per_pixel: Vec<Vec<(f64, f64, u8)>> = (0..zeta.len())
             .into_par_iter()
             .with_min_len(512)
@@ -512,37 +511,35 @@ impl Level {
     /// squares of its observations against the prediction), normalised to a
     /// geometric mean of 1.
     pub fn refit_intensities(&self, shared: &Shared<'_>, zeta: &[f64], m: &[f64]) -> Vec<f64> {
-        let _w = self.width;
         let j_count = self.photos();
-        let sums = (0..zeta.len())
+        // Per row, then summed in order: the same bits on every run.
+        let rows: Vec<Vec<(f64, f64)>> = (0..self.height)
             .into_par_iter()
-            .with_min_len(512)
-            .fold(
-                || vec![(0.0, 0.0); j_count],
-                |mut acc, p| {
-                    if self.domain[p] && m[p] > 0.0 {
+            .map(|r| {
+                let mut acc = vec![(0.0, 0.0); j_count];
+                let first = r * self.width;
+                for (p, &m_p) in m.iter().enumerate().skip(first).take(self.width) {
+                    if self.domain[p] && m_p > 0.0 {
                         let mut obs = [Observation::default(); MAX_PHOTOS];
                         let n = self.observe(shared, zeta, p, 0.0, &mut obs).n;
-                        let _ = Self::fit_pixel(shared, &mut obs[..n], m[p]);
+                        let _ = Self::fit_pixel(shared, &mut obs[..n], m_p);
                         for (j, o) in obs[..n].iter().enumerate() {
-                            let predicted = m[p] * o.u;
+                            let predicted = m_p * o.u;
                             acc[j].0 += o.weight * predicted * o.value;
                             acc[j].1 += o.weight * predicted * predicted;
                         }
                     }
-                    acc
-                },
-            )
-            .reduce(
-                || vec![(0.0, 0.0); j_count],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(b) {
-                        x.0 += y.0;
-                        x.1 += y.1;
-                    }
-                    a
-                },
-            );
+                }
+                acc
+            })
+            .collect();
+        let mut sums = vec![(0.0, 0.0); j_count];
+        for row in rows {
+            for (total, part) in sums.iter_mut().zip(row) {
+                total.0 += part.0;
+                total.1 += part.1;
+            }
+        }
         let mut next: Vec<f64> = shared
             .intensities
             .iter()

@@ -383,12 +383,16 @@ impl Operator<'_> {
     }
 }
 
+/// `a . b`, summed in fixed chunks in a fixed order: the same bits on
+/// every run, whatever the threads do.
 fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.par_iter()
-        .with_min_len(8192)
-        .zip(b.par_iter())
-        .map(|(x, y)| x * y)
-        .sum()
+    const CHUNK: usize = 8192;
+    let partial: Vec<f64> = a
+        .par_chunks(CHUNK)
+        .zip(b.par_chunks(CHUNK))
+        .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>())
+        .collect();
+    partial.iter().sum()
 }
 
 /// Solves `A x = b` by Jacobi-preconditioned conjugate gradients from `x`

@@ -1000,7 +1000,6 @@ fn auto_robust_scale(
             lambda: 1.0,
         },
     );
-    let _w = level.width;
     let pixels = level.domain.iter().filter(|&&d| d).count().max(1);
     let stride = (pixels / 20_000).max(1);
     let mut residuals: Vec<f64> = (0..zeta.len())
@@ -1116,7 +1115,6 @@ fn depth_grid(level: &Level, zeta: &[f64]) -> Grid<f64> {
 /// The mean over the photographs of the predicted values (the level
 /// stream's reprojection).
 fn mean_prediction(level: &Level, shared: &Shared<'_>, zeta: &[f64], m: &[f64]) -> Grid<f64> {
-    let _w = level.width;
     let values: Vec<f64> = (0..zeta.len())
         .into_par_iter()
         .with_min_len(512)
