@@ -245,7 +245,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let camera = prepared.problem.camera;
     let solution = ps::solve_photometric(&problem, &params, &mut Levels { quiet: args.quiet })
         .with_context(|| format!("cannot solve the set of {} photographs", args.images.len()))?;
-    let mut warnings = set_warnings(&solution);
+    let mut warnings = ps::warnings(&solution);
 
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
     let depth16 = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
@@ -383,48 +383,6 @@ fn depth_range(depth: &Grid<f64>) -> Option<[f64; 2]> {
     values.sort_by(f64::total_cmp);
     let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
     Some([at(0.02), at(0.98)])
-}
-
-/// What the user should know of a set's fit, in plain words.
-fn set_warnings(solution: &PhotometricSolution) -> Vec<String> {
-    let mut warnings = Vec::new();
-    if solution.photos.len() < 4 {
-        warnings.push(format!(
-            "{} photographs: each pixel has no more photographs than unknowns (albedo and two \
-             slopes), so a shadow leaves it to its neighbours and the distance (the depth unit) \
-             is barely determined; on renders three LEDs gave the right shape on smooth objects \
-             but up to 25 % off in distance on others; four or more photographs determine it",
-            solution.photos.len()
-        ));
-    }
-    for photo in &solution.photos {
-        if photo.used_share < 0.3 {
-            warnings.push(format!(
-                "{} is used on only {:.0} % of the object ({:.0} % shadow, {:.0} % untrusted or \
-                 saturated, {:.0} % not explained by the model): check its light and exposure",
-                photo.name,
-                100.0 * photo.used_share,
-                100.0 * photo.shadow_share,
-                100.0 * photo.untrusted_share,
-                100.0 * photo.robust_share
-            ));
-        }
-    }
-    if solution.intensities_estimated {
-        let spread = solution
-            .photos
-            .iter()
-            .map(|p| p.intensity)
-            .fold((f64::MAX, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
-        if spread.0 > 0.0 && spread.1 / spread.0 > 10.0 {
-            warnings.push(format!(
-                "the estimated intensities of the lights differ by {:.0}x: a photograph may be \
-                 mislabelled or its light misplaced",
-                spread.1 / spread.0
-            ));
-        }
-    }
-    warnings
 }
 
 /// Errors against `--gt DIR`.

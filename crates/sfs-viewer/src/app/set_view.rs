@@ -395,6 +395,9 @@ fn fit_table_ui(ui: &mut egui::Ui, solution: &PhotometricSolution) {
             "given"
         }
     ));
+    for warning in sfs_core::solver::photometric::warnings(solution) {
+        ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
+    }
     egui::Grid::new("set fit").striped(true).show(ui, |ui| {
         ui.strong("photograph");
         ui.strong("intensity")

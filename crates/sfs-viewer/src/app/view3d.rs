@@ -140,11 +140,21 @@ impl SurfaceView {
     }
 
     /// Shows a new mesh; frames it (at the next frame, when the view's
-    /// aspect is known) the first time: later meshes keep the user's view.
+    /// aspect is known) the first time, and again when it has left what was
+    /// framed (a set's surface can move along the rays between levels, as
+    /// its distance is found): otherwise later meshes keep the user's view.
     pub fn set_mesh(&mut self, built: BuiltMesh) -> Option<LevelPanels> {
-        if self.framed_bounds.is_none() && !built.mesh.is_empty() {
-            self.framed_bounds = Some(built.mesh.bounds());
-            self.needs_framing = true;
+        if !built.mesh.is_empty() {
+            let new = built.mesh.bounds();
+            let moved = self.framed_bounds.as_ref().is_none_or(|old| {
+                (new.centre_world - old.centre_world).length() > 0.5 * old.radius
+                    || new.radius > 2.0 * old.radius
+                    || new.radius < 0.5 * old.radius
+            });
+            if moved {
+                self.framed_bounds = Some(new);
+                self.needs_framing = true;
+            }
         }
         self.mesh = Some((built.generation, built.mesh));
         built.panels

@@ -1258,6 +1258,50 @@ fn check_finite(solution: &PhotometricSolution) -> Result<(), SolveError> {
     Ok(())
 }
 
+/// What the user should know of a set's fit, in plain words (the command
+/// line prints them, the viewer shows them): too few photographs to fix
+/// the distance, a photograph barely used, estimated intensities far apart.
+pub fn warnings(solution: &PhotometricSolution) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if solution.photos.len() < 4 {
+        warnings.push(format!(
+            "{} photographs: each pixel has no more photographs than unknowns (albedo and two \
+             slopes), so a shadow leaves it to its neighbours and the distance (the depth unit) \
+             is barely determined; on renders three LEDs gave the right shape on smooth objects \
+             but up to 25 % off in distance on others; four or more photographs determine it",
+            solution.photos.len()
+        ));
+    }
+    for photo in &solution.photos {
+        if photo.used_share < 0.3 {
+            warnings.push(format!(
+                "{} is used on only {:.0} % of the object ({:.0} % shadow, {:.0} % untrusted or \
+                 saturated, {:.0} % not explained by the model): check its light and exposure",
+                photo.name,
+                100.0 * photo.used_share,
+                100.0 * photo.shadow_share,
+                100.0 * photo.untrusted_share,
+                100.0 * photo.robust_share
+            ));
+        }
+    }
+    if solution.intensities_estimated {
+        let spread = solution
+            .photos
+            .iter()
+            .map(|p| p.intensity)
+            .fold((f64::MAX, 0.0f64), |(lo, hi), v| (lo.min(v), hi.max(v)));
+        if spread.0 > 0.0 && spread.1 / spread.0 > 10.0 {
+            warnings.push(format!(
+                "the estimated intensities of the lights differ by {:.0}x: a photograph may be \
+                 mislabelled or its light misplaced",
+                spread.1 / spread.0
+            ));
+        }
+    }
+    warnings
+}
+
 /// How far a single-photograph shape is from the set's: the single-image
 /// method measured on a real photograph against what the set says.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
