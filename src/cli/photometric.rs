@@ -13,7 +13,7 @@ use super::solve::SolveArgs;
 use crate::output::OutputStage;
 use sfs_core::grid::Grid;
 use sfs_core::io;
-use sfs_core::photo::{self, LightSpec, PhotoInput, PhotoReport};
+use sfs_core::photo::{self, PhotoInput, PhotoReport};
 use sfs_core::scene::photometric::{albedo_error, mean_angle_deg};
 use sfs_core::solver::photometric::{
     self as ps, PhotoResult, PhotometricParams, PhotometricSolution, SingleComparison,
@@ -305,7 +305,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         Some(dir) => Some(ground_truth_errors(dir, &solution)?),
         None => None,
     };
-    let range = depth_range(&solution.depth);
+    let range = ps::depth_range(&solution.depth);
     let report = SetReport {
         mode: "photometric_stereo",
         input: &prepared.report,
@@ -354,35 +354,7 @@ fn albedo_white(solution: &PhotometricSolution) -> f64 {
     if !solution.albedo_relative {
         return 1.0;
     }
-    let mut values: Vec<f64> = solution
-        .albedo
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|a| a.is_finite() && *a > 0.0)
-        .collect();
-    if values.is_empty() {
-        return 1.0;
-    }
-    let k = ((values.len() - 1) as f64 * 0.99) as usize;
-    let white = *values.select_nth_unstable_by(k, f64::total_cmp).1;
-    if white > 0.0 { white } else { 1.0 }
-}
-
-/// The depth's 2nd to 98th percentile.
-fn depth_range(depth: &Grid<f64>) -> Option<[f64; 2]> {
-    let mut values: Vec<f64> = depth
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
-    if values.is_empty() {
-        return None;
-    }
-    values.sort_by(f64::total_cmp);
-    let at = |q: f64| values[((values.len() - 1) as f64 * q).round() as usize];
-    Some([at(0.02), at(0.98)])
+    ps::positive_quantile(&solution.albedo, 0.99).unwrap_or(1.0)
 }
 
 /// Errors against `--gt DIR`.
@@ -445,38 +417,20 @@ fn solve_single(
     stage: &mut OutputStage,
 ) -> Result<SingleReport> {
     let image = set.images[k].clone();
-    let lights = match &set.lights {
-        LightSpec::Given(lights) => LightSpec::Given(vec![lights[k]]),
-        other => other.clone(),
-    };
-    let input = PhotoInput {
-        images: vec![image.clone()],
-        lights,
-        photometric_stereo: false,
-        photo_confidence: Vec::new(),
-        confidence: set
-            .photo_confidence
-            .get(k)
-            .cloned()
-            .flatten()
-            .or_else(|| set.confidence.clone()),
-        ..set.clone()
-    };
-    let prepared =
-        photo::prepare(&input).with_context(|| format!("--compare-single {}", image.display()))?;
+    let context = || format!("--compare-single {}", image.display());
+    let input = set.one_of_set(k).with_context(context)?;
+    let prepared = photo::prepare(&input).with_context(context)?;
     let mut problem = prepared.problem;
-    let size = problem.image.size();
-    let single_params = args.params(size)?;
-    let mut estimated = false;
-    if !prepared.intensity_scale_given && !problem.light_is_centred() {
-        let estimate =
-            solver::calibrate::estimate_intensity_scale(&problem, &single_params, &mut ())
-                .with_context(|| format!("--compare-single {}", image.display()))?;
-        problem.intensity_scale = estimate.intensity_scale;
-        estimated = true;
-    }
-    let single = solver::solve_method(&problem, &single_params, &args.method.method(), &mut ())
-        .with_context(|| format!("--compare-single {}: cannot solve it", image.display()))?;
+    let single_params = args.params(problem.image.size())?;
+    let (single, estimate) = solver::calibrate::solve_estimating_scale(
+        &mut problem,
+        &single_params,
+        &args.method.method(),
+        prepared.intensity_scale_given,
+        &mut (),
+    )
+    .with_context(|| format!("--compare-single {}: cannot solve it", image.display()))?;
+    let estimated = estimate.is_some();
     io::write_npy_f32(&stage.path("single_depth.npy"), &single.depth)?;
     io::write_depth_png16(&stage.path("single_depth16.png"), &single.depth)?;
     Ok(SingleReport {

@@ -204,15 +204,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         lights: scene
             .lights
             .iter()
-            .map(|l| LightEntry {
-                position: l.position,
-                direction: l.direction,
-                mu: l.mu,
-                intensity: Some(l.intensity),
-                rgb_intensity: None,
-                led: None,
-                image: None,
-            })
+            .map(|l| LightEntry::of_light(l, None, None))
             .collect(),
         ..CameraFile::new(scene.camera, w, h)
     };
@@ -308,15 +300,7 @@ fn run_set(args: &SynthArgs) -> Result<()> {
             }
             None => io::write_png16(&stage.path(&name), image)?,
         }
-        entries.push(LightEntry {
-            position: light.position,
-            direction: light.direction,
-            mu: light.mu,
-            intensity: Some(light.intensity),
-            rgb_intensity: None,
-            led: Some(k as u32 + 1),
-            image: Some(name),
-        });
+        entries.push(LightEntry::of_light(light, Some(k as u32 + 1), Some(name)));
     }
     io::write_mask_png(&stage.path("mask.png"), &set.object_mask)?;
     io::write_npy_f64(&stage.path("depth_gt.npy"), &set.depth_gt)?;

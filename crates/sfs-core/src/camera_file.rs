@@ -65,6 +65,20 @@ impl LightEntry {
         }
     }
 
+    /// The entry of `light` (its intensity taken as measured), numbered
+    /// `led` and taking `image` (a file name), as `synth` writes them.
+    pub fn of_light(light: &PointLight, led: Option<u32>, image: Option<String>) -> Self {
+        Self {
+            position: light.position,
+            direction: light.direction,
+            mu: light.mu,
+            intensity: Some(light.intensity),
+            rgb_intensity: None,
+            led,
+            image,
+        }
+    }
+
     /// The light of this entry (intensity as stored; not yet validated).
     pub fn light(&self) -> PointLight {
         PointLight {

@@ -274,15 +274,11 @@ fn write_set(dir: &Path, set: &PhotometricSet, named: usize) -> Vec<std::path::P
         let path = dir.join(&name);
         io::write_png16(&path, image).expect("write");
         paths.push(path);
-        entries.push(LightEntry {
-            position: light.position,
-            direction: light.direction,
-            mu: light.mu,
-            intensity: Some(1.0),
-            rgb_intensity: None,
-            led: Some(k as u32 + 1),
-            image: (k < named).then_some(name),
-        });
+        entries.push(LightEntry::of_light(
+            light,
+            Some(k as u32 + 1),
+            (k < named).then_some(name),
+        ));
     }
     let (w, h) = set.images[0].size();
     let camera = CameraFile {

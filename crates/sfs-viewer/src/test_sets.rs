@@ -35,15 +35,7 @@ pub fn write_set(dir: &Path) -> Vec<PathBuf> {
         let path = dir.join(&name);
         io::write_png16(&path, image).unwrap_or_else(|e| panic!("{e}"));
         paths.push(path);
-        entries.push(LightEntry {
-            position: light.position,
-            direction: light.direction,
-            mu: light.mu,
-            intensity: Some(light.intensity),
-            rgb_intensity: None,
-            led: Some(k as u32 + 1),
-            image: Some(name),
-        });
+        entries.push(LightEntry::of_light(light, Some(k as u32 + 1), Some(name)));
     }
     io::write_mask_png(&dir.join("mask.png"), &set.object_mask).unwrap_or_else(|e| panic!("{e}"));
     let camera = CameraFile {

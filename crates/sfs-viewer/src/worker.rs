@@ -392,14 +392,9 @@ impl Runner {
     /// Runs one set's job and reports its end.
     fn serve_set(&self, job: JobId, request: &SetRequest) -> Result<(), Stop> {
         let shared = &self.outbox.shared;
-        if shared.shutdown.load(Ordering::SeqCst) {
-            return Err(Stop);
+        if !self.begin(job, planned_set_sizes(&request.problem, &request.params))? {
+            return Ok(());
         }
-        if shared.is_stale(job) {
-            return self.outbox.deliver(Event::Cancelled { job });
-        }
-        let level_sizes = planned_set_sizes(&request.problem, &request.params);
-        self.outbox.deliver(Event::Started { job, level_sizes })?;
         let mut observer = ChannelObserver {
             job,
             outbox: &self.outbox,
@@ -412,35 +407,19 @@ impl Runner {
         if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
             return Err(Stop);
         }
-        let event = match outcome {
-            Ok(Ok(solution)) => Event::SetFinished {
+        self.outbox
+            .deliver(end_event(job, outcome, |solution| Event::SetFinished {
                 job,
                 solution: Box::new(solution),
-            },
-            Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
-            Ok(Err(error)) => Event::Failed {
-                job,
-                error: error.to_string(),
-            },
-            Err(payload) => Event::Failed {
-                job,
-                error: format!("the solver panicked: {}", panic_message(&*payload)),
-            },
-        };
-        self.outbox.deliver(event)
+            }))
     }
 
     /// Runs one job and reports its end.
     fn serve(&self, job: JobId, request: &SolveRequest) -> Result<(), Stop> {
         let shared = &self.outbox.shared;
-        if shared.shutdown.load(Ordering::SeqCst) {
-            return Err(Stop);
+        if !self.begin(job, planned_level_sizes(&request.problem, &request.params))? {
+            return Ok(());
         }
-        if shared.is_stale(job) {
-            return self.outbox.deliver(Event::Cancelled { job });
-        }
-        let level_sizes = planned_level_sizes(&request.problem, &request.params);
-        self.outbox.deliver(Event::Started { job, level_sizes })?;
         let mut observer = ChannelObserver {
             job,
             outbox: &self.outbox,
@@ -485,24 +464,53 @@ impl Runner {
             // distances: the UI shows what `Finished` holds.
             self.outbox.deliver(Event::Level { job, result: level })?;
         }
-        let event = match outcome {
-            Ok(Ok((solution, known_depth_fit, scale_determined))) => Event::Finished {
+        self.outbox.deliver(end_event(
+            job,
+            outcome,
+            |(solution, known_depth_fit, scale_determined)| Event::Finished {
                 job,
                 solution: Box::new(solution),
                 known_depth_fit,
                 scale_determined,
             },
-            Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
-            Ok(Err(error)) => Event::Failed {
-                job,
-                error: error.to_string(),
-            },
-            Err(payload) => Event::Failed {
-                job,
-                error: format!("the solver panicked: {}", panic_message(&*payload)),
-            },
-        };
-        self.outbox.deliver(event)
+        ))
+    }
+
+    /// A job's start: `Err(Stop)` on shutdown, `Ok(false)` for a job
+    /// superseded before it began (`Cancelled` sent), else `Started` sent
+    /// with the planned level sizes and `Ok(true)`.
+    fn begin(&self, job: JobId, level_sizes: Vec<(usize, usize)>) -> Result<bool, Stop> {
+        let shared = &self.outbox.shared;
+        if shared.shutdown.load(Ordering::SeqCst) {
+            return Err(Stop);
+        }
+        if shared.is_stale(job) {
+            self.outbox.deliver(Event::Cancelled { job })?;
+            return Ok(false);
+        }
+        self.outbox.deliver(Event::Started { job, level_sizes })?;
+        Ok(true)
+    }
+}
+
+/// The event that ends a job: `finished` of its result, `Cancelled`, or
+/// `Failed` with the error or the panic's message.
+fn end_event<T>(
+    job: JobId,
+    outcome: std::thread::Result<Result<T, SolveError>>,
+    finished: impl FnOnce(T) -> Event,
+) -> Event {
+    match outcome {
+        Ok(Ok(result)) => finished(result),
+        Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },
+        Ok(Err(error)) => Event::Failed {
+            job,
+            error: error.to_string(),
+        },
+        Err(payload) => Event::Failed {
+            job,
+            error: format!("the solver panicked: {}", panic_message(&*payload)),
+        },
     }
 }
 

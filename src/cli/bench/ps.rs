@@ -14,7 +14,6 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::light::PointLight;
 use sfs_core::metrics;
@@ -25,7 +24,7 @@ use sfs_core::scene::photometric::{
 use sfs_core::scene::{Scene, add_noise, mesh, sombrero::sombrero_lit};
 use sfs_core::solver::photometric::{
     PhotometricParams, PhotometricProblem, PhotometricSolution, SetPhoto, compare_single,
-    solve_photometric,
+    depth_range, positive_quantile, solve_photometric,
 };
 
 use super::{BenchArgs, wanted};
@@ -327,21 +326,12 @@ fn face(args: &BenchArgs) -> Result<Option<FaceRow>> {
     let started = Instant::now();
     let solution = solve(&problem)?;
     let seconds = started.elapsed().as_secs_f64();
-    let mut depths: Vec<f64> = solution
-        .depth
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
-    depths.sort_by(f64::total_cmp);
-    let at = |q: f64| depths[((depths.len().max(1) - 1) as f64 * q).round() as usize];
-    let depth_mm = [at(0.02), at(0.98)];
+    let depth_mm = depth_range(&solution.depth).unwrap_or([f64::NAN; 2]);
     io::write_rgb_png8(
         &args.out.join("face-normals.png"),
         &solution.normals.map(|n| sfs_core::colour::normal_rgb(*n)),
     )?;
-    let white = percentile(&solution.albedo, 0.99);
+    let white = positive_quantile(&solution.albedo, 0.99).unwrap_or(1.0);
     io::write_png8(
         &args.out.join("face-albedo.png"),
         &solution.albedo.map(|a| {
@@ -382,43 +372,23 @@ fn single(
     solution: &PhotometricSolution,
     k: usize,
 ) -> Result<Option<sfs_core::solver::photometric::SingleComparison>> {
-    let Some(image) = set.images.get(k) else {
+    let Some(input) = set.one_of_set(k) else {
         return Ok(None);
-    };
-    let input = PhotoInput {
-        images: vec![image.clone()],
-        photometric_stereo: false,
-        ..set.clone()
     };
     let one = photo::prepare(&input)?;
     let mut problem = one.problem;
-    let params = sfs_core::params::SolverParams::default();
-    if !one.intensity_scale_given && !problem.light_is_centred() {
-        problem.intensity_scale =
-            sfs_core::solver::calibrate::estimate_intensity_scale(&problem, &params, &mut ())?
-                .intensity_scale;
-    }
-    let single = sfs_core::solver::solve(&problem, &params, &mut ())?;
+    let (single, _) = sfs_core::solver::calibrate::solve_estimating_scale(
+        &mut problem,
+        &sfs_core::params::SolverParams::default(),
+        &sfs_core::solver::Method::Linearised,
+        one.intensity_scale_given,
+        &mut (),
+    )?;
     Ok(compare_single(
         &solution.depth,
         &single.depth,
         prepared.problem.camera,
     ))
-}
-
-/// The `q` quantile of the finite positive values (1 when there is none).
-fn percentile(grid: &Grid<f64>, q: f64) -> f64 {
-    let mut values: Vec<f64> = grid
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
-    if values.is_empty() {
-        return 1.0;
-    }
-    let k = ((values.len() - 1) as f64 * q) as usize;
-    *values.select_nth_unstable_by(k, f64::total_cmp).1
 }
 
 fn markdown(report: &PsReport) -> String {

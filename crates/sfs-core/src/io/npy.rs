@@ -11,41 +11,19 @@ use npyz::{DType, NpyFile, NpyHeader, Order, TypeChar, WriteOptions, WriterBuild
 use super::{IoError, write_error};
 use crate::grid::Grid;
 
-fn write_npy<T>(path: &Path, grid: &Grid<f64>, convert: impl Fn(f64) -> T) -> Result<(), IoError>
+/// Writes `values` (C order) as a `.npy` of `shape` in `T`, each converted
+/// by `convert`, after refusing a value beyond `±limit` (what `T` holds).
+fn write_npy<T>(
+    path: &Path,
+    shape: &[u64],
+    values: &[f64],
+    limit: f64,
+    convert: impl Fn(f64) -> T,
+) -> Result<(), IoError>
 where
     T: npyz::AutoSerialize,
 {
-    let err = |e: std::io::Error| write_error(path, e);
-    let file = fs::File::create(path).map_err(err)?;
-    let mut out = BufWriter::new(file);
-    let shape = [grid.height() as u64, grid.width() as u64];
-    let mut writer = WriteOptions::<T>::new()
-        .default_dtype()
-        .shape(&shape)
-        .writer(&mut out)
-        .begin_nd()
-        .map_err(err)?;
-    writer
-        .extend(grid.as_slice().iter().map(|&v| convert(v)))
-        .map_err(err)?;
-    writer.finish().map_err(err)?;
-    out.flush().map_err(err)
-}
-
-/// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
-/// float32. NaN (no value) is written as NaN; a value that is infinite, or
-/// too large for float32, is an error and nothing is written.
-pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
-    refuse_infinite(path, grid, f64::from(f32::MAX))?;
-    write_npy(path, grid, |v| v as f32)
-}
-
-/// Writes a grid of 3-vectors as an H x W x 3 C-order `.npy` of
-/// little-endian float32 (e.g. normals). NaN is written as NaN; a value
-/// that is infinite or too large for float32 is an error.
-pub fn write_npy_f32_vec3(path: &Path, grid: &Grid<[f64; 3]>) -> Result<(), IoError> {
-    let limit = f64::from(f32::MAX);
-    if let Some(v) = grid.as_slice().iter().flatten().find(|v| v.abs() > limit) {
+    if let Some(v) = values.iter().find(|v| v.abs() > limit) {
         return Err(write_error(
             path,
             format!("the array holds {v:e}, which the file's number type cannot hold"),
@@ -54,36 +32,46 @@ pub fn write_npy_f32_vec3(path: &Path, grid: &Grid<[f64; 3]>) -> Result<(), IoEr
     let err = |e: std::io::Error| write_error(path, e);
     let file = fs::File::create(path).map_err(err)?;
     let mut out = BufWriter::new(file);
-    let shape = [grid.height() as u64, grid.width() as u64, 3];
-    let mut writer = WriteOptions::<f32>::new()
+    let mut writer = WriteOptions::<T>::new()
         .default_dtype()
-        .shape(&shape)
+        .shape(shape)
         .writer(&mut out)
         .begin_nd()
         .map_err(err)?;
     writer
-        .extend(grid.as_slice().iter().flatten().map(|&v| v as f32))
+        .extend(values.iter().map(|&v| convert(v)))
         .map_err(err)?;
     writer.finish().map_err(err)?;
     out.flush().map_err(err)
 }
 
+/// The shape of a grid as rows x columns.
+fn shape_of<T>(grid: &Grid<T>) -> [u64; 2] {
+    [grid.height() as u64, grid.width() as u64]
+}
+
+/// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
+/// float32. NaN (no value) is written as NaN; a value that is infinite, or
+/// too large for float32, is an error and nothing is written.
+pub fn write_npy_f32(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
+    let limit = f64::from(f32::MAX);
+    write_npy(path, &shape_of(grid), grid.as_slice(), limit, |v| v as f32)
+}
+
+/// Writes a grid of 3-vectors as an H x W x 3 C-order `.npy` of
+/// little-endian float32 (e.g. normals). NaN is written as NaN; a value
+/// that is infinite or too large for float32 is an error.
+pub fn write_npy_f32_vec3(path: &Path, grid: &Grid<[f64; 3]>) -> Result<(), IoError> {
+    let [rows, columns] = shape_of(grid);
+    let values = grid.as_slice().as_flattened();
+    let limit = f64::from(f32::MAX);
+    write_npy(path, &[rows, columns, 3], values, limit, |v| v as f32)
+}
+
 /// Writes `grid` as an H x W (rows x columns) C-order `.npy` of little-endian
 /// float64. NaN is written as NaN; an infinite value is an error.
 pub fn write_npy_f64(path: &Path, grid: &Grid<f64>) -> Result<(), IoError> {
-    refuse_infinite(path, grid, f64::MAX)?;
-    write_npy(path, grid, |v| v)
-}
-
-/// An error naming `path` when a value of `grid` is beyond `±limit`.
-fn refuse_infinite(path: &Path, grid: &Grid<f64>, limit: f64) -> Result<(), IoError> {
-    match grid.as_slice().iter().find(|v| v.abs() > limit) {
-        Some(v) => Err(write_error(
-            path,
-            format!("the array holds {v:e}, which the file's number type cannot hold"),
-        )),
-        None => Ok(()),
-    }
+    write_npy(path, &shape_of(grid), grid.as_slice(), f64::MAX, |v| v)
 }
 
 /// Reads all elements of `file` (whose data is known to be complete) as f64.

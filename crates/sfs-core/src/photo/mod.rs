@@ -177,6 +177,32 @@ impl PhotoInput {
         }
     }
 
+    /// Photograph `k` of a set as an input of its own: the same camera,
+    /// masks, ambient frame, corrections and working size, its own
+    /// confidence file (else the set's) and its own light (its given one,
+    /// or the camera file's by its name). `None` when there is no `k`-th.
+    pub fn one_of_set(&self, k: usize) -> Option<PhotoInput> {
+        let image = self.images.get(k)?;
+        let lights = match &self.lights {
+            LightSpec::Given(lights) => LightSpec::Given(vec![*lights.get(k)?]),
+            other => other.clone(),
+        };
+        Some(PhotoInput {
+            images: vec![image.clone()],
+            lights,
+            photometric_stereo: false,
+            given_intensities: false,
+            photo_confidence: Vec::new(),
+            confidence: self
+                .photo_confidence
+                .get(k)
+                .cloned()
+                .flatten()
+                .or_else(|| self.confidence.clone()),
+            ..self.clone()
+        })
+    }
+
     /// Every file this input reads (photographs, camera file, masks,
     /// ambient frame, flat field, albedo).
     pub fn files(&self) -> Vec<&Path> {

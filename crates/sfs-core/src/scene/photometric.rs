@@ -148,27 +148,16 @@ pub fn render_set<E>(
             first = Some(scene);
         }
     }
-    let Some(scene) = first else {
-        return render(&[]).map(|scene| PhotometricSet {
-            name: scene.name.clone(),
-            camera: scene.camera,
-            normals_gt: scene
-                .normals
-                .clone()
-                .unwrap_or_else(|| scene.depth_gt.map(|_| [f64::NAN; 3])),
-            depth_gt: scene.depth_gt,
-            albedo_gt: albedo.clone(),
-            object_mask: scene.object_mask,
-            images: Vec::new(),
-            lights: Vec::new(),
-            intensity_scale: 1.0,
-            cast: Vec::new(),
-        });
+    // No lights: the scene's truth with no photograph.
+    let scene = match first {
+        Some(scene) => scene,
+        None => render(&[])?,
     };
     let brightest = raw
         .iter()
         .flat_map(|g| g.as_slice().iter().copied())
         .fold(0.0, f64::max);
+    // 1 without a photograph (or a black set).
     let s = if brightest > 0.0 {
         0.9 / brightest
     } else {
@@ -183,7 +172,7 @@ pub fn render_set<E>(
             .normals
             .clone()
             .unwrap_or_else(|| scene.depth_gt.map(|_| [f64::NAN; 3])),
-        depth_gt: scene.depth_gt.clone(),
+        depth_gt: scene.depth_gt,
         albedo_gt: albedo.zip_map(&object, |a, &o| if o { *a } else { f64::NAN }),
         object_mask: object,
         images,

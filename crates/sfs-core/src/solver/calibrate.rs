@@ -101,6 +101,31 @@ fn trial(
     Ok((relative_residual(problem, &solution), depth))
 }
 
+/// One photograph solved as `solve` solves it: with its lights off the
+/// optical centre and the intensity scale not given (`scale_given`), `s`
+/// estimated first ([`estimate_intensity_scale`], into `problem`), then
+/// `method`. Returns the solution and the estimate, when there was one.
+///
+/// # Errors
+/// As [`estimate_intensity_scale`] and [`super::solve_method`].
+pub fn solve_estimating_scale(
+    problem: &mut Problem,
+    params: &SolverParams,
+    method: &super::Method,
+    scale_given: bool,
+    observer: &mut dyn SolveObserver,
+) -> Result<(super::Solution, Option<ScaleEstimate>), SolveError> {
+    let estimate = if !scale_given && !problem.light_is_centred() {
+        let estimate = estimate_intensity_scale(problem, params, observer)?;
+        problem.intensity_scale = estimate.intensity_scale;
+        Some(estimate)
+    } else {
+        None
+    };
+    let solution = super::solve_method(problem, params, method, observer)?;
+    Ok((solution, estimate))
+}
+
 /// Estimates `s` for a problem whose lights are off the optical centre (see
 /// the module docs). The object distance is searched from the nearest the
 /// lights allow ([`super::prepare::nearest_object_depth`], at least half the

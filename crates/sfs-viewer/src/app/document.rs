@@ -563,14 +563,12 @@ impl Document {
     /// camera file (its light found by its name), mask and corrections.
     pub fn single_input(&self, index: usize) -> Option<PhotoInput> {
         let set = self.set.as_ref()?;
-        let path = set.paths.get(index)?;
-        Some(PhotoInput {
-            images: vec![path.clone()],
-            photometric_stereo: false,
-            given_intensities: false,
-            photo_confidence: Vec::new(),
+        let input = self.input.one_of_set(index)?;
+        // The viewer's rule for one photograph: an unnamed light is the
+        // centred one until the user picks one.
+        (input.images.first() == set.paths.get(index)).then_some(PhotoInput {
             lights: LightSpec::CameraFileOrCentred,
-            ..self.input.clone()
+            ..input
         })
     }
 

@@ -1382,11 +1382,9 @@ pub fn compare_single(
         let k = angles.len() / 2;
         *angles.select_nth_unstable_by(k, f64::total_cmp).1
     };
-    let range = |values: Vec<f64>| {
-        let mut v = values;
-        v.sort_by(f64::total_cmp);
-        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
-        at(0.98) - at(0.02)
+    let range = |depth: &Grid<f64>| {
+        let masked = depth.zip_map(&both, |z, &b| if b { *z } else { f64::NAN });
+        depth_range(&masked).map_or(f64::NAN, |[near, far]| far - near)
     };
     Some(SingleComparison {
         rse_to_set: rse(1.0),
@@ -1394,10 +1392,35 @@ pub fn compare_single(
         scale_to_set: k,
         mean_normal_angle_deg: mean_angle,
         median_normal_angle_deg: median_angle,
-        set_depth_range: range(pairs.iter().map(|p| p.0).collect()),
-        single_depth_range: range(pairs.iter().map(|p| p.1).collect()),
+        set_depth_range: range(set_depth),
+        single_depth_range: range(single_depth),
         pixels: pairs.len(),
     })
+}
+
+/// The `q` quantile (0..1, nearest rank) of the finite positive values of
+/// `grid` (a depth, an albedo); `None` when there is none.
+pub fn positive_quantile(grid: &Grid<f64>, q: f64) -> Option<f64> {
+    let mut values: Vec<f64> = grid
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .collect();
+    if values.is_empty() {
+        return None;
+    }
+    let k = ((values.len() - 1) as f64 * q.clamp(0.0, 1.0)).round() as usize;
+    Some(*values.select_nth_unstable_by(k, f64::total_cmp).1)
+}
+
+/// The 2nd to 98th percentile of a depth (`[near, far]`), the range the
+/// reports quote; `None` without a depth.
+pub fn depth_range(depth: &Grid<f64>) -> Option<[f64; 2]> {
+    Some([
+        positive_quantile(depth, 0.02)?,
+        positive_quantile(depth, 0.98)?,
+    ])
 }
 
 /// Unit normals of a depth map (camera frame, towards the camera) from
