@@ -29,13 +29,14 @@ const SYNTH_FILES: [&str; 8] = [
 ];
 
 /// Files `solve` writes, the hidden manifest of the run's outputs included.
-const SOLVE_FILES: [&str; 8] = [
+const SOLVE_FILES: [&str; 9] = [
     ".sfs-studio-outputs",
     "depth.npy",
     "depth16.png",
     "input_linear.png",
     "reprojection.png",
     "residual.png",
+    "occlusion_edges.png",
     "mesh.ply",
     "report.json",
 ];
@@ -484,6 +485,55 @@ fn help_of_every_subcommand() {
     for sub in ["synth", "solve", "eval", "bench"] {
         assert!(text.contains(sub), "--help does not list {sub}:\n{text}");
     }
+}
+
+#[test]
+fn bench_edges_compares_the_truth_with_the_answer_and_finds_contours() {
+    let meshes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("edges");
+    let run = sfs([
+        "bench",
+        "--part",
+        "edges",
+        "--quick",
+        "--scenes",
+        "sombrero,suzanne",
+        "--meshes",
+        &s(&meshes),
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "bench --part edges");
+    let report = read_json(&out.join("edges.json"));
+    let rows = report["rows"].as_array().expect("rows");
+    let suzanne_there = meshes.join("suzanne.obj").is_file();
+    assert_eq!(
+        rows.len(),
+        if suzanne_there { 8 } else { 4 },
+        "two sizes, clean and noisy"
+    );
+    for row in rows {
+        let value = |key: &str| row[key].as_f64().unwrap();
+        for key in ["default_rse", "truth_start_rse", "fast_marching_rse"] {
+            assert!(value(key) > 0.0 && value(key) < 0.5, "{key}: {row}");
+        }
+        // The answer minimises the discrete energy: the truth costs more.
+        assert!(value("truth_data_energy") > 0.0, "{row}");
+        assert!(value("default_data_energy") > 0.0, "{row}");
+        let sombrero = row["scene"] == "sombrero";
+        // The analytic scene has no depth jump; Suzanne's ears and crown
+        // lie behind jumps (steeper than 87 degrees from one pixel to the
+        // next at 128 pixels; at 64 the same jumps look like slopes).
+        if sombrero {
+            assert_eq!(value("jump_share"), 0.0, "{row}");
+        } else if row["size"] == "128x64" {
+            assert!(value("jump_share") > 0.01, "{row}");
+        }
+        assert_eq!(row["paper_rse"].is_null(), value("noise") == 0.0, "{row}");
+    }
+    let md = std::fs::read_to_string(out.join("edges.md")).expect("edges.md");
+    assert!(md.contains("| sombrero | 64x64 | 0 |"), "{md}");
 }
 
 #[test]

@@ -122,7 +122,8 @@ pub struct SolveArgs {
     #[arg(long, short)]
     pub quiet: bool,
     /// Output folder (created if needed): depth.npy, depth16.png,
-    /// reprojection.png, residual.png, mesh.ply, report.json.
+    /// reprojection.png, residual.png, occlusion_edges.png, mesh.ply,
+    /// report.json.
     #[arg(long)]
     pub out: PathBuf,
     /// Photometric stereo: the photographs are a set of one object, each
@@ -728,6 +729,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             scale: sum_divisor,
         },
     );
+    // Geometry of the solved surface: where it grazes the view beside a
+    // brighter surface (what lies behind was joined to the contour).
+    let occlusion_edges = model_fit::occlusion_edges(&problem.image, &solution.depth, camera);
+    let model_fit = model_fit.with_occlusion_edges(&occlusion_edges, &solution.depth);
     let model_fit_per_photo = photo::fit_per_photo(
         &prepared.photos,
         &solution,
@@ -759,6 +764,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     if let Some(shadow) = &solution.shadow {
         io::write_mask_png(&stage.path("shadow.png"), shadow)?;
     }
+    io::write_mask_png(&stage.path("occlusion_edges.png"), &occlusion_edges)?;
     let object_pixels = problem
         .object_mask
         .as_ref()

@@ -7,10 +7,17 @@
 //! One photograph is saturated where its own value is (nearly) at the top
 //! of the range; a sum of photographs is saturated exactly where one of
 //! them was ([`Photographs`]), whatever the sum's value.
+//!
+//! Occluding contours are said plainly too ([`occlusion_edges`]): where the
+//! solved surface grazes the view beside a much brighter pixel, a surface
+//! lies behind a contour, and its distance is not fixed by its shading
+//! unless it faces the light somewhere (README "Occlusion edges").
 
 use serde::Serialize;
 
+use crate::camera::Intrinsics;
 use crate::grid::Grid;
+use crate::model::{LevelGeometry, neighbourhood};
 
 /// Linear values below this are near-black: an 8-bit sRGB value of about 3,
 /// where one quantisation step is more than a quarter of the value.
@@ -37,6 +44,19 @@ pub const HIGHLIGHT_SHARE: f64 = 0.02;
 /// surface would shine.
 pub const HIGHLIGHT_POOR_SHARE: f64 = 0.3;
 
+/// An object pixel is on an occluding contour when the solved surface meets
+/// its viewing ray at a cosine below this (more than about 73 degrees off
+/// facing the camera)...
+pub const GRAZING_COSINE: f64 = 0.3;
+/// ...beside a 4-neighbour at least this many times brighter in the image:
+/// a step in brightness, not a slope turning away (a continuous surface
+/// darkens gradually towards its rim; the surface behind a contour starts
+/// at its own brightness).
+pub const EDGE_BRIGHTNESS_STEP: f64 = 2.0;
+/// Occluding contours are named when at least this share of the object's
+/// pixels lies on them.
+pub const EDGE_WARNING_SHARE: f64 = 0.002;
+
 /// The median object brightness (linear, full range 1) below which an image
 /// is too dark to carry shape: half the object near-black (an ambient frame
 /// has median 0 on the face; the LED photographs of near_ps_human1, dark as
@@ -61,8 +81,77 @@ pub struct ModelFit {
     /// that are brighter than the model explains by more than
     /// [`POOR_RESIDUAL`]: highlights a matte model cannot show.
     pub highlight_poor_share: f64,
+    /// Share of the object's pixels on occluding contours
+    /// ([`occlusion_edges`]; 0 until [`ModelFit::with_occlusion_edges`]).
+    pub occlusion_edge_share: f64,
     /// Plain-language warnings (empty when the fit is good).
     pub warnings: Vec<String>,
+}
+
+impl ModelFit {
+    /// The fit with the share of object pixels (`depth` finite) on the
+    /// occluding contours `edges`, and a warning when it reaches
+    /// [`EDGE_WARNING_SHARE`].
+    #[must_use]
+    pub fn with_occlusion_edges(mut self, edges: &Grid<bool>, depth: &Grid<f64>) -> Self {
+        let object = depth.as_slice().iter().filter(|z| z.is_finite()).count();
+        let on_edges = edges.as_slice().iter().filter(|&&e| e).count();
+        self.occlusion_edge_share = on_edges as f64 / object.max(1) as f64;
+        if self.occlusion_edge_share >= EDGE_WARNING_SHARE {
+            self.warnings.push(format!(
+                "{:.1} % of the object lies on occluding contours (the surface grazes the view \
+                 beside a brighter surface): what lies behind a contour was joined to it, and \
+                 its distance is not fixed by its shading unless it faces the light somewhere",
+                100.0 * self.occlusion_edge_share
+            ));
+        }
+        self
+    }
+}
+
+/// The object pixels (`depth` finite, all four neighbours too: the
+/// silhouette is left out) on an occluding contour: the solved
+/// surface meets the viewing ray at a cosine below [`GRAZING_COSINE`] (its
+/// upwind gradient, the solver's own) beside a 4-neighbour on the object at
+/// least [`EDGE_BRIGHTNESS_STEP`] times brighter in `image`. `camera` is the
+/// camera of `depth`'s grid. Geometry only: the same for any light and
+/// material.
+pub fn occlusion_edges(image: &Grid<f64>, depth: &Grid<f64>, camera: Intrinsics) -> Grid<bool> {
+    let (w, h) = depth.size();
+    let geometry = LevelGeometry::new(w, h, w, h, camera);
+    let domain = depth.map(|z| z.is_finite() && *z > 0.0);
+    let f = camera.focal_px;
+    Grid::from_fn(w, h, |c, r| {
+        // On the object, and not on its silhouette (what lies behind the
+        // silhouette is the background, nothing solved).
+        let on_object = |cc: Option<usize>, rr: Option<usize>| match (cc, rr) {
+            (Some(cc), Some(rr)) if cc < w && rr < h => *domain.at(cc, rr),
+            _ => false,
+        };
+        if !*domain.at(c, r)
+            || image.size() != (w, h)
+            || !(on_object(c.checked_sub(1), Some(r))
+                && on_object(Some(c + 1), Some(r))
+                && on_object(Some(c), r.checked_sub(1))
+                && on_object(Some(c), Some(r + 1)))
+        {
+            return false;
+        }
+        let nb = neighbourhood(depth, &domain, c, r);
+        let (_, gx, gy) = nb.upwind(geometry.spacing);
+        let ray = geometry.ray(c, r);
+        let z = nb.centre;
+        let along = gx * ray.x_px + gy * ray.y_px + z;
+        let root = (f * f * (gx * gx + gy * gy) + along * along).sqrt();
+        let cosine = ray.q() * z / root;
+        // A NaN cosine (a degenerate neighbourhood) is no contour.
+        if cosine.is_nan() || cosine >= GRAZING_COSINE {
+            return false;
+        }
+        let here = image.at(c, r).max(0.0);
+        let brighter = |cc: usize, rr: usize| *image.at(cc, rr) > EDGE_BRIGHTNESS_STEP * here;
+        brighter(c - 1, r) || brighter(c + 1, r) || brighter(c, r - 1) || brighter(c, r + 1)
+    })
 }
 
 /// What the fit summary and the suggested confidence need to know of the
@@ -303,6 +392,7 @@ pub fn measure_photographs(
         saturated_share: share(saturated, object),
         median_brightness: median(values),
         highlight_poor_share,
+        occlusion_edge_share: 0.0,
         warnings: Vec::new(),
     };
     if fit.median_brightness < TOO_DARK_MEDIAN {
@@ -544,6 +634,98 @@ fn box_mean_on(image: &Grid<f64>, object: &Grid<bool>, radius: usize) -> Grid<f6
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sphere of radius 0.4 at distance 2 on the axis, in front of a plane
+    /// at depth `plane_z` (`None`: nothing behind, background), lit from the
+    /// optical centre, `s = 1`, rendered in closed form (exact normals):
+    /// image, depth and the pixels of the sphere beside the plane (or the
+    /// background).
+    fn sphere_scene(plane_z: Option<f64>, side: usize) -> (Grid<f64>, Grid<f64>, Intrinsics) {
+        let camera = Intrinsics::centred(side as f64, side, side);
+        let (centre, radius) = (glam::DVec3::new(0.05, -0.03, 2.0), 0.4);
+        let mut image = Grid::filled(side, side, 0.0);
+        let mut depth = Grid::filled(side, side, f64::NAN);
+        for r in 0..side {
+            for c in 0..side {
+                let (x, y) = camera.image_xy(c as f64, r as f64);
+                let ray =
+                    glam::DVec3::new(x / camera.focal_px, y / camera.focal_px, 1.0).normalize();
+                // Nearest hit of the sphere, else the plane.
+                let b = ray.dot(centre);
+                let disc = b * b - (centre.length_squared() - radius * radius);
+                let hit = if disc >= 0.0 {
+                    let t = b - disc.sqrt();
+                    let normal = (ray * t - centre) / radius;
+                    Some((t, (-normal.dot(ray)).max(0.0), ray.z * t))
+                } else {
+                    plane_z.map(|z| {
+                        let t = z / ray.z;
+                        (t, ray.z, z)
+                    })
+                };
+                if let Some((t, cosine, z)) = hit {
+                    *image.at_mut(c, r) = cosine / (t * t);
+                    *depth.at_mut(c, r) = z;
+                }
+            }
+        }
+        (image, depth, camera)
+    }
+
+    #[test]
+    fn occlusion_edges_lie_on_a_contour_over_a_surface_and_nowhere_else() {
+        let side = 128;
+        let (image, depth, camera) = sphere_scene(Some(3.0), side);
+        let edges = occlusion_edges(&image, &depth, camera);
+        let on: Vec<(usize, usize)> = (0..side)
+            .flat_map(|r| (0..side).map(move |c| (c, r)))
+            .filter(|&(c, r)| *edges.at(c, r))
+            .collect();
+        // The sphere's contour over the plane is about 2 pi 0.4 / 2 * 128
+        // = 161 pixels around; most of it is found.
+        assert!(on.len() > 80, "{} contour pixels", on.len());
+        // Every one is on the sphere, beside the plane (a depth jump).
+        for &(c, r) in &on {
+            let z = *depth.at(c, r);
+            assert!(z < 2.5, "({c}, {r}) at depth {z} is not on the sphere");
+            let behind = [(c - 1, r), (c + 1, r), (c, r - 1), (c, r + 1)]
+                .iter()
+                .any(|&(cc, rr)| *depth.at(cc, rr) > 2.9);
+            assert!(behind, "({c}, {r}) is not beside the plane");
+        }
+        let fit = ModelFit::default().with_occlusion_edges(&edges, &depth);
+        assert!((fit.occlusion_edge_share - on.len() as f64 / (side * side) as f64).abs() < 1e-12);
+        assert!(
+            fit.warnings
+                .iter()
+                .any(|w| w.contains("occluding contours"))
+        );
+
+        // The same sphere against the background: its silhouette is no
+        // occluding contour over anything solved.
+        let (alone, alone_depth, camera) = sphere_scene(None, side);
+        let none = occlusion_edges(&alone, &alone_depth, camera);
+        assert!(!none.as_slice().iter().any(|&e| e));
+        let quiet = ModelFit::default().with_occlusion_edges(&none, &alone_depth);
+        assert!(quiet.warnings.is_empty() && quiet.occlusion_edge_share == 0.0);
+
+        // A smooth surface turning steeply (the Sombrero) has none.
+        let sombrero = crate::scene::sombrero::sombrero(side, side);
+        let smooth = occlusion_edges(&sombrero.image, &sombrero.depth_gt, sombrero.camera);
+        assert!(!smooth.as_slice().iter().any(|&e| e));
+    }
+
+    #[test]
+    fn occlusion_edges_do_not_depend_on_exposure_or_the_depth_unit() {
+        let (image, depth, camera) = sphere_scene(Some(3.0), 96);
+        let edges = occlusion_edges(&image, &depth, camera);
+        assert!(edges.as_slice().iter().any(|&e| e));
+        // Exposure x 0.25 and depth in units a thousand times smaller.
+        let dimmed = occlusion_edges(&image.map(|v| 0.25 * v), &depth, camera);
+        let rescaled = occlusion_edges(&image, &depth.map(|z| 1000.0 * z), camera);
+        assert_eq!(edges, dimmed);
+        assert_eq!(edges, rescaled);
+    }
 
     #[test]
     fn a_dark_image_is_called_dark_and_a_lit_one_is_not() {

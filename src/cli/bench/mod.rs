@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 
+mod edges;
 mod holes;
 mod lights;
 mod paper_figures;
@@ -60,7 +61,9 @@ pub struct BenchArgs {
     /// renders solved with the matched model, as Lambertian and with auto,
     /// and the shared face with each model; reflectance.md,
     /// reflectance.json), `ps` (near-light photometric stereo on renders
-    /// with a patch albedo and on the shared face; ps.md, ps.json) or
+    /// with a patch albedo and on the shared face; ps.md, ps.json), `edges`
+    /// (occlusion edges: the truth's data energy against the answer's and
+    /// the detected contours; edges.md, edges.json) or
     /// `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
@@ -102,6 +105,11 @@ pub enum Part {
     /// 4 and 8 LEDs, clean and noisy, the invariances, and the shared face's
     /// seven photographs (ps.md, ps.json, face-*.png).
     Ps,
+    /// Occlusion edges: the defaults, the truth start and fast marching; the
+    /// data energy of the true depth against the answer's, where the truth's
+    /// misfit lies, and the occluding contours detected in the answer
+    /// against the true depth jumps (edges.md, edges.json).
+    Edges,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -199,6 +207,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else if args.part == Part::Ps {
         ps::run(args)?;
         args.out.join("ps.md")
+    } else if args.part == Part::Edges {
+        edges::run(args)?;
+        args.out.join("edges.md")
     } else if args.part == Part::Shadows {
         shadows::run(args)?;
         args.out.join("shadows.md")

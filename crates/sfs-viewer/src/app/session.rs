@@ -706,6 +706,11 @@ impl Session {
                     self.solve.fit = self.document.as_ref().and_then(|doc| {
                         (solution.reprojection.size() == doc.image.size()).then(|| {
                             let domain = solution.depth.map(|z| z.is_finite());
+                            let edges = sfs_core::model_fit::occlusion_edges(
+                                &doc.image,
+                                &solution.depth,
+                                doc.camera.intrinsics(),
+                            );
                             sfs_core::model_fit::measure(
                                 &doc.image,
                                 &solution.reprojection,
@@ -713,6 +718,7 @@ impl Session {
                                 doc.masks.confidence_for_solver().as_ref(),
                                 solution.scales.intensity,
                             )
+                            .with_occlusion_edges(&edges, &solution.depth)
                         })
                     });
                     // Once per result, not per frame: a pass over the image.
