@@ -99,9 +99,10 @@ impl ModelFit {
         self.occlusion_edge_share = on_edges as f64 / object.max(1) as f64;
         if self.occlusion_edge_share >= EDGE_WARNING_SHARE {
             self.warnings.push(format!(
-                "{:.1} % of the object lies on occluding contours (the surface grazes the view \
-                 beside a brighter surface): what lies behind a contour was joined to it, and \
-                 its distance is not fixed by its shading unless it faces the light somewhere",
+                "{:.1} % of the object was solved as grazing the view beside a much brighter \
+                 pixel: an occluding contour (what lies behind it was joined to it, and its \
+                 distance is not fixed by its shading unless it faces the light somewhere) or a \
+                 dark mark on the surface (albedo) read as a slope",
                 100.0 * self.occlusion_edge_share
             ));
         }

@@ -203,6 +203,16 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
         .expect("a model-fit summary after the solve");
     assert!(fit.rie_trusted < 0.05, "{fit:?}");
     assert!(fit.warnings.is_empty(), "{fit:?}");
+    // Measured once per result: the Sombrero has no occluding contour.
+    let contours = harness
+        .state()
+        .solve_state()
+        .occlusion_edges
+        .clone()
+        .expect("occluding contours measured with the fit");
+    assert!(!contours.as_slice().iter().any(|&on| on));
+    assert_eq!(fit.occlusion_edge_share, 0.0);
+    harness.get_by_label("contours");
     harness.get_by_label_contains("model fit: RIE");
     let before = confidence(&harness);
     // (below the fold of the controls since the Mask section grew the

@@ -105,6 +105,9 @@ struct Textures {
     overlay: Option<(u64, egui::TextureHandle)>,
     /// What the last solve took out as shadow, keyed by its job's count.
     shadows: Option<(usize, egui::TextureHandle)>,
+    /// Where the last solve grazes the view beside a brighter pixel, keyed
+    /// by its job's count.
+    contours: Option<(usize, egui::TextureHandle)>,
     reprojection: Option<egui::TextureHandle>,
     difference: Option<(egui::TextureHandle, [f64; 2])>,
     depth: Option<(egui::TextureHandle, [f64; 2])>,
@@ -823,6 +826,11 @@ impl Panels {
         ui.add(egui::Slider::new(&mut b.overlay_opacity, 0.0..=1.0).text("overlay opacity"));
         ui.checkbox(&mut b.show_shadows, "shadows")
             .on_hover_text("show in violet what the last solve took out of the data term as shadow (no light reaches it)");
+        ui.checkbox(&mut b.show_contours, "contours").on_hover_text(
+            "show in orange where the last solve grazes the view beside a much brighter pixel: \
+             an occluding contour (what lies behind it was joined to it) or a dark mark read as \
+             a slope",
+        );
         let layer = b.layer;
         let threshold = &mut b.threshold;
         let paint_photo = self.set.paint_photo;
@@ -1460,10 +1468,37 @@ impl Panels {
             if let Some((_, overlay)) = &self.textures.overlay {
                 painter.image(overlay.id(), image_rect, uv, egui::Color32::WHITE);
             }
+            let solve = &cx.session.solve;
+            let key = solve.completed_jobs;
+            let alpha = (cx.settings.brush.overlay_opacity.clamp(0.0, 1.0) * 255.0) as u8;
             if cx.settings.brush.show_shadows {
-                self.update_shadows(ui.ctx(), cx);
+                let shadow = solve.finished.as_ref().and_then(|s| s.shadow.as_ref());
+                let violet = [150, 60, 220, alpha];
+                update_mask_texture(
+                    ui.ctx(),
+                    &mut self.textures.shadows,
+                    "shadows",
+                    shadow,
+                    violet,
+                    key,
+                );
                 if let Some((_, shadows)) = &self.textures.shadows {
                     painter.image(shadows.id(), image_rect, uv, egui::Color32::WHITE);
+                }
+            }
+            if cx.settings.brush.show_contours {
+                let contours = solve.occlusion_edges.as_ref();
+                let orange = [255, 150, 0, alpha.max(160)];
+                update_mask_texture(
+                    ui.ctx(),
+                    &mut self.textures.contours,
+                    "contours",
+                    contours,
+                    orange,
+                    key,
+                );
+                if let Some((_, contours)) = &self.textures.contours {
+                    painter.image(contours.id(), image_rect, uv, egui::Color32::WHITE);
                 }
             }
             self.draw_known_distances(&painter, cx, scale, origin);
@@ -1481,44 +1516,6 @@ impl Panels {
             (x >= 0.0 && y >= 0.0 && (x as usize) < w && (y as usize) < h)
                 .then(|| describe_pixel(cx.session, x as usize, y as usize))
         });
-    }
-
-    /// The shadow texture of the finished solve (violet where it took the
-    /// object out of the data term as shadow); none without one.
-    fn update_shadows(&mut self, ctx: &egui::Context, cx: &UiContext<'_>) {
-        let solve = &cx.session.solve;
-        let shadow = solve.finished.as_ref().and_then(|s| s.shadow.as_ref());
-        let Some(shadow) = shadow else {
-            self.textures.shadows = None;
-            return;
-        };
-        let key = solve.completed_jobs;
-        if self
-            .textures
-            .shadows
-            .as_ref()
-            .is_some_and(|(k, _)| *k == key)
-        {
-            return;
-        }
-        let (w, h) = shadow.size();
-        let alpha = (cx.settings.brush.overlay_opacity.clamp(0.0, 1.0) * 255.0) as u8;
-        let rgba: Vec<u8> = shadow
-            .as_slice()
-            .iter()
-            .flat_map(|&s| {
-                if s {
-                    [150, 60, 220, alpha]
-                } else {
-                    [0, 0, 0, 0]
-                }
-            })
-            .collect();
-        let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
-        self.textures.shadows = Some((
-            key,
-            images::load_texture(ctx, "shadows", image, egui::TextureOptions::NEAREST),
-        ));
     }
 
     fn update_overlay(&mut self, ctx: &egui::Context, cx: &UiContext<'_>) {
@@ -1937,4 +1934,34 @@ fn slider_number(value: f64) -> String {
     } else {
         format!("{}", (value * 1e4).round() / 1e4)
     }
+}
+
+/// Keeps `texture` the RGBA of `mask` (`colour` where set, clear elsewhere)
+/// for the result `key`: rebuilt once per result, dropped without a mask.
+fn update_mask_texture(
+    ctx: &egui::Context,
+    texture: &mut Option<(usize, egui::TextureHandle)>,
+    name: &str,
+    mask: Option<&sfs_core::grid::Grid<bool>>,
+    colour: [u8; 4],
+    key: usize,
+) {
+    let Some(mask) = mask else {
+        *texture = None;
+        return;
+    };
+    if texture.as_ref().is_some_and(|(k, _)| *k == key) {
+        return;
+    }
+    let (w, h) = mask.size();
+    let rgba: Vec<u8> = mask
+        .as_slice()
+        .iter()
+        .flat_map(|&on| if on { colour } else { [0, 0, 0, 0] })
+        .collect();
+    let image = egui::ColorImage::from_rgba_unmultiplied([w, h], &rgba);
+    *texture = Some((
+        key,
+        images::load_texture(ctx, name, image, egui::TextureOptions::NEAREST),
+    ));
 }

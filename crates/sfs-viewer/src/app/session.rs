@@ -127,6 +127,10 @@ pub struct SolveState {
     /// Share of the object the final result took out as shadow (lights off
     /// the optical centre).
     pub shadow_share: Option<f64>,
+    /// Where the final result grazes the view beside a much brighter pixel
+    /// ([`sfs_core::model_fit::occlusion_edges`]: an occluding contour, or
+    /// dark albedo read as a slope), once per result.
+    pub occlusion_edges: Option<Grid<bool>>,
     /// The intensity scale the final result used (estimated or given).
     pub intensity_scale_used: Option<f64>,
     /// Whether the image determined the estimated intensity scale (`None`
@@ -577,6 +581,7 @@ impl Session {
                 }
                 self.solve.finished = None;
                 self.solve.shadow_share = None;
+                self.solve.occlusion_edges = None;
                 self.solve.known_depth_fit = None;
                 self.solve.failure = Some(reason);
                 self.solve.running = false;
@@ -615,6 +620,7 @@ impl Session {
         solve.finished = None;
         solve.errors = None;
         solve.shadow_share = None;
+        solve.occlusion_edges = None;
         solve.known_depth_fit = None;
         solve.search_solve = 0;
         solve.set = None;
@@ -703,22 +709,29 @@ impl Session {
                         .ok()
                         .map(|e| (e.rse, e.rie))
                     });
-                    self.solve.fit = self.document.as_ref().and_then(|doc| {
-                        (solution.reprojection.size() == doc.image.size()).then(|| {
-                            let domain = solution.depth.map(|z| z.is_finite());
-                            let edges = sfs_core::model_fit::occlusion_edges(
+                    self.solve.occlusion_edges = self.document.as_ref().and_then(|doc| {
+                        (solution.depth.size() == doc.image.size()).then(|| {
+                            sfs_core::model_fit::occlusion_edges(
                                 &doc.image,
                                 &solution.depth,
                                 doc.camera.intrinsics(),
-                            );
-                            sfs_core::model_fit::measure(
+                            )
+                        })
+                    });
+                    self.solve.fit = self.document.as_ref().and_then(|doc| {
+                        (solution.reprojection.size() == doc.image.size()).then(|| {
+                            let domain = solution.depth.map(|z| z.is_finite());
+                            let fit = sfs_core::model_fit::measure(
                                 &doc.image,
                                 &solution.reprojection,
                                 &domain,
                                 doc.masks.confidence_for_solver().as_ref(),
                                 solution.scales.intensity,
-                            )
-                            .with_occlusion_edges(&edges, &solution.depth)
+                            );
+                            match &self.solve.occlusion_edges {
+                                Some(edges) => fit.with_occlusion_edges(edges, &solution.depth),
+                                None => fit,
+                            }
                         })
                     });
                     // Once per result, not per frame: a pass over the image.

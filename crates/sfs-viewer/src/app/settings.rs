@@ -123,6 +123,9 @@ pub struct BrushSettings {
     pub overlay_opacity: f32,
     /// Shows over the input what the last solve took out as shadow.
     pub show_shadows: bool,
+    /// Shows over the input where the last solve grazes the view beside a
+    /// much brighter pixel (occluding contours, or dark albedo).
+    pub show_contours: bool,
 }
 
 impl Default for BrushSettings {
@@ -137,6 +140,7 @@ impl Default for BrushSettings {
             threshold: 0.02,
             overlay_opacity: 0.5,
             show_shadows: true,
+            show_contours: true,
         }
     }
 }
