@@ -699,7 +699,7 @@ mod tests {
         assert!(
             fit.warnings
                 .iter()
-                .any(|w| w.contains("occluding contours"))
+                .any(|w| w.contains("an occluding contour"))
         );
 
         // The same sphere against the background: its silhouette is no

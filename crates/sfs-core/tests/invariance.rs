@@ -140,3 +140,34 @@ fn the_default_does_not_get_worse_with_more_pixels() {
         );
     }
 }
+
+/// Lights at the optical centre act as one light of their summed
+/// intensity: `s` with a centred light of intensity `phi` is `s phi` with
+/// the paper's light, start included (fast marching once read `s` alone,
+/// and a sum of photographs divided by two, or a light given intensity 0.5,
+/// started a factor sqrt(2) too far).
+#[test]
+fn a_centred_light_of_intensity_phi_is_the_scale_times_phi() {
+    for noisy in [false, true] {
+        let (scene, image) = scene_and_image(noisy);
+        let paper = solved(&problem(&scene, image.clone(), 2.0));
+        for (scale, intensities) in [(4.0, vec![0.5]), (1.0, vec![0.5, 1.5])] {
+            let lights = intensities
+                .iter()
+                .map(|&intensity| sfs_core::light::PointLight {
+                    intensity,
+                    ..sfs_core::light::PointLight::CENTRED
+                })
+                .collect();
+            let with_lights = solved(&Problem {
+                lights,
+                ..problem(&scene, image.clone(), scale)
+            });
+            let difference = largest_relative_difference(&with_lights.depth, 1.0, &paper.depth);
+            assert!(
+                difference < ROUND_OFF,
+                "noisy {noisy}, s {scale}, intensities {intensities:?}: {difference}"
+            );
+        }
+    }
+}

@@ -228,6 +228,13 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         })
     };
     let several = setup.images.len() > 1;
+    // Saturation is judged on the photographs as taken: a sum may pass 1
+    // where none was saturated, and so may one photograph once an albedo or
+    // a vignetting correction raised its values (then where it was
+    // saturated as taken is kept here).
+    let raised = setup.albedo.is_some() || !matches!(setup.vignetting, Vignetting::None);
+    let taken_clipped = (!several && raised)
+        .then(|| resize(&image.map(|&v| if v >= SATURATED { 1.0 } else { 0.0 })).map(|&v| v > 0.0));
     let mut each = Vec::new();
     if several {
         each.push(one_of_several(&image)?);
@@ -251,11 +258,13 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
     let lost = corrected
         .lost
         .map(|l| resize(&l).map(|&v| if v >= 0.999 { 1.0 } else { 0.0 }));
-    let clipped = several.then(|| {
-        Grid::from_fn(w, h, |c, r| {
+    let clipped = if several {
+        Some(Grid::from_fn(w, h, |c, r| {
             each.iter().any(|one: &Each| *one.clipped.at(c, r))
-        })
-    });
+        }))
+    } else {
+        taken_clipped
+    };
     Ok(Photo {
         image,
         lost,

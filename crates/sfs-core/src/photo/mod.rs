@@ -620,7 +620,15 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
                     light.intensity /= divisor;
                 }
             }
-            if !input.photometric_stereo {
+            if input.images.len() == 1 {
+                decided.notes.push(format!(
+                    "with the albedo or the vignetting divided out, the photograph passes the top \
+                     of its range where it was not saturated as taken: it and the light's \
+                     intensity are divided by {divisor}, so that the solver does not take it for \
+                     clipped (the images written are divided too; a relative albedo's scale goes \
+                     into the intensity scale)"
+                ));
+            } else if !input.photometric_stereo {
                 decided.notes.push(format!(
                     "the sum of the {} photographs passes the top of one photograph's range where \
                  none was saturated: it and the lights' intensities are divided by {divisor}, \
@@ -1061,6 +1069,43 @@ mod tests {
         assert_eq!(guessed.report.camera.source, CameraSource::Guess);
         assert!((guessed.problem.camera.focal_px - 50.0).abs() < 1e-12);
         assert!(guessed.report.notes.iter().any(|n| n.contains("guess")));
+    }
+
+    #[test]
+    fn an_albedo_map_is_judged_on_the_photograph_as_taken() {
+        // A bright photograph of a surface whose albedo map reads 0.5
+        // (a relative map): divided out, every value passes the top of the
+        // range, yet only the one pixel saturated as taken is.
+        let dir = tempdir().unwrap();
+        let image = dir.path().join("photo.png");
+        let taken = Grid::from_fn(10, 10, |c, r| if (c, r) == (3, 4) { 1.0 } else { 0.9 });
+        write_png16(&image, &taken).unwrap();
+        let albedo = dir.path().join("albedo.png");
+        write_png16(&albedo, &Grid::filled(10, 10, 0.5)).unwrap();
+        let prepared = prepare(&PhotoInput {
+            camera: CameraSpec::Focal {
+                focal_px: 20.0,
+                cx_px: None,
+                cy_px: None,
+            },
+            albedo: Some(albedo),
+            ..PhotoInput::new(&image)
+        })
+        .unwrap();
+        // Divided by 2 (exact), the light's intensity with it.
+        assert_eq!(prepared.report.sum_divisor, Some(2.0));
+        assert!((*prepared.problem.image.at(0, 0) - 0.9).abs() < 1e-4);
+        let intensity: f64 = prepared.problem.lights.iter().map(|l| l.intensity).sum();
+        assert_eq!(intensity, 0.5);
+        assert!(prepared.report.notes.iter().any(|n| n.contains("as taken")));
+        // Only the pixel saturated in the photograph is left out.
+        let confidence = prepared.problem.confidence.as_ref().unwrap();
+        let left_out: Vec<(usize, usize)> = (0..10)
+            .flat_map(|r| (0..10).map(move |c| (c, r)))
+            .filter(|&(c, r)| *confidence.at(c, r) == 0.0)
+            .collect();
+        assert_eq!(left_out, vec![(3, 4)]);
+        assert!((prepared.report.clipped_share.unwrap() - 0.01).abs() < 1e-12);
     }
 
     #[test]

@@ -698,7 +698,7 @@ pub fn solve_fast_marching(
         )));
     }
     let model = problem.model(settings.material);
-    let s = model.intensity_scale();
+    let s = problem.centred_scale();
     let (solved, mean) = march(
         &problem.image,
         problem.camera,

@@ -276,7 +276,7 @@ pub(crate) fn prepare<'a>(
             // image, which validation guarantees exists.
             let z0 = initial_depth_from_image(
                 coarsest,
-                problem.intensity_scale * material.facing_gain(),
+                problem.centred_scale() * material.facing_gain(),
             )
             .unwrap_or(scales.depth);
             (
@@ -392,6 +392,8 @@ fn fast_marching_start(
         }
     };
     let settings = super::fast_marching::FastMarchingParams::for_material(material);
+    // Lights at the optical centre act as one of their summed intensity.
+    let marched_scale = problem.centred_scale();
     let march = |image: &Grid<f64>, object: &Grid<bool>| -> Result<Grid<f64>, SolveError> {
         if !problem.light_is_centred()
             && let Some(depth) = super::light_frame::march_from_the_light(
@@ -410,7 +412,7 @@ fn fast_marching_start(
             image,
             problem.camera,
             object,
-            problem.intensity_scale,
+            marched_scale,
             &settings,
             cancel,
         )

@@ -273,6 +273,19 @@ impl Problem {
         LightModel::with_material(self.intensity_scale, &self.lights, material)
     }
 
+    /// The intensity scale the brightness of a Lambertian patch facing the
+    /// light at distance `r` is `/ r^2` of: with every light at the optical
+    /// centre, `s` times their summed intensity (they act as one light;
+    /// a sum of photographs divided by a power of two, a light given an
+    /// intensity); `s` otherwise (the paper's light, or lights elsewhere).
+    pub fn centred_scale(&self) -> f64 {
+        if !self.lights.is_empty() && self.light_is_centred() {
+            self.intensity_scale * self.lights.iter().map(|l| l.intensity).sum::<f64>()
+        } else {
+            self.intensity_scale
+        }
+    }
+
     /// True when every light sits at the optical centre (the paper's model).
     pub fn light_is_centred(&self) -> bool {
         crate::light::is_centred(&self.lights)
@@ -442,7 +455,7 @@ impl Problem {
         cancel: Cancel<'_>,
     ) -> Result<ProblemScales, Cancelled> {
         let w = self.image.width();
-        let s = self.intensity_scale;
+        let s = self.centred_scale();
         let camera = self.camera;
         let facing = |r: usize, out: &mut Vec<f64>| {
             for c in 0..w {
