@@ -91,12 +91,13 @@ fn solve_args<'a>(image: &'a Path, camera: &'a Path, out: &'a Path) -> Vec<&'a s
     ]
 }
 
-const SOLVE_OUTPUTS: [&str; 8] = [
+const SOLVE_OUTPUTS: [&str; 9] = [
     ".sfs-studio-outputs",
     "depth.npy",
     "depth16.png",
     "input_linear.png",
     "mesh.ply",
+    "occlusion_edges.png",
     "report.json",
     "reprojection.png",
     "residual.png",
