@@ -639,8 +639,7 @@ mod tests {
     /// A sphere of radius 0.4 at distance 2 on the axis, in front of a plane
     /// at depth `plane_z` (`None`: nothing behind, background), lit from the
     /// optical centre, `s = 1`, rendered in closed form (exact normals):
-    /// image, depth and the pixels of the sphere beside the plane (or the
-    /// background).
+    /// image, depth (NaN on the background) and the camera.
     fn sphere_scene(plane_z: Option<f64>, side: usize) -> (Grid<f64>, Grid<f64>, Intrinsics) {
         let camera = Intrinsics::centred(side as f64, side, side);
         let (centre, radius) = (glam::DVec3::new(0.05, -0.03, 2.0), 0.4);
