@@ -31,7 +31,7 @@ use sfs_core::params::{InitialDepth, SolverParams};
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
-use super::robustness::{problem, render};
+use super::robustness::{problem, render_or_skip};
 use super::{BenchArgs, wanted};
 
 /// Seed of the noise.
@@ -379,14 +379,8 @@ pub fn run(args: &BenchArgs) -> Result<EdgesReport> {
             sizes.push((1080, 1920));
         }
         for (w, h) in sizes {
-            let scene = match render(name, &args.meshes, w, h) {
-                Ok(scene) => scene,
-                Err(e) if name != "sombrero" => {
-                    eprintln!("  skipped {name}: {e:#}");
-                    skipped.push(name.to_string());
-                    break;
-                }
-                Err(e) => return Err(e),
+            let Some(scene) = render_or_skip(name, &args.meshes, w, h, &mut skipped)? else {
+                break;
             };
             for noise in [0.0, 20.0] {
                 rows.push(row(name, &scene, noise)?);
@@ -394,7 +388,7 @@ pub fn run(args: &BenchArgs) -> Result<EdgesReport> {
         }
     }
     let report = EdgesReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
+        command: super::command_line(),
         rows,
         skipped,
     };

@@ -20,7 +20,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::{Problem, solve};
 
-use super::robustness::{problem, render};
+use super::robustness::{problem, render_or_skip};
 use super::{BenchArgs, wanted};
 
 /// Seed of the noise and of the blobs.
@@ -153,19 +153,13 @@ pub fn run(args: &BenchArgs) -> Result<HolesReport> {
         if !wanted(args, name) {
             continue;
         }
-        let scene = match render(name, &args.meshes, side, side) {
-            Ok(scene) => scene,
-            Err(e) if name != "sombrero" => {
-                eprintln!("  skipped {name}: {e:#}");
-                skipped.push(name.to_string());
-                continue;
-            }
-            Err(e) => return Err(e),
+        let Some(scene) = render_or_skip(name, &args.meshes, side, side, &mut skipped)? else {
+            continue;
         };
         rows.extend(scene_rows(name, &scene)?);
     }
     let report = HolesReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
+        command: super::command_line(),
         rows,
         skipped,
     };

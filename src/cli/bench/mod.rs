@@ -129,6 +129,11 @@ const TV_ITERATIONS: usize = 200;
 /// Every scene `--scenes` can name.
 const SCENE_NAMES: &[&str] = &["sombrero", "bunny", "dragon", "suzanne", "highres", "face"];
 
+/// The command line this bench was run with, for its reports.
+fn command_line() -> String {
+    std::env::args().collect::<Vec<_>>().join(" ")
+}
+
 /// Whether `--scenes` asks for `name` (no `--scenes`: every scene).
 fn wanted(args: &BenchArgs, name: &str) -> bool {
     args.scenes

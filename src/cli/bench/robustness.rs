@@ -87,6 +87,27 @@ pub(super) fn render(name: &str, meshes: &Path, width: usize, height: usize) -> 
         .with_context(|| format!("{name}: {}", path.display()))
 }
 
+/// [`render`], or `None` with the scene's name added to `skipped` (and
+/// said) where a mesh scene cannot be rendered (its file is missing or
+/// broken); the analytic Sombrero's failure is an error.
+pub(super) fn render_or_skip(
+    name: &str,
+    meshes: &Path,
+    width: usize,
+    height: usize,
+    skipped: &mut Vec<String>,
+) -> Result<Option<Scene>> {
+    match render(name, meshes, width, height) {
+        Ok(scene) => Ok(Some(scene)),
+        Err(e) if name != "sombrero" => {
+            eprintln!("  skipped {name}: {e:#}");
+            skipped.push(name.to_string());
+            Ok(None)
+        }
+        Err(e) => Err(e),
+    }
+}
+
 /// The mesh file of the bench's scene `name` in the meshes folder (`None`
 /// for the analytic Sombrero).
 pub(super) fn mesh_file(name: &str) -> Result<Option<&'static str>> {

@@ -566,7 +566,7 @@ pub(super) fn run(args: &BenchArgs, started: Instant) -> Result<()> {
     let inpainting = inpainting(&runner, &benches, &args.out, &mut got)?;
     let (robustness, lights) = defaults_parts(args, &mut got.skipped)?;
     let report = Report {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
+        command: super::command_line(),
         quick: args.quick,
         machine: report::machine(),
         rows: got.rows,

@@ -242,7 +242,7 @@ pub fn run(args: &BenchArgs) -> Result<ShadowsReport> {
         }
     }
     let report = ShadowsReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
+        command: super::command_line(),
         rows,
         skipped,
     };

@@ -395,7 +395,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         rows.extend(group);
     }
     let report = SpeedReport {
-        command: std::env::args().collect::<Vec<_>>().join(" "),
+        command: super::command_line(),
         rows,
         cancels,
         convergence: convergence_rows,

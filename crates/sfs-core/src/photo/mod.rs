@@ -1071,6 +1071,20 @@ mod tests {
         assert!(guessed.report.notes.iter().any(|n| n.contains("guess")));
     }
 
+    /// `image` prepared with a focal length of 20 px and `albedo` divided out.
+    fn prepared_with_albedo(image: &Path, albedo: PathBuf) -> PreparedPhoto {
+        prepare(&PhotoInput {
+            camera: CameraSpec::Focal {
+                focal_px: 20.0,
+                cx_px: None,
+                cy_px: None,
+            },
+            albedo: Some(albedo),
+            ..PhotoInput::new(image)
+        })
+        .unwrap()
+    }
+
     #[test]
     fn an_albedo_map_is_judged_on_the_photograph_as_taken() {
         // A bright photograph of a surface whose albedo map reads 0.5
@@ -1082,16 +1096,7 @@ mod tests {
         write_png16(&image, &taken).unwrap();
         let albedo = dir.path().join("albedo.png");
         write_png16(&albedo, &Grid::filled(10, 10, 0.5)).unwrap();
-        let prepared = prepare(&PhotoInput {
-            camera: CameraSpec::Focal {
-                focal_px: 20.0,
-                cx_px: None,
-                cy_px: None,
-            },
-            albedo: Some(albedo),
-            ..PhotoInput::new(&image)
-        })
-        .unwrap();
+        let prepared = prepared_with_albedo(&image, albedo);
         // Divided by 2 (exact), the light's intensity with it.
         assert_eq!(prepared.report.sum_divisor, Some(2.0));
         assert!((*prepared.problem.image.at(0, 0) - 0.9).abs() < 1e-4);
@@ -1119,16 +1124,7 @@ mod tests {
             &Grid::from_fn(10, 10, |c, _| if c < 5 { 0.0 } else { 0.5 }),
         )
         .unwrap();
-        let prepared = prepare(&PhotoInput {
-            camera: CameraSpec::Focal {
-                focal_px: 20.0,
-                cx_px: None,
-                cy_px: None,
-            },
-            albedo: Some(albedo),
-            ..PhotoInput::new(&image)
-        })
-        .unwrap();
+        let prepared = prepared_with_albedo(&image, albedo);
         assert!((prepared.report.albedo_untrusted_share - 0.5).abs() < 1e-12);
         let confidence = prepared.problem.confidence.as_ref().unwrap();
         assert_eq!((*confidence.at(0, 0), *confidence.at(9, 0)), (0.0, 1.0));
