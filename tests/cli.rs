@@ -29,8 +29,10 @@ const SYNTH_FILES: [&str; 8] = [
 ];
 
 /// Files `solve` writes, the hidden manifest of the run's outputs included.
-const SOLVE_FILES: [&str; 9] = [
+const SOLVE_FILES: [&str; 11] = [
     ".sfs-studio-outputs",
+    "albedo.npy",
+    "albedo.png",
     "depth.npy",
     "depth16.png",
     "input_linear.png",

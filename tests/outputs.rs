@@ -91,8 +91,10 @@ fn solve_args<'a>(image: &'a Path, camera: &'a Path, out: &'a Path) -> Vec<&'a s
     ]
 }
 
-const SOLVE_OUTPUTS: [&str; 9] = [
+const SOLVE_OUTPUTS: [&str; 11] = [
     ".sfs-studio-outputs",
+    "albedo.npy",
+    "albedo.png",
     "depth.npy",
     "depth16.png",
     "input_linear.png",

@@ -15,7 +15,7 @@ use sfs_core::io::{self, SrgbMode};
 use sfs_core::memory;
 use sfs_core::metrics;
 use sfs_core::model_fit;
-use sfs_core::params::{self as parameters, InitialDepth, SolverParams};
+use sfs_core::params::{self as parameters, AlbedoChoice, InitialDepth, SolverParams};
 use sfs_core::photo::{
     self, CameraSpec, LightSpec, PhotoInput, PhotoReport, ScaleSpec, Vignetting,
 };
@@ -86,10 +86,14 @@ pub struct SolveArgs {
     /// flat-field image (a uniform white target) [default: none].
     #[arg(long, value_name = "cos4|FILE")]
     pub vignetting: Option<String>,
-    /// A known albedo map (linear, relative), divided out; pixels with
-    /// albedo below 0.02 are not trusted.
-    #[arg(long, value_name = "FILE")]
-    pub albedo: Option<PathBuf>,
+    /// The surface's albedo: `auto` (estimated with the shape, kept only
+    /// where it explains the photograph better than albedo 1; writes
+    /// albedo.npy and albedo.png; --albedo-edge is its prior's weight),
+    /// `1` (the paper's: all brightness is shading) or FILE, a known albedo
+    /// map (linear, relative) divided out, pixels with albedo below 0.02
+    /// not trusted.
+    #[arg(long, value_name = "auto|1|FILE", default_value = "auto")]
+    pub albedo: String,
     /// Solve at a working size whose longest side is at most N pixels (area
     /// averaging; intrinsics and masks scaled alike); outputs are at the
     /// working size. 0: the full size.
@@ -215,7 +219,27 @@ impl SolveArgs {
     pub fn params(&self, image_size: (usize, usize)) -> Result<SolverParams> {
         let mut params = self.params.to_params()?;
         params.initial_depth = parse_initial_depth(self.init_depth.as_deref(), image_size)?;
+        params.albedo = self.albedo_choice();
         Ok(params)
+    }
+
+    /// `--albedo FILE`: the map the pipeline divides out (`None` for `auto`
+    /// and `1`).
+    pub fn albedo_file(&self) -> Option<PathBuf> {
+        match self.albedo.as_str() {
+            "auto" | "1" => None,
+            file => Some(PathBuf::from(file)),
+        }
+    }
+
+    /// How the solver takes the albedo: estimated for `auto`, else 1 (a
+    /// given map is already divided out).
+    pub fn albedo_choice(&self) -> AlbedoChoice {
+        if self.albedo == "auto" {
+            AlbedoChoice::Auto
+        } else {
+            AlbedoChoice::One
+        }
     }
 }
 
@@ -307,6 +331,8 @@ const SOLVE_OUTPUTS: &[&str] = &[
     "shadow.png",
     "depth16.png",
     "mesh.ply",
+    "albedo.npy",
+    "albedo.png",
     "report.json",
 ];
 
@@ -378,7 +404,7 @@ impl SolveArgs {
             auto_confidence: self.auto_confidence,
             ambient: self.ambient.clone(),
             vignetting,
-            albedo: self.albedo.clone(),
+            albedo: self.albedo_file(),
             max_side,
             pyramid_factor: full.map_or(memory::DEFAULT_PYRAMID_FACTOR, |(w, h)| {
                 pyramid_factor(sfs_core::resample::working_size(w, h, max_side))
@@ -427,6 +453,8 @@ struct SolveReport<'a> {
     material: sfs_core::material::Material,
     /// With `--reflectance auto`: every candidate and the verdict.
     material_fit: Option<&'a solver::material_fit::MaterialFit>,
+    /// With `--albedo auto`: the estimate and whether the solve used it.
+    albedo_fit: Option<&'a solver::albedo_fit::AlbedoFit>,
     alpha_used: f64,
     alpha_px: f64,
     lambda_px: f64,
@@ -648,6 +676,13 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             &mut progress,
         )
         .map(|(solution, fit)| {
+            if params.albedo == AlbedoChoice::Auto {
+                notes.push(
+                    "albedo 1: --known-depth searches the scale with one model in every \
+                     solve, so --albedo auto is not applied (give --albedo FILE for a known map)"
+                        .into(),
+                );
+            }
             notes.push(format!(
                 "depth scale from --known-depth: s = {:.4e} after {} solve{}; {}",
                 fit.intensity_scale,
@@ -700,6 +735,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
+    // With `--albedo auto` every solve (the searches' too) estimated the
+    // albedo and compared it with albedo 1 at its own scale
+    // (`solver::albedo_fit`); the reprojection is the photograph's.
     let solution =
         solution.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
     let model = problem.model(solution.material);
@@ -765,6 +803,24 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         io::write_mask_png(&stage.path("shadow.png"), shadow)?;
     }
     io::write_mask_png(&stage.path("occlusion_edges.png"), &occlusion_edges)?;
+    if let Some(fit) = &solution.albedo_fit {
+        // The albedo the solve used (the estimate, or 1 where it was not
+        // used), relative: the object's 90th percentile is 1.
+        let used = fit.albedo.zip_map(&solution.depth, |a, z| {
+            if !z.is_finite() {
+                f64::NAN
+            } else if fit.used {
+                *a
+            } else {
+                1.0
+            }
+        });
+        io::write_npy_f32(&stage.path("albedo.npy"), &used)?;
+        io::write_png16(
+            &stage.path("albedo.png"),
+            &used.map(|a| if a.is_finite() { *a } else { 0.0 }),
+        )?;
+    }
     let object_pixels = problem
         .object_mask
         .as_ref()
@@ -816,6 +872,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         parameters: params_json(&params, args),
         material: solution.material,
         material_fit: solution.material_fit.as_ref(),
+        albedo_fit: solution.albedo_fit.as_ref(),
         alpha_used: solution.alpha,
         alpha_px: solution.alpha_px,
         lambda_px: solution.lambda_px,
@@ -907,6 +964,12 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                 100.0 * each.fit.poor_share,
                 100.0 * each.fit.near_black_share,
                 100.0 * each.fit.saturated_share
+            );
+        }
+        if let Some(fit) = &solution.albedo_fit {
+            eprintln!(
+                "albedo ({} px working copy, {:.1} s): {}",
+                fit.working_side, fit.seconds, fit.summary
             );
         }
         if let Some(share) = shadow_share {

@@ -11,6 +11,7 @@
 //! needs it.
 #![deny(missing_docs)]
 
+pub mod albedo;
 pub mod camera;
 pub mod camera_file;
 pub mod cancel;

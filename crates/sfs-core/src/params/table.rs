@@ -647,6 +647,24 @@ pub const PARAMS: &[ParamSpec] = &[
         get: |p| ParamValue::Real(p.shininess),
         set: |p, v| p.shininess = real(v),
     },
+    ParamSpec {
+        name: "albedo-edge",
+        label: "albedo edge (log step)",
+        help: "The albedo prior's weight, used by --albedo auto: the smallest step of log \
+               brightness between neighbouring pixels taken as a change of albedo rather than \
+               of shading (an L0 penalty tau^2 on the log albedo's gradient; default 0.2, a \
+               ratio of 1.22; a step must also exceed three times its noise). Lower finds \
+               fainter marks and takes more shading for albedo. In [0.02, 2].",
+        kind: ParamKind::Real {
+            min: 0.02,
+            max: 2.0,
+            log: true,
+            auto: false,
+        },
+        slider: Some((0.05, 1.0)),
+        get: |p| ParamValue::Real(p.albedo_edge),
+        set: |p, v| p.albedo_edge = real(v),
+    },
 ];
 
 /// The table entry called `name`.

@@ -106,6 +106,7 @@ fn solve_on_worker<M: Reflectance>(
         scales: prepared.scales,
         material: params.material(),
         material_fit: None,
+        albedo_fit: None,
     }
     .checked()
 }

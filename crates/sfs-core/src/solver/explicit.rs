@@ -421,6 +421,7 @@ fn run<M: Reflectance>(
         scales: prepared.scales,
         material: params.material(),
         material_fit: None,
+        albedo_fit: None,
     }
     .checked()
 }

@@ -767,6 +767,7 @@ pub fn solve_fast_marching(
         scales,
         material: settings.material,
         material_fit: None,
+        albedo_fit: None,
     }
     .checked()
 }

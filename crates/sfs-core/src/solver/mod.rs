@@ -6,6 +6,7 @@
 //! ([`fast_marching`]). It reports through [`SolveObserver`] and knows
 //! nothing of threads, files or windows.
 
+pub mod albedo_fit;
 pub mod auto_alpha;
 pub mod calibrate;
 pub(crate) mod coarse_to_fine;
@@ -61,14 +62,18 @@ impl Method {
 
 /// Solves `problem` with `method`. The variational schemes use every
 /// parameter of `params`; fast marching has no parameters of the energy and
-/// ignores them.
+/// ignores them. With `--albedo auto` the albedo is estimated and compared
+/// first ([`albedo_fit`]) and the fit is kept in the solution.
 pub fn solve_method(
     problem: &Problem,
     params: &crate::params::SolverParams,
     method: &Method,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    let (params, fit) = material_fit::resolve(problem, params, observer)?;
+    let (divided, albedo) = albedo_fit::apply(problem, params, observer)?;
+    let problem = divided.as_ref().unwrap_or(problem);
+    let (mut params, fit) = material_fit::resolve(problem, params, observer)?;
+    params.albedo = crate::params::AlbedoChoice::One;
     let params = &params;
     let mut solution = match method {
         Method::Linearised => driver::solve(problem, params, observer),
@@ -83,6 +88,9 @@ pub fn solve_method(
         ),
     }?;
     solution.material_fit = fit;
+    if let Some(albedo) = albedo {
+        albedo.restore(&mut solution);
+    }
     Ok(solution)
 }
 

@@ -16,7 +16,7 @@ use super::view3d::SurfaceView;
 use crate::mask_edit::{Brush, ImagePoint, Layer, Mode, OverlayStyle};
 use sfs_core::grid::Grid;
 use sfs_core::material::Material;
-use sfs_core::params::{PARAMS, ParamKind, ParamValue, SolverParams};
+use sfs_core::params::{AlbedoChoice, PARAMS, ParamKind, ParamValue, SolverParams};
 use sfs_core::photo::{PhotoInput, Vignetting};
 use sfs_core::solver::{Solution, material_fit};
 
@@ -650,6 +650,33 @@ impl Panels {
         let mut p = cx.settings.params.to_params();
         let chosen_alpha = cx.session.solve.finished.as_ref().map(|s| s.alpha);
         let mut changed = false;
+        let mut estimate_albedo = p.albedo == AlbedoChoice::Auto;
+        if ui
+            .checkbox(&mut estimate_albedo, "estimate the albedo")
+            .on_hover_text(
+                "Albedo auto: dark marks (brows, text, paint) estimated as albedo with the \
+                 shape and used where they explain the photograph better than albedo 1; \
+                 'albedo edge' is its prior's weight. Off: all brightness is shading.",
+            )
+            .changed()
+        {
+            p.albedo = if estimate_albedo {
+                AlbedoChoice::Auto
+            } else {
+                AlbedoChoice::One
+            };
+            changed = true;
+        }
+        if let Some(fit) = cx
+            .session
+            .solve
+            .finished
+            .as_ref()
+            .and_then(|s| s.albedo_fit.as_ref())
+        {
+            ui.label(egui::RichText::new(&fit.summary).small())
+                .on_hover_text("How the albedo estimate compared with albedo 1 on this solve");
+        }
         for spec in PARAMS {
             // A model's own parameters only while it is chosen.
             let Some((low, high)) = spec.slider.filter(|_| p.applies(spec.name)) else {
@@ -764,7 +791,10 @@ impl Panels {
             .on_hover_text("Restore every parameter to its default (alpha auto)")
             .clicked()
         {
-            p = SolverParams::default();
+            p = SolverParams {
+                albedo: AlbedoChoice::Auto,
+                ..SolverParams::default()
+            };
             changed = true;
         }
         if changed {

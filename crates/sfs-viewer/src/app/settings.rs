@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::mask_edit::{Layer, Mode};
 use std::collections::BTreeMap;
 
-use sfs_core::params::{InitialDepth, PARAMS, SolverParams};
+use sfs_core::params::{AlbedoChoice, InitialDepth, PARAMS, SolverParams};
 use sfs_core::solver::photometric::PhotometricParams;
 
 /// Key of the settings in eframe's storage.
@@ -22,13 +22,26 @@ pub const RECENT_FILES: usize = 10;
 /// removed or out-of-range stored value falls back to its default instead of
 /// failing the whole settings file. The initial depth is fast marching,
 /// "from the image" or a constant (a depth file is a CLI feature).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct ParamSettings {
     /// Table name -> value as text; parameters not here take their defaults.
     pub values: BTreeMap<String, String>,
     /// Initial depth.
     pub initial_depth: InitialChoice,
+    /// Where the albedo comes from: estimated with the shape (`auto`, the
+    /// default for photographs) or 1.
+    pub albedo: AlbedoChoice,
+}
+
+impl Default for ParamSettings {
+    fn default() -> Self {
+        Self {
+            values: BTreeMap::new(),
+            initial_depth: InitialChoice::default(),
+            albedo: AlbedoChoice::Auto,
+        }
+    }
 }
 
 /// The viewer's choice of initial depth.
@@ -60,6 +73,7 @@ impl ParamSettings {
                 InitialDepth::FromImage => InitialChoice::FromImage,
                 _ => InitialChoice::FastMarching,
             },
+            albedo: params.albedo,
         }
     }
 
@@ -76,6 +90,7 @@ impl ParamSettings {
             InitialChoice::FromImage => InitialDepth::FromImage,
             InitialChoice::Constant(z) => InitialDepth::Constant(z),
         };
+        params.albedo = self.albedo;
         params
     }
 

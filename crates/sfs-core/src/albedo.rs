@@ -1,0 +1,432 @@
+//! Albedo from one photograph (Retinex with an L0 edge prior): the
+//! reflectance of a matte surface is taken as piecewise constant with
+//! sparse, sharp changes, the shading as varying smoothly. Between two
+//! 4-neighbouring trusted object pixels, a step of the log brightness larger
+//! than the edge step `tau` (and than three times its noise) is an albedo
+//! edge; any smaller step is shading. The log albedo is the least-squares
+//! integral of the edges (a screened Poisson equation over the object,
+//! conjugate gradients), normalised so that the object's 90th percentile
+//! is 1 (the brightest common material carries the intensity scale, as
+//! `albedo 1` does) and clamped to `[ALBEDO_FLOOR, 1]`.
+//!
+//! Minimising `(g - a)^2 + tau^2 [a != 0]` per difference gives exactly
+//! this rule (`a = g` where `|g| > tau`), so `tau` is the weight of the L0
+//! prior on the log albedo's gradient. An occluding contour is a brightness
+//! step too; whether the estimate explains a photograph better than albedo
+//! 1 is decided with the shape (`solver::albedo_fit`), not here. Pure
+//! functions over `grid`, polling a `Cancel` between iterations.
+
+use crate::cancel::{Cancel, Cancelled};
+use crate::grid::Grid;
+
+/// The default edge step `tau`: the smallest change of log brightness
+/// between neighbours taken as an albedo edge (0.2: a ratio of 1.22).
+pub const DEFAULT_EDGE_LOG_STEP: f64 = 0.2;
+/// The lowest albedo an estimate holds (relative to the common material).
+pub const ALBEDO_FLOOR: f64 = 0.05;
+/// The object's albedo percentile that is set to 1.
+const NORMALISE_PERCENTILE: f64 = 0.9;
+/// An edge must also exceed this many standard deviations of its own noise.
+const NOISE_SIGMAS: f64 = 3.0;
+/// The screening weight of the Poisson equation (per pixel, against unit
+/// weights per difference): it fixes the constant of each region that no
+/// edge joins to another, and is too small to bend a region.
+const SCREENING: f64 = 1e-6;
+
+/// An albedo estimated from one image.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AlbedoEstimate {
+    /// Relative albedo per pixel in `[ALBEDO_FLOOR, 1]` (1 off the object).
+    pub albedo: Grid<f64>,
+    /// Differences between object pixels taken as albedo edges.
+    pub edge_pairs: usize,
+    /// Share of the object's pixels beside an albedo edge.
+    pub edge_share: f64,
+    /// Share of the variance of the object's log brightness that the log
+    /// albedo explains (0: none; 1: the image is all albedo).
+    pub explained_share: f64,
+    /// Conjugate-gradient iterations of the integration.
+    pub iterations: usize,
+}
+
+/// Estimates the albedo of `image` (linear, >= 0) over `object` pixels,
+/// with edges only between pixels of confidence at least 0.5 (`trusted`),
+/// at edge step `edge_log_step` and the image's noise `noise_sigma` (its
+/// standard deviation, image units).
+///
+/// # Errors
+/// `Cancelled` when `cancel` says so between iterations.
+pub fn estimate(
+    image: &Grid<f64>,
+    object: &Grid<bool>,
+    trusted: &Grid<bool>,
+    edge_log_step: f64,
+    noise_sigma: f64,
+    cancel: Cancel<'_>,
+) -> Result<AlbedoEstimate, Cancelled> {
+    let (w, h) = image.size();
+    let floor = (2.0 * noise_sigma).max(1e-4);
+    let usable = |q: usize| trusted.as_slice()[q] && image.as_slice()[q] > floor;
+    let log = image.map(|&v| v.max(floor).ln());
+    // Each pixel's edge target to its right and below neighbour (0 where
+    // the difference is shading), and whether that difference exists.
+    let mut stencil = Stencil {
+        width: w,
+        height: h,
+        right: vec![0.0; w * h],
+        down: vec![0.0; w * h],
+        screen: object
+            .as_slice()
+            .iter()
+            .map(|&o| if o { SCREENING } else { 0.0 })
+            .collect(),
+        rhs: vec![0.0; w * h],
+    };
+    let mut beside_edge = vec![false; w * h];
+    let mut edge_pairs = 0;
+    let threshold = |p: usize, q: usize| {
+        let (a, b) = (image.as_slice()[p], image.as_slice()[q]);
+        let noise = NOISE_SIGMAS * noise_sigma * (1.0 / (a * a) + 1.0 / (b * b)).sqrt();
+        edge_log_step.max(noise)
+    };
+    for r in 0..h {
+        for c in 0..w {
+            let p = r * w + c;
+            if !object.as_slice()[p] {
+                continue;
+            }
+            for (q, is_right) in [
+                ((c + 1 < w).then(|| p + 1), true),
+                ((r + 1 < h).then(|| p + w), false),
+            ] {
+                let Some(q) = q.filter(|&q| object.as_slice()[q]) else {
+                    continue;
+                };
+                if is_right {
+                    stencil.right[p] = 1.0;
+                } else {
+                    stencil.down[p] = 1.0;
+                }
+                if usable(p) && usable(q) {
+                    let step = log.as_slice()[q] - log.as_slice()[p];
+                    if step.abs() > threshold(p, q) {
+                        // The link's target: (x_q - x_p - step)^2.
+                        stencil.rhs[p] -= step;
+                        stencil.rhs[q] += step;
+                        edge_pairs += 1;
+                        beside_edge[p] = true;
+                        beside_edge[q] = true;
+                    }
+                }
+            }
+        }
+    }
+    let objects = object.as_slice().iter().filter(|&&o| o).count();
+    let mut solution = vec![0.0; w * h];
+    let mut iterations = 0;
+    if edge_pairs > 0 {
+        iterations = integrate(&stencil, &mut solution, cancel)?;
+    }
+    let albedo = normalise(&solution, object, w, h);
+    let explained_share = explained(&log, &albedo, object);
+    Ok(AlbedoEstimate {
+        albedo,
+        edge_pairs,
+        edge_share: beside_edge.iter().filter(|&&b| b).count() as f64 / objects.max(1) as f64,
+        explained_share,
+        iterations,
+    })
+}
+
+/// `exp` of the log albedo, its object's 90th percentile set to 1, clamped.
+fn normalise(log_albedo: &[f64], object: &Grid<bool>, w: usize, h: usize) -> Grid<f64> {
+    let mut values: Vec<f64> = log_albedo
+        .iter()
+        .zip(object.as_slice())
+        .filter(|(_, o)| **o)
+        .map(|(l, _)| *l)
+        .collect();
+    let top = if values.is_empty() {
+        0.0
+    } else {
+        let k = ((values.len() - 1) as f64 * NORMALISE_PERCENTILE).round() as usize;
+        *values.select_nth_unstable_by(k, f64::total_cmp).1
+    };
+    Grid::from_fn(w, h, |c, r| {
+        let q = r * w + c;
+        if object.as_slice()[q] {
+            (log_albedo[q] - top).exp().clamp(ALBEDO_FLOOR, 1.0)
+        } else {
+            1.0
+        }
+    })
+}
+
+/// Share of the variance of the object's log brightness explained by the
+/// log albedo: `1 - var(log I - log rho) / var(log I)`, at least 0.
+fn explained(log: &Grid<f64>, albedo: &Grid<f64>, object: &Grid<bool>) -> f64 {
+    let (mut n, mut s1, mut s2, mut t1, mut t2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for ((l, a), o) in log
+        .as_slice()
+        .iter()
+        .zip(albedo.as_slice())
+        .zip(object.as_slice())
+    {
+        if *o {
+            let shading = l - a.ln();
+            n += 1.0;
+            s1 += l;
+            s2 += l * l;
+            t1 += shading;
+            t2 += shading * shading;
+        }
+    }
+    if n < 2.0 {
+        return 0.0;
+    }
+    let var_image = s2 / n - (s1 / n).powi(2);
+    let var_shading = t2 / n - (t1 / n).powi(2);
+    if var_image <= 0.0 {
+        0.0
+    } else {
+        (1.0 - var_shading / var_image).max(0.0)
+    }
+}
+
+/// The screened Poisson system of the integration as a weighted 5-point
+/// graph: `A x = b` with `A = diag(screen) + sum over links w (e_q - e_p)
+/// (e_q - e_p)^T`.
+struct Stencil {
+    width: usize,
+    height: usize,
+    /// Weight of the link from each pixel to its right neighbour (0: none).
+    right: Vec<f64>,
+    /// Weight of the link from each pixel to the one below (0: none).
+    down: Vec<f64>,
+    /// The screening per pixel (0 off the object).
+    screen: Vec<f64>,
+    /// The right-hand side.
+    rhs: Vec<f64>,
+}
+
+impl Stencil {
+    /// `A v`.
+    fn apply(&self, v: &[f64], out: &mut [f64]) {
+        let w = self.width;
+        for (p, o) in out.iter_mut().enumerate() {
+            *o = self.screen[p] * v[p];
+        }
+        for p in 0..v.len() {
+            if self.right[p] > 0.0 {
+                let d = self.right[p] * (v[p + 1] - v[p]);
+                out[p] -= d;
+                out[p + 1] += d;
+            }
+            if self.down[p] > 0.0 {
+                let d = self.down[p] * (v[p + w] - v[p]);
+                out[p] -= d;
+                out[p + w] += d;
+            }
+        }
+    }
+
+    /// The diagonal of `A`.
+    fn diagonal(&self) -> Vec<f64> {
+        let w = self.width;
+        let mut d = self.screen.clone();
+        for p in 0..d.len() {
+            if self.right[p] > 0.0 {
+                d[p] += self.right[p];
+                d[p + 1] += self.right[p];
+            }
+            if self.down[p] > 0.0 {
+                d[p] += self.down[p];
+                d[p + w] += self.down[p];
+            }
+        }
+        d
+    }
+
+    /// The Galerkin coarse system of 2x2 blocks with a piecewise-constant
+    /// prolongation (`P^T A P`, `P^T b`): links inside a block vanish, the
+    /// ones between blocks add up.
+    fn coarsen(&self) -> Stencil {
+        let (w, h) = (self.width, self.height);
+        let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+        let mut coarse = Stencil {
+            width: cw,
+            height: ch,
+            right: vec![0.0; cw * ch],
+            down: vec![0.0; cw * ch],
+            screen: vec![0.0; cw * ch],
+            rhs: vec![0.0; cw * ch],
+        };
+        for r in 0..h {
+            for c in 0..w {
+                let p = r * w + c;
+                let q = (r / 2) * cw + c / 2;
+                coarse.screen[q] += self.screen[p];
+                coarse.rhs[q] += self.rhs[p];
+                if self.right[p] > 0.0 && c % 2 == 1 {
+                    coarse.right[q] += self.right[p];
+                }
+                if self.down[p] > 0.0 && r % 2 == 1 {
+                    coarse.down[q] += self.down[p];
+                }
+            }
+        }
+        coarse
+    }
+}
+
+/// Solves the integration's system cascadically: the 2x2-block coarse
+/// system first (down to [`COARSEST_SIDE`]), its solution prolonged as the
+/// start of conjugate gradients on the finer one; returns the finest
+/// level's iterations. A piecewise-constant albedo is nearly constant per
+/// block, so the fine level only settles the edges.
+fn integrate(stencil: &Stencil, x: &mut [f64], cancel: Cancel<'_>) -> Result<usize, Cancelled> {
+    const COARSEST_SIDE: usize = 32;
+    if stencil.width.max(stencil.height) > COARSEST_SIDE {
+        let coarse = stencil.coarsen();
+        let mut y = vec![0.0; coarse.width * coarse.height];
+        integrate(&coarse, &mut y, cancel)?;
+        for r in 0..stencil.height {
+            for c in 0..stencil.width {
+                x[r * stencil.width + c] = y[(r / 2) * coarse.width + c / 2];
+            }
+        }
+    }
+    conjugate_gradients(stencil, x, cancel)
+}
+
+/// Jacobi-preconditioned conjugate gradients on `stencil` from `x`; returns
+/// the iterations used.
+fn conjugate_gradients(
+    stencil: &Stencil,
+    x: &mut [f64],
+    cancel: Cancel<'_>,
+) -> Result<usize, Cancelled> {
+    const MAX_ITERATIONS: usize = 400;
+    const RELATIVE_TOLERANCE: f64 = 1e-4;
+    let n = x.len();
+    let diagonal = stencil.diagonal();
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let mut ax = vec![0.0; n];
+    stencil.apply(x, &mut ax);
+    let mut r: Vec<f64> = stencil.rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let precondition = |r: &[f64], z: &mut [f64]| {
+        for p in 0..n {
+            z[p] = if diagonal[p] > 0.0 {
+                r[p] / diagonal[p]
+            } else {
+                0.0
+            };
+        }
+    };
+    let mut z = vec![0.0; n];
+    precondition(&r, &mut z);
+    let mut d = z.clone();
+    let mut rz = dot(&r, &z);
+    let target = RELATIVE_TOLERANCE * dot(&stencil.rhs, &stencil.rhs).sqrt();
+    let mut ad = ax;
+    for iteration in 0..MAX_ITERATIONS {
+        if dot(&r, &r).sqrt() <= target {
+            return Ok(iteration);
+        }
+        if cancel.is_cancelled() {
+            return Err(Cancelled);
+        }
+        stencil.apply(&d, &mut ad);
+        let curvature = dot(&d, &ad);
+        if curvature <= 0.0 || !curvature.is_finite() {
+            return Ok(iteration);
+        }
+        let step = rz / curvature;
+        for p in 0..n {
+            x[p] += step * d[p];
+            r[p] -= step * ad[p];
+        }
+        precondition(&r, &mut z);
+        let rz_next = dot(&r, &z);
+        let beta = rz_next / rz;
+        rz = rz_next;
+        for p in 0..n {
+            d[p] = z[p] + beta * d[p];
+        }
+    }
+    Ok(MAX_ITERATIONS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A smooth shading times a two-patch albedo (left 1, right `dark`).
+    fn patched(dark: f64) -> (Grid<f64>, Grid<f64>) {
+        let shading = Grid::from_fn(40, 30, |c, r| {
+            0.6 + 0.3 * ((c as f64) / 13.0).sin() * ((r as f64) / 11.0).cos()
+        });
+        let albedo = Grid::from_fn(40, 30, |c, _| if c < 25 { 1.0 } else { dark });
+        (shading.zip_map(&albedo, |s, a| s * a), albedo)
+    }
+
+    #[test]
+    fn a_patch_is_found_and_shading_is_left_alone() {
+        let (image, truth) = patched(0.5);
+        let all = Grid::filled(40, 30, true);
+        let found = estimate(
+            &image,
+            &all,
+            &all,
+            DEFAULT_EDGE_LOG_STEP,
+            0.0,
+            Cancel::NEVER,
+        )
+        .expect("not cancelled");
+        for (a, t) in found.albedo.as_slice().iter().zip(truth.as_slice()) {
+            assert!((a - t).abs() < 0.01, "albedo {a} against {t}");
+        }
+        assert_eq!(found.edge_pairs, 30);
+        assert!(found.explained_share > 0.3, "{}", found.explained_share);
+        // Smooth shading alone has no edge: the albedo stays 1.
+        let (shading, _) = patched(1.0);
+        let none = estimate(
+            &shading,
+            &all,
+            &all,
+            DEFAULT_EDGE_LOG_STEP,
+            0.0,
+            Cancel::NEVER,
+        )
+        .expect("not cancelled");
+        assert_eq!(none.edge_pairs, 0);
+        assert!(none.albedo.as_slice().iter().all(|&a| a == 1.0));
+    }
+
+    #[test]
+    fn the_estimate_is_invariant_to_exposure() {
+        let (image, _) = patched(0.6);
+        let all = Grid::filled(40, 30, true);
+        let at = |k: f64| {
+            estimate(&image.map(|v| v * k), &all, &all, 0.2, 0.0, Cancel::NEVER)
+                .expect("not cancelled")
+                .albedo
+        };
+        let (a, b) = (at(1.0), at(0.25));
+        for (x, y) in a.as_slice().iter().zip(b.as_slice()) {
+            assert!((x - y).abs() < 1e-9, "{x} {y}");
+        }
+    }
+
+    #[test]
+    fn noise_below_its_own_threshold_makes_no_edge() {
+        // A flat grey at 0.1 with +-0.03 checkerboard "noise" (log steps
+        // 0.6): at its noise sigma no step is an edge; at sigma 0 they are.
+        let image = Grid::from_fn(20, 20, |c, r| if (c + r) % 2 == 0 { 0.13 } else { 0.07 });
+        let all = Grid::filled(20, 20, true);
+        let quiet = estimate(&image, &all, &all, 0.2, 0.03, Cancel::NEVER).expect("ok");
+        assert_eq!(quiet.edge_pairs, 0);
+        let loud = estimate(&image, &all, &all, 0.2, 0.0, Cancel::NEVER).expect("ok");
+        assert!(loud.edge_pairs > 0);
+    }
+}

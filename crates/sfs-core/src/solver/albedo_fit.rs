@@ -1,0 +1,414 @@
+//! `--albedo auto`: the albedo estimated from the image (`crate::albedo`,
+//! Retinex with an L0 edge prior) and kept only when it explains the
+//! photograph better together with a shape than albedo 1 does.
+//!
+//! Both explanations are solved on a working copy of at most
+//! [`GATE_SIDE`] pixels at the user's parameters: albedo 1 (the image as
+//! given) and the estimate (the image divided by it). Each is scored by
+//! how well it reproduces the photograph itself: `sum c (I - rho R)^2`.
+//! The estimate is used when its misfit is at least [`MIN_GAIN`] below
+//! albedo 1's; otherwise the solve is exactly today's. Why a test with the shape: an occluding
+//! contour is a brightness step just like an albedo edge, and taking it
+//! for albedo bends the whole region behind it (measured on uniform mesh
+//! renders, the estimate alone made RSE 2-10x worse); there the shape
+//! with albedo 1 reproduces the photograph better, and on the Sombrero with
+//! patches or lines and on the shared face the estimate does (README,
+//! "Albedo").
+//!
+//! [`apply`] returns the problem to solve (the image divided by the
+//! albedo and by a power of two so that no raised pixel reads as clipped,
+//! the intensity scale divided alike; pixels clipped as taken keep
+//! confidence 0) and the fit; [`AlbedoFit::restore`] puts the albedo back
+//! into the solution's reprojection, so residuals and fits compare with the
+//! photograph as taken. Uses `albedo`, `denoise`, `working`, `driver`.
+
+use std::time::Instant;
+
+use serde::Serialize;
+
+use super::problem::{Problem, SATURATED, Solution, SolveError, SolveObserver};
+use super::working::{Forward, working_copy};
+use crate::albedo::{self, AlbedoEstimate};
+use crate::cancel::Cancel;
+use crate::grid::Grid;
+use crate::params::{AlbedoChoice, SolverParams};
+
+/// Longest side of the working copy both explanations are solved on.
+pub const GATE_SIDE: usize = 256;
+/// The share of albedo 1's misfit the estimate must remove to be used: the
+/// albedo prior's cost of its edges. Without it, noise decided: on renders
+/// of uniform albedo with sigma 20 noise (`synth --noise 20`, 8-bit) the
+/// estimate's few edges (0.1-1.5 % of the object) removed 1-12 % of the
+/// misfit and made RSE up to 2.2x worse (Suzanne 256 px); real albedo
+/// removed 25 % (the face) to 96 % (the Sombrero with lines).
+pub const MIN_GAIN: f64 = 0.2;
+
+/// What `--albedo auto` found and decided.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AlbedoFit {
+    /// The estimated relative albedo at the problem's size (1 off the
+    /// object and where no edge is found); the solve divided it out only
+    /// when [`Self::used`].
+    #[serde(skip)]
+    pub albedo: Grid<f64>,
+    /// Whether the solve used the estimate (else albedo 1).
+    pub used: bool,
+    /// The estimate's misfit to the photograph over albedo 1's, both with
+    /// their solved shapes on the working copy (below 1: the estimate
+    /// explains it better). NaN when there was nothing to compare.
+    pub misfit_ratio: f64,
+    /// Share of the object's pixels beside an albedo edge.
+    pub edge_share: f64,
+    /// Share of the variance of the object's log brightness that the
+    /// albedo explains.
+    pub explained_share: f64,
+    /// The lowest albedo over the object (relative: the object's 90th
+    /// percentile is 1).
+    pub min_albedo: f64,
+    /// The edge step used (`albedo-edge`).
+    pub edge_log_step: f64,
+    /// The image's noise the edges were measured against (image units).
+    pub noise_sigma: f64,
+    /// The power of two the divided image and the intensity scale were
+    /// divided by (1 when unused).
+    pub divisor: f64,
+    /// Side of the working copy, pixels.
+    pub working_side: usize,
+    /// Seconds spent estimating and comparing.
+    pub seconds: f64,
+    /// The decision in plain words.
+    pub summary: String,
+}
+
+impl AlbedoFit {
+    /// Puts the albedo back into `solution` (its reprojection and
+    /// brightness scale become the photograph's: `rho * divisor * R`, `I_ref
+    /// * divisor`) and keeps the fit in it.
+    pub fn restore(self, solution: &mut Solution) {
+        if self.used {
+            let scale = self.divisor;
+            solution.scales.intensity *= scale;
+            solution.reprojection = solution
+                .reprojection
+                .zip_map(&self.albedo, |r, a| r * a * scale);
+        }
+        solution.albedo_fit = Some(self);
+    }
+}
+
+/// With `params.albedo` auto, estimates the albedo, compares it with
+/// albedo 1 and returns the problem to solve when it is not `problem`
+/// (the image divided by the albedo) and the fit; otherwise `(None, None)`.
+///
+/// # Errors
+/// Cancellation, and the trial solves' errors.
+pub fn apply(
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<(Option<Problem>, Option<AlbedoFit>), SolveError> {
+    if params.albedo != AlbedoChoice::Auto {
+        return Ok((None, None));
+    }
+    let started = Instant::now();
+    let (w, h) = problem.image.size();
+    let object = problem
+        .object_mask
+        .clone()
+        .unwrap_or_else(|| Grid::filled(w, h, true));
+    let trusted = Grid::from_fn(w, h, |c, r| {
+        *object.at(c, r)
+            && problem
+                .confidence
+                .as_ref()
+                .is_none_or(|k| *k.at(c, r) >= 0.5)
+            && *problem.image.at(c, r) < SATURATED
+    });
+    let cancel_probe = || observer.is_cancelled();
+    let noise_sigma =
+        crate::denoise::robust_noise_sigma(&problem.image, &trusted, Cancel::new(&cancel_probe))?;
+    let estimate = albedo::estimate(
+        &problem.image,
+        &object,
+        &trusted,
+        params.albedo_edge,
+        noise_sigma,
+        Cancel::new(&cancel_probe),
+    )?;
+    let min_albedo = estimate
+        .albedo
+        .as_slice()
+        .iter()
+        .zip(object.as_slice())
+        .filter(|(_, o)| **o)
+        .map(|(a, _)| *a)
+        .fold(1.0, f64::min);
+    let (divided, divisor) = divide(problem, &estimate.albedo, &object);
+    let mut fit = AlbedoFit {
+        albedo: estimate.albedo.clone(),
+        used: false,
+        misfit_ratio: f64::NAN,
+        edge_share: estimate.edge_share,
+        explained_share: estimate.explained_share,
+        min_albedo,
+        edge_log_step: params.albedo_edge,
+        noise_sigma,
+        divisor: 1.0,
+        working_side: GATE_SIDE,
+        seconds: 0.0,
+        summary: String::new(),
+    };
+    if estimate.edge_pairs == 0 {
+        fit.summary = "albedo 1: no albedo edge found (no step of log brightness above the \
+                       edge step and its noise)"
+            .into();
+        fit.seconds = started.elapsed().as_secs_f64();
+        return Ok((None, Some(fit)));
+    }
+    let ratio = misfit_ratio(problem, &divided, &estimate, divisor, params, observer)?;
+    fit.misfit_ratio = ratio;
+    fit.used = ratio < 1.0 - MIN_GAIN;
+    fit.summary = if fit.used {
+        format!(
+            "albedo estimated: {:.1} % of the object beside an albedo edge, down to {:.2} of \
+             the common albedo; with its shape it reproduces the photograph {:.0} % better \
+             than albedo 1 ({:.0} % of the log brightness's variance is albedo)",
+            100.0 * fit.edge_share,
+            min_albedo,
+            100.0 * (1.0 - ratio),
+            100.0 * fit.explained_share
+        )
+    } else {
+        format!(
+            "albedo 1: the estimated albedo ({:.1} % of the object beside an edge) reproduces \
+             the photograph {} with its shape than albedo 1 (misfit x{ratio:.2}): its edges \
+             are taken for shading (occluding contours, creases)",
+            100.0 * fit.edge_share,
+            if ratio.is_finite() {
+                "no better"
+            } else {
+                "not measurably better"
+            }
+        )
+    };
+    fit.seconds = started.elapsed().as_secs_f64();
+    if fit.used {
+        fit.divisor = divisor;
+        Ok((Some(divided), Some(fit)))
+    } else {
+        Ok((None, Some(fit)))
+    }
+}
+
+/// The problem with its image divided by `albedo` and by the power of two
+/// that keeps every divided object pixel below [`SATURATED`]; the intensity
+/// scale is divided alike, and pixels clipped as taken get confidence 0
+/// (their value is only a lower bound).
+fn divide(problem: &Problem, albedo: &Grid<f64>, object: &Grid<bool>) -> (Problem, f64) {
+    let raised = problem.image.zip_map(albedo, |i, a| i / a);
+    let top = raised
+        .as_slice()
+        .iter()
+        .zip(problem.image.as_slice())
+        .zip(object.as_slice())
+        .filter(|((_, i), o)| **o && **i < SATURATED)
+        .map(|((v, _), _)| *v)
+        .fold(0.0, f64::max);
+    let mut divisor = 1.0;
+    while top / divisor >= SATURATED * 0.999 && divisor < 1e6 {
+        divisor *= 2.0;
+    }
+    let image = raised.map(|v| v / divisor);
+    let clipped = problem.image.map(|&i| i >= SATURATED);
+    let confidence = if clipped.as_slice().iter().any(|&c| c) {
+        let (w, h) = image.size();
+        Some(Grid::from_fn(w, h, |c, r| {
+            if *clipped.at(c, r) {
+                0.0
+            } else {
+                problem.confidence.as_ref().map_or(1.0, |k| *k.at(c, r))
+            }
+        }))
+    } else {
+        problem.confidence.clone()
+    };
+    (
+        Problem {
+            image,
+            intensity_scale: problem.intensity_scale / divisor,
+            confidence,
+            ..problem.clone()
+        },
+        divisor,
+    )
+}
+
+/// The estimate's misfit to the photograph over albedo 1's, each solved on
+/// the working copy: `sum c (I - rho d R)^2` over pixels both solved.
+fn misfit_ratio(
+    problem: &Problem,
+    divided: &Problem,
+    estimate: &AlbedoEstimate,
+    divisor: f64,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<f64, SolveError> {
+    let params = SolverParams {
+        albedo: AlbedoChoice::One,
+        ..params.clone()
+    };
+    let plain = working_copy(problem, GATE_SIDE);
+    let work = working_copy(divided, GATE_SIDE);
+    let (sw, sh) = plain.image.size();
+    let albedo = crate::resample::resize_area(&estimate.albedo, sw, sh, Cancel::NEVER)
+        .map_err(|_| SolveError::Cancelled)?;
+    let one = super::driver::solve(&plain, &params, &mut Forward(observer))?;
+    let with = super::driver::solve(&work, &params, &mut Forward(observer))?;
+    let (mut e_one, mut e_with) = (0.0, 0.0);
+    for q in 0..plain.image.len() {
+        if !(one.depth.as_slice()[q].is_finite() && with.depth.as_slice()[q].is_finite()) {
+            continue;
+        }
+        let c = plain.confidence.as_ref().map_or(1.0, |k| k.as_slice()[q]);
+        let i = plain.image.as_slice()[q];
+        let r_one = one.reprojection.as_slice()[q];
+        let r_with = albedo.as_slice()[q] * divisor * with.reprojection.as_slice()[q];
+        e_one += c * (i - r_one) * (i - r_one);
+        e_with += c * (i - r_with) * (i - r_with);
+    }
+    Ok(if e_one > 0.0 {
+        e_with / e_one
+    } else {
+        f64::NAN
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::sombrero::sombrero;
+
+    /// The Sombrero at 64 px as a problem, its image times `albedo`.
+    fn problem(albedo: &Grid<f64>) -> (Problem, Grid<f64>) {
+        let scene = sombrero(64, 64);
+        (
+            Problem {
+                image: scene.image.zip_map(albedo, |i, a| i * a),
+                camera: scene.camera,
+                intensity_scale: scene.intensity_scale,
+                object_mask: Some(scene.object_mask.clone()),
+                confidence: None,
+                lights: Vec::new(),
+            },
+            scene.depth_gt,
+        )
+    }
+
+    /// Relative RMS depth error over the finite pixels.
+    fn depth_error(depth: &Grid<f64>, truth: &Grid<f64>) -> f64 {
+        let (mut num, mut den) = (0.0, 0.0);
+        for (z, t) in depth.as_slice().iter().zip(truth.as_slice()) {
+            if z.is_finite() && t.is_finite() {
+                num += (z - t) * (z - t);
+                den += t * t;
+            }
+        }
+        (num / den).sqrt()
+    }
+
+    #[test]
+    fn a_patch_albedo_is_used_and_a_uniform_one_changes_nothing() {
+        let auto = SolverParams {
+            albedo: AlbedoChoice::Auto,
+            ..SolverParams::default()
+        };
+        let patches = Grid::from_fn(64, 64, |c, r| {
+            if (c / 16 + r / 16) % 2 == 0 {
+                1.0
+            } else {
+                0.55
+            }
+        });
+        let (textured, truth) = problem(&patches);
+        let one = super::super::solve(&textured, &SolverParams::default(), &mut ())
+            .expect("albedo 1 solves");
+        let estimated = super::super::solve(&textured, &auto, &mut ()).expect("auto solves");
+        let fit = estimated.albedo_fit.as_ref().expect("auto reports its fit");
+        assert!(fit.used, "{}", fit.summary);
+        assert!(fit.misfit_ratio < 1.0 - MIN_GAIN, "{}", fit.misfit_ratio);
+        let (e_one, e_auto) = (
+            depth_error(&one.depth, &truth),
+            depth_error(&estimated.depth, &truth),
+        );
+        assert!(
+            e_auto < 0.25 * e_one,
+            "auto {e_auto} against albedo 1 {e_one}"
+        );
+        // The reprojection is the photograph's: rho R.
+        let (plain, _) = problem(&Grid::filled(64, 64, 1.0));
+        let uniform_one =
+            super::super::solve(&plain, &SolverParams::default(), &mut ()).expect("solves");
+        let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
+        assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
+        assert_eq!(
+            uniform_one
+                .depth
+                .as_slice()
+                .iter()
+                .map(|z| z.to_bits())
+                .collect::<Vec<_>>(),
+            uniform_auto
+                .depth
+                .as_slice()
+                .iter()
+                .map(|z| z.to_bits())
+                .collect::<Vec<_>>()
+        );
+    }
+
+    #[test]
+    fn auto_is_invariant_to_exposure_and_depth_unit() {
+        let auto = SolverParams {
+            albedo: AlbedoChoice::Auto,
+            ..SolverParams::default()
+        };
+        let patches = Grid::from_fn(64, 64, |c, r| {
+            if (c / 16 + r / 16) % 2 == 0 {
+                1.0
+            } else {
+                0.55
+            }
+        });
+        let (base, _) = problem(&patches);
+        let reference = super::super::solve(&base, &auto, &mut ()).expect("solves");
+        // Exposure x0.25 with s x0.25: the same depth. Depth unit x1000:
+        // s x1e6, the depth x1000.
+        for (exposure, unit) in [(0.25, 1.0), (1.0, 1000.0)] {
+            let scaled = Problem {
+                image: base.image.map(|v| v * exposure),
+                intensity_scale: base.intensity_scale * exposure * unit * unit,
+                ..base.clone()
+            };
+            let solved = super::super::solve(&scaled, &auto, &mut ()).expect("solves");
+            let (a, b) = (
+                reference.albedo_fit.as_ref().expect("fit"),
+                solved.albedo_fit.as_ref().expect("fit"),
+            );
+            assert_eq!(a.used, b.used);
+            assert!((a.misfit_ratio - b.misfit_ratio).abs() < 1e-6);
+            for (x, y) in a.albedo.as_slice().iter().zip(b.albedo.as_slice()) {
+                assert!((x - y).abs() < 1e-9, "albedo {x} against {y}");
+            }
+            for (z, w) in reference
+                .depth
+                .as_slice()
+                .iter()
+                .zip(solved.depth.as_slice())
+            {
+                if z.is_finite() {
+                    assert!((w / unit / z - 1.0).abs() < 1e-6, "depth {z} against {w}");
+                }
+            }
+        }
+    }
+}
