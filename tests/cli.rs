@@ -267,6 +267,27 @@ fn synth_solve_eval_round_trip() {
     let mut expected: Vec<String> = SOLVE_FILES.iter().map(|f| f.to_string()).collect();
     expected.sort();
     assert_eq!(entries(&r), expected, "solve wrote the wrong files");
+    // `--albedo auto` (the default) on a uniform render: the estimate is
+    // reported and not used; albedo.npy holds 1 on the surface.
+    let albedo_report = read_json(&r.join("report.json"));
+    assert_eq!(
+        albedo_report["albedo_fit"]["used"], false,
+        "{albedo_report}"
+    );
+    let used = sfs_core::io::read_npy(&r.join("albedo.npy")).expect("albedo.npy");
+    assert!(used.as_slice().iter().all(|a| a.is_nan() || *a == 1.0));
+    // `--albedo 1`: no estimate, no albedo files, the same depth.
+    let plain = fx.path("albedo_one");
+    let mut args_one = fx.solve_args(&plain, &["--init-depth", "from-image", "--albedo", "1"]);
+    args_one.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args_one), "solve --albedo 1");
+    assert!(!plain.join("albedo.npy").exists() && !plain.join("albedo.png").exists());
+    assert!(read_json(&plain.join("report.json"))["albedo_fit"].is_null());
+    assert_eq!(
+        std::fs::read(plain.join("depth.npy")).expect("depth.npy"),
+        std::fs::read(r.join("depth.npy")).expect("depth.npy"),
+        "albedo auto unused must solve exactly as albedo 1"
+    );
 
     let report = read_json(&r.join("report.json"));
     let rse = report["rse"].as_f64().expect("report.rse is a number");
@@ -486,6 +507,53 @@ fn help_of_every_subcommand() {
     let text = stdout(&out);
     for sub in ["synth", "solve", "eval", "bench"] {
         assert!(text.contains(sub), "--help does not list {sub}:\n{text}");
+    }
+}
+
+/// `bench --part albedo --quick` on the Sombrero: every light, pattern and
+/// noise level, three RSEs each; a uniform clean render is solved exactly
+/// as with albedo 1 (auto finds no edge or does not use it), a clean patch
+/// render with auto comes within 1.5x of the true albedo given and far
+/// below albedo 1, and a smooth albedo (no edge) is left as albedo 1.
+#[test]
+fn bench_albedo_solves_each_render_three_ways() {
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("albedo");
+    let run = sfs([
+        "bench",
+        "--part",
+        "albedo",
+        "--quick",
+        "--scenes",
+        "sombrero",
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "bench --part albedo");
+    assert!(out.join("albedo.md").is_file());
+    let report = read_json(&out.join("albedo.json"));
+    let rows = report["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 16, "2 lights x 4 albedos x 2 noise levels");
+    for row in rows {
+        let value = |key: &str| row[key].as_f64().expect("a number");
+        for key in ["rse_one", "rse_auto", "rse_true", "seconds"] {
+            assert!(value(key).is_finite() && value(key) >= 0.0, "{key}: {row}");
+        }
+        if value("noise") > 0.0 {
+            continue;
+        }
+        match row["pattern"].as_str().expect("pattern") {
+            "uniform" | "smooth" => {
+                assert_eq!(value("rse_auto"), value("rse_one"), "{row}");
+            }
+            "patches" => {
+                assert_eq!(row["auto_used"], true, "{row}");
+                assert!(value("rse_auto") <= 1.5 * value("rse_true"), "{row}");
+                assert!(value("rse_auto") < 0.5 * value("rse_one"), "{row}");
+                assert!(value("albedo_error") < value("albedo_error_one"), "{row}");
+            }
+            _ => {}
+        }
     }
 }
 

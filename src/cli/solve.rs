@@ -676,13 +676,6 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             &mut progress,
         )
         .map(|(solution, fit)| {
-            if params.albedo == AlbedoChoice::Auto {
-                notes.push(
-                    "albedo 1: --known-depth searches the scale with one model in every \
-                     solve, so --albedo auto is not applied (give --albedo FILE for a known map)"
-                        .into(),
-                );
-            }
             notes.push(format!(
                 "depth scale from --known-depth: s = {:.4e} after {} solve{}; {}",
                 fit.intensity_scale,

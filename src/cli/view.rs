@@ -69,7 +69,8 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 0)]
     pub latency_trials: usize,
     /// The 2-D panel shown first: input, reprojection, residual, depth,
-    /// albedo, normals or photo-residual (a set's).
+    /// albedo (a set's, or the albedo a photograph was solved with), normals
+    /// or photo-residual (a set's).
     #[arg(long, value_name = "PANEL", value_parser = parse_panel)]
     pub panel: Option<Panel2d>,
     /// Show a set's albedo on the 3-D surface (its texture) once solved.

@@ -26,8 +26,11 @@ pub const DEFAULT_EDGE_LOG_STEP: f64 = 0.2;
 pub const ALBEDO_FLOOR: f64 = 0.05;
 /// The object's albedo percentile that is set to 1.
 const NORMALISE_PERCENTILE: f64 = 0.9;
+/// A neighbouring difference of the same sign and at least this share of
+/// an edge's peak belongs to the edge (a blurred edge).
+const EDGE_SHOULDER: f64 = 0.3;
 /// An edge must also exceed this many standard deviations of its own noise.
-const NOISE_SIGMAS: f64 = 3.0;
+const NOISE_SIGMAS: f64 = 5.0;
 /// The screening weight of the Poisson equation (per pixel, against unit
 /// weights per difference): it fixes the constant of each region that no
 /// edge joins to another, and is too small to bend a region.
@@ -82,43 +85,39 @@ pub fn estimate(
             .collect(),
         rhs: vec![0.0; w * h],
     };
-    let mut beside_edge = vec![false; w * h];
-    let mut edge_pairs = 0;
-    let threshold = |p: usize, q: usize| {
-        let (a, b) = (image.as_slice()[p], image.as_slice()[q]);
-        let noise = NOISE_SIGMAS * noise_sigma * (1.0 / (a * a) + 1.0 / (b * b)).sqrt();
-        edge_log_step.max(noise)
-    };
+    // The links of the integration: every pair of 4-neighbouring object
+    // pixels.
     for r in 0..h {
         for c in 0..w {
             let p = r * w + c;
             if !object.as_slice()[p] {
                 continue;
             }
-            for (q, is_right) in [
-                ((c + 1 < w).then(|| p + 1), true),
-                ((r + 1 < h).then(|| p + w), false),
-            ] {
-                let Some(q) = q.filter(|&q| object.as_slice()[q]) else {
-                    continue;
-                };
-                if is_right {
-                    stencil.right[p] = 1.0;
-                } else {
-                    stencil.down[p] = 1.0;
-                }
-                if usable(p) && usable(q) {
-                    let step = log.as_slice()[q] - log.as_slice()[p];
-                    if step.abs() > threshold(p, q) {
-                        // The link's target: (x_q - x_p - step)^2.
-                        stencil.rhs[p] -= step;
-                        stencil.rhs[q] += step;
-                        edge_pairs += 1;
-                        beside_edge[p] = true;
-                        beside_edge[q] = true;
-                    }
-                }
+            if c + 1 < w && object.as_slice()[p + 1] {
+                stencil.right[p] = 1.0;
             }
+            if r + 1 < h && object.as_slice()[p + w] {
+                stencil.down[p] = 1.0;
+            }
+        }
+    }
+    // The edges: along every row and column, the steps of `edge_steps`.
+    let mut beside_edge = vec![false; w * h];
+    let mut edge_pairs = 0;
+    let lines = (0..h)
+        .map(|r| (0..w).map(|c| r * w + c).collect::<Vec<_>>())
+        .chain((0..w).map(|c| (0..h).map(|r| r * w + c).collect::<Vec<_>>()));
+    for line in lines {
+        for (p, q, step) in edge_steps(&line, &log, &usable, |p, q| {
+            let (a, b) = (image.as_slice()[p], image.as_slice()[q]);
+            edge_log_step.max(NOISE_SIGMAS * noise_sigma * (1.0 / (a * a) + 1.0 / (b * b)).sqrt())
+        }) {
+            // The link's target: (x_q - x_p - step)^2.
+            stencil.rhs[p] -= step;
+            stencil.rhs[q] += step;
+            edge_pairs += 1;
+            beside_edge[p] = true;
+            beside_edge[q] = true;
         }
     }
     let objects = object.as_slice().iter().filter(|&&o| o).count();
@@ -136,6 +135,69 @@ pub fn estimate(
         explained_share,
         iterations,
     })
+}
+
+/// The albedo edges along one line of pixels (`line`: their indices in
+/// order) as `(p, q, log I_q - log I_p)` of neighbouring pairs. An edge is
+/// a step, not a slope: a peak of the differences (above half the edge
+/// step, at least its same-signed neighbours), with the neighbour on each
+/// side of the same sign and at least [`EDGE_SHOULDER`] of the peak joined to
+/// it (an edge blurred over up to three pairs), where the next difference
+/// beyond a joined one is not such a shoulder too (that is a slope of
+/// shading, whose single differences pass the edge step at a low
+/// resolution), and whose sum exceeds `threshold(first pixel, last pixel)`.
+/// A thin dark line is two peaks of opposite sign. Pairs with a pixel that
+/// is not `usable` have no difference.
+fn edge_steps(
+    line: &[usize],
+    log: &Grid<f64>,
+    usable: &impl Fn(usize) -> bool,
+    threshold: impl Fn(usize, usize) -> f64,
+) -> Vec<(usize, usize, f64)> {
+    let pairs: Vec<(usize, usize, f64)> = line
+        .windows(2)
+        .map(|pair| {
+            let (p, q) = (pair[0], pair[1]);
+            let step = if usable(p) && usable(q) {
+                log.as_slice()[q] - log.as_slice()[p]
+            } else {
+                f64::NAN
+            };
+            (p, q, step)
+        })
+        .collect();
+    let at = |k: isize| -> f64 {
+        if k < 0 {
+            f64::NAN
+        } else {
+            pairs.get(k as usize).map_or(f64::NAN, |(_, _, g)| *g)
+        }
+    };
+    let mut edges = Vec::new();
+    for (k, &(p, q, g)) in pairs.iter().enumerate() {
+        let k = k as isize;
+        if g.is_nan() || g.abs() <= 0.5 * threshold(p, q) {
+            continue;
+        }
+        let same = |x: f64| x.is_finite() && x.signum() == g.signum();
+        let (before, after) = (at(k - 1), at(k + 1));
+        // A peak: no same-signed neighbour larger (the first of equals).
+        if (same(before) && before.abs() >= g.abs()) || (same(after) && after.abs() > g.abs()) {
+            continue;
+        }
+        let shoulder = |x: f64| same(x) && x.abs() >= EDGE_SHOULDER * g.abs();
+        let (join_before, join_after) = (shoulder(before), shoulder(after));
+        if (join_before && shoulder(at(k - 2))) || (join_after && shoulder(at(k + 2))) {
+            continue;
+        }
+        let first = if join_before { k - 1 } else { k } as usize;
+        let last = if join_after { k + 1 } else { k } as usize;
+        let total: f64 = pairs[first..=last].iter().map(|(_, _, g)| g).sum();
+        if total.abs() > threshold(pairs[first].0, pairs[last].1) {
+            edges.extend_from_slice(&pairs[first..=last]);
+        }
+    }
+    edges
 }
 
 /// `exp` of the log albedo, its object's 90th percentile set to 1, clamped.

@@ -214,6 +214,20 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     assert_eq!(fit.occlusion_edge_share, 0.0);
     harness.get_by_label("contours");
     harness.get_by_label_contains("model fit: RIE");
+    // The albedo is estimated by default (a photograph's default) and the
+    // uniform sample's estimate is not used: its solve is albedo 1's.
+    let albedo = harness
+        .state()
+        .solve_state()
+        .finished
+        .as_ref()
+        .and_then(|s| s.albedo_fit.clone())
+        .expect("albedo auto reports its fit");
+    assert!(!albedo.used, "{}", albedo.summary);
+    harness.get_by_label("estimate the albedo");
+    // The 2-D panels' "albedo" tab, beside the photo section's albedo file
+    // and the 3-D view's texture choice.
+    assert_eq!(harness.query_all_by_label("albedo").count(), 3);
     let before = confidence(&harness);
     // (below the fold of the controls since the Mask section grew the
     // shadows box: accesskit)

@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Args;
 
+mod albedo;
 mod edges;
 mod holes;
 mod lights;
@@ -63,7 +64,10 @@ pub struct BenchArgs {
     /// reflectance.json), `ps` (near-light photometric stereo on renders
     /// with a patch albedo and on the shared face; ps.md, ps.json), `edges`
     /// (occlusion edges: the truth's data energy against the answer's and
-    /// the detected contours; edges.md, edges.json) or
+    /// the detected contours; edges.md, edges.json), `albedo` (albedo from
+    /// one photograph: renders with textured albedos solved with albedo 1,
+    /// auto and the true albedo, and the shared face; albedo.md,
+    /// albedo.json) or
     /// `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
@@ -110,6 +114,11 @@ pub enum Part {
     /// misfit lies, and the occluding contours detected in the answer
     /// against the true depth jumps (edges.md, edges.json).
     Edges,
+    /// Albedo from one photograph: renders times patch, line, smooth and
+    /// uniform albedos, lights centred and beside the lens, clean and
+    /// sigma 5, solved with albedo 1, auto and the true albedo; the shared
+    /// face's LED 4 against its seven photographs (albedo.md, albedo.json).
+    Albedo,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -212,6 +221,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else if args.part == Part::Ps {
         ps::run(args)?;
         args.out.join("ps.md")
+    } else if args.part == Part::Albedo {
+        albedo::run(args)?;
+        args.out.join("albedo.md")
     } else if args.part == Part::Edges {
         edges::run(args)?;
         args.out.join("edges.md")

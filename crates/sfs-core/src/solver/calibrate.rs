@@ -424,11 +424,45 @@ fn frame_at_points(problem: &Problem, points: &[KnownDepth]) -> bool {
 /// (secant steps on `log s` against `log k`) until the least-squares factor
 /// is within [`KNOWN_DEPTH_TOLERANCE`] of 1.
 ///
+/// With `--albedo auto` the albedo is decided once, at the scale the search
+/// found with albedo 1 ([`super::albedo_fit`]); when it is used, the search
+/// runs again on the image divided by it, so every solve of a search
+/// solves one model.
+///
 /// # Errors
 /// As [`super::solve_method`]; `SolveError::Input` when there is no point,
 /// a given depth is not positive and finite, or a point is not on the
 /// solved surface.
 pub fn solve_with_known_depths(
+    problem: &mut Problem,
+    params: &SolverParams,
+    method: &super::Method,
+    points: &[KnownDepth],
+    observer: &mut dyn SolveObserver,
+) -> Result<(super::Solution, KnownDepthFit), SolveError> {
+    let (mut solution, fit) = search_known_depths(problem, params, method, points, observer)?;
+    if params.albedo != crate::params::AlbedoChoice::Auto {
+        return Ok((solution, fit));
+    }
+    let (divided, albedo) = super::albedo_fit::apply(problem, params, observer)?;
+    let Some(albedo) = albedo else {
+        return Ok((solution, fit));
+    };
+    let Some(mut divided) = divided else {
+        albedo.restore(&mut solution);
+        return Ok((solution, fit));
+    };
+    let (mut again, mut fit_again) =
+        search_known_depths(&mut divided, params, method, points, observer)?;
+    problem.intensity_scale = divided.intensity_scale * albedo.divisor;
+    fit_again.intensity_scale = problem.intensity_scale;
+    fit_again.solves += fit.solves;
+    albedo.restore(&mut again);
+    Ok((again, fit_again))
+}
+
+/// [`solve_with_known_depths`] with one model in every solve (albedo 1).
+fn search_known_depths(
     problem: &mut Problem,
     params: &SolverParams,
     method: &super::Method,

@@ -312,7 +312,15 @@ impl ViewerApp {
     /// single-image method, to compare with the set.
     pub fn solve_single(&mut self, index: usize) {
         self.session
-            .solve_single(index, self.settings.params.to_params());
+            .solve_single(index, self.settings.params.to_params(), false);
+    }
+
+    /// [`Self::solve_single`] with the set's albedo divided out of the
+    /// photograph first ("use the albedo from photometric stereo"), to
+    /// compare with the single photograph's own albedo estimate.
+    pub fn solve_single_with_set_albedo(&mut self, index: usize) {
+        self.session
+            .solve_single(index, self.settings.params.to_params(), true);
     }
 
     /// The comparison of one photograph solved alone with the set.
@@ -407,6 +415,7 @@ impl ViewerApp {
             Action::Open(path) => self.open_paths(ctx, &[path]),
             Action::OpenSet(paths) => self.open_paths(ctx, &paths),
             Action::SolveSingle(index) => self.solve_single(index),
+            Action::SolveSingleWithSetAlbedo(index) => self.solve_single_with_set_albedo(index),
             Action::LoadCamera(path) => self.load_camera(&path),
             Action::LoadMask(layer, path) => self.load_mask(layer, &path),
             Action::SaveMask(layer, path) => {

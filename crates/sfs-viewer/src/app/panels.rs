@@ -53,6 +53,8 @@ pub enum Action {
     OpenSet(Vec<PathBuf>),
     /// Solve photograph `index` of the set alone and compare.
     SolveSingle(usize),
+    /// The same with the set's albedo divided out of the photograph first.
+    SolveSingleWithSetAlbedo(usize),
     /// Apply a camera file.
     LoadCamera(PathBuf),
     /// Load a mask PNG into a layer.
@@ -1366,6 +1368,16 @@ impl Panels {
             (Panel2d::Depth, "depth"),
             (Panel2d::DepthError, "depth error"),
         ]];
+        if set_names.is_none()
+            && cx
+                .session
+                .solve
+                .finished
+                .as_ref()
+                .is_some_and(|s| s.albedo_fit.is_some())
+        {
+            rows[0].push((Panel2d::Albedo, "albedo"));
+        }
         if set_names.is_some() {
             // A set's own panels on a row of their own: nine tabs do not
             // fit one row of the image panel.

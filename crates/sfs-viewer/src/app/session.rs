@@ -168,6 +168,44 @@ pub struct CompareState {
     pub failure: Option<String>,
     /// Comparisons finished so far (keys the panel's texture).
     pub completed: usize,
+    /// Whether the photograph was solved with the set's albedo divided out.
+    pub with_set_albedo: bool,
+}
+
+/// Divides `albedo` (a set's: absolute, or `s rho` when `relative`) out of
+/// `problem`'s image: where it is not positive and finite the pixel gets
+/// confidence 0; a relative albedo carries `s`, so the scale becomes 1; the
+/// image and the scale are then divided by the power of two that keeps the
+/// divided image below the top of the range (exact).
+pub fn divide_by_set_albedo(
+    problem: &mut sfs_core::solver::Problem,
+    albedo: &Grid<f64>,
+    relative: bool,
+) {
+    let usable = albedo.map(|a| a.is_finite() && *a > 1e-6);
+    let (w, h) = problem.image.size();
+    let confidence = Grid::from_fn(w, h, |c, r| {
+        let base = problem.confidence.as_ref().map_or(1.0, |k| *k.at(c, r));
+        if *usable.at(c, r) { base } else { 0.0 }
+    });
+    let divided = problem.image.zip_map(albedo, |i, a| {
+        if a.is_finite() && *a > 1e-6 {
+            i / a
+        } else {
+            0.0
+        }
+    });
+    let top = divided.as_slice().iter().copied().fold(0.0, f64::max);
+    let mut divisor = 1.0;
+    while top / divisor >= 0.999 && divisor < 1e12 {
+        divisor *= 2.0;
+    }
+    problem.image = divided.map(|v| v / divisor);
+    if relative {
+        problem.intensity_scale = 1.0;
+    }
+    problem.intensity_scale /= divisor;
+    problem.confidence = Some(confidence);
 }
 
 /// What `Session::export` writes.
@@ -844,8 +882,12 @@ impl Session {
     /// photograph, the set's camera file: its light found by its name; the
     /// painted masks), to compare with the set's finished shape. Needs the
     /// set's result; a failure is kept in [`CompareState::failure`].
-    pub fn solve_single(&mut self, index: usize, params: SolverParams) {
+    /// With `set_albedo` the set's albedo is divided out of the photograph
+    /// (absolute when the set's intensities were measured, else `s rho`
+    /// with `s = 1`) and the solve takes albedo 1.
+    pub fn solve_single(&mut self, index: usize, params: SolverParams, set_albedo: bool) {
         self.compare.photo = index;
+        self.compare.with_set_albedo = set_albedo;
         self.compare.comparison = None;
         self.compare.difference = None;
         self.compare.failure = None;
@@ -877,16 +919,23 @@ impl Session {
                 return;
             }
         };
-        let problem = sfs_core::solver::Problem {
+        let mut problem = sfs_core::solver::Problem {
             camera: doc.camera.intrinsics(),
             object_mask: doc.masks.object_for_solver(),
             confidence: doc.masks.confidence_for_solver(),
             ..prepared.problem
         };
+        let mut params = params;
+        let mut estimate_scale = !prepared.intensity_scale_given;
+        if set_albedo && let Some(set) = &self.solve.set {
+            divide_by_set_albedo(&mut problem, &set.albedo, set.albedo_relative);
+            params.albedo = sfs_core::params::AlbedoChoice::One;
+            estimate_scale = estimate_scale && !set.albedo_relative;
+        }
         let job = worker.submit(SolveRequest {
             problem,
             params,
-            estimate_scale: !prepared.intensity_scale_given,
+            estimate_scale,
             known_depths: Vec::new(),
         });
         self.compare.job = Some(job);

@@ -37,6 +37,8 @@ pub struct SetView {
     pub residual_photo: usize,
     /// The photograph to solve alone.
     pub single_photo: usize,
+    /// Solve it with the set's albedo divided out.
+    pub single_with_albedo: bool,
     /// The layer the mask tools paint: `None` the set-wide masks, else
     /// that photograph's own confidence.
     pub paint_photo: Option<usize>,
@@ -60,6 +62,23 @@ fn white_point(values: &Grid<f64>) -> f64 {
     }
     let k = (finite.len() - 1) * 99 / 100;
     *finite.select_nth_unstable_by(k, f64::total_cmp).1
+}
+
+/// The albedo the finished single-image solve used, NaN off its surface:
+/// with `--albedo auto` the estimate when it was used, else 1 (`None`
+/// without a finished solve or without `auto`).
+fn single_albedo(session: &Session) -> Option<Grid<f64>> {
+    let solution = session.solve.finished.as_ref()?;
+    let fit = solution.albedo_fit.as_ref()?;
+    Some(fit.albedo.zip_map(&solution.depth, |a, z| {
+        if !z.is_finite() {
+            f64::NAN
+        } else if fit.used {
+            *a
+        } else {
+            1.0
+        }
+    }))
 }
 
 /// Normal-map colours of `normals` (black where there is no surface).
@@ -104,13 +123,18 @@ impl SetView {
         let solution: Option<&PhotometricSolution> = session.solve.set.as_deref();
         match panel {
             Panel2d::Albedo => {
-                let solution = solution?;
+                // A set's albedo, or the albedo one photograph was solved
+                // with (`auto`: the estimate when used, else 1).
+                let albedo = match solution {
+                    Some(set) => set.albedo.clone(),
+                    None => single_albedo(session)?,
+                };
                 if self.albedo.as_ref().is_none_or(|b| b.key != key) {
-                    let white = white_point(&solution.albedo);
+                    let white = white_point(&albedo);
                     let mapping = images::DisplayMapping {
                         exposure: 1.0 / white,
                     };
-                    let image = mapping.image(&solution.albedo);
+                    let image = mapping.image(&albedo);
                     self.albedo = Some(Built {
                         key,
                         texture: images::load_texture(ctx, "albedo", image, options),
@@ -177,6 +201,24 @@ impl SetView {
             .and_then(|d| d.set.as_ref())
             .map(|s| s.names())
             .unwrap_or_default();
+        if panel == Panel2d::Albedo
+            && solution.is_none()
+            && let Some(fit) = session
+                .solve
+                .finished
+                .as_ref()
+                .and_then(|s| s.albedo_fit.as_ref())
+        {
+            return Some(format!(
+                "albedo (relative, white 1){}: {}",
+                if fit.used {
+                    ""
+                } else {
+                    " not used, shown as 1"
+                },
+                fit.summary
+            ));
+        }
         match panel {
             Panel2d::Albedo => solution.map(|s| {
                 format!(
@@ -297,9 +339,22 @@ impl SetView {
                 )
                 .clicked()
             {
-                cx.actions.push(Action::SolveSingle(self.single_photo));
+                cx.actions.push(if self.single_with_albedo {
+                    Action::SolveSingleWithSetAlbedo(self.single_photo)
+                } else {
+                    Action::SolveSingle(self.single_photo)
+                });
             }
         });
+        ui.checkbox(
+            &mut self.single_with_albedo,
+            "use the albedo from photometric stereo",
+        )
+        .on_hover_text(
+            "Divide the set's albedo out of the photograph before solving it alone: what the \
+             single-image method gives with the right albedo, to compare with its own \
+             estimate (parameters: 'estimate the albedo')",
+        );
         let compare = &cx.session.compare;
         if compare.running {
             ui.horizontal(|ui| {
@@ -316,9 +371,14 @@ impl SetView {
         if let Some(c) = &compare.comparison {
             let name = names.get(compare.photo).map_or("?", String::as_str);
             ui.label(format!(
-                "{name} alone against the set: RSE {:.4}, scaled {:.4} (k = {:.4}), normals \
+                "{name} alone{} against the set: RSE {:.4}, scaled {:.4} (k = {:.4}), normals \
                  {:.1}° mean, {:.1}° median apart; depth range {:.4} (set) vs {:.4} (alone), \
                  {} pixels",
+                if compare.with_set_albedo {
+                    " (the set's albedo divided out)"
+                } else {
+                    ""
+                },
                 c.rse_to_set,
                 c.rse_to_set_scaled,
                 c.scale_to_set,

@@ -1,0 +1,436 @@
+//! `bench --part albedo`: shape and albedo from one photograph. Each scene
+//! (Sombrero, Bunny, Dragon, Suzanne; 256 px, Suzanne twice as wide; quick:
+//! 64 px) is rendered with the light at the optical centre and with a flash
+//! beside the lens, times each albedo pattern of `synth --ps-leds`
+//! (uniform, patches, lines, smooth; normalised to a maximum of 1), clean
+//! and at noise sigma 5. Each is solved at the defaults with albedo 1, with
+//! `--albedo auto` and with the true albedo divided out; the columns are
+//! the three RSEs, whether auto used its estimate (and the misfit ratio
+//! that decided), the albedo's median error (`scene::photometric::
+//! albedo_error`, up to one scale) and auto's seconds. With the shared
+//! photographs, LED 4 alone at half size (its scale from the nose's
+//! distance in the seven-photo photometric-stereo depth) with albedo 1,
+//! auto and the set's albedo given, each against the set (mean normal
+//! angle, depth range), and the pictures `albedo-face-*.png`. Writes
+//! `albedo.md` and `albedo.json`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use sfs_core::grid::Grid;
+use sfs_core::io;
+use sfs_core::light::PointLight;
+use sfs_core::metrics;
+use sfs_core::params::{AlbedoChoice, SolverParams};
+use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput};
+use sfs_core::scene::photometric::{albedo_error, albedo_pattern};
+use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero_lit};
+use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
+use sfs_core::solver::photometric::{
+    PhotometricParams, SingleComparison, compare_single, solve_photometric,
+};
+use sfs_core::solver::{Method, Problem, Solution, solve};
+
+use super::robustness::mesh_file;
+use super::{BenchArgs, wanted};
+
+/// Seed of the noise.
+const SEED: u64 = 1;
+/// The noise of the noisy rows, on the 0..255 scale.
+const NOISE: f64 = 5.0;
+/// The albedo patterns.
+const PATTERNS: [&str; 4] = ["uniform", "patches", "lines", "smooth"];
+
+/// One render solved three ways.
+#[derive(Clone, Debug, Serialize)]
+pub struct AlbedoRow {
+    /// Scene name.
+    pub scene: String,
+    /// `WxH`.
+    pub size: String,
+    /// `centred` or `beside`.
+    pub light: String,
+    /// The albedo pattern.
+    pub pattern: String,
+    /// Noise sigma on the 0..255 scale.
+    pub noise: f64,
+    /// RSE with albedo 1.
+    pub rse_one: f64,
+    /// RSE with `--albedo auto`.
+    pub rse_auto: f64,
+    /// RSE with the true albedo divided out.
+    pub rse_true: f64,
+    /// Whether auto used its estimate.
+    pub auto_used: bool,
+    /// The estimate's misfit over albedo 1's (NaN: no edge found).
+    pub misfit_ratio: f64,
+    /// Median relative error of auto's albedo (the estimate when used,
+    /// else 1) against the truth, up to one scale.
+    pub albedo_error: f64,
+    /// The same of albedo 1.
+    pub albedo_error_one: f64,
+    /// Seconds of the auto solve.
+    pub seconds: f64,
+}
+
+/// LED 4 alone against the seven photographs.
+#[derive(Clone, Debug, Serialize)]
+pub struct FaceAlbedoRow {
+    /// `albedo 1`, `auto` or `the set's albedo given`.
+    pub albedo: String,
+    /// Whether auto used its estimate (auto only).
+    pub auto_used: Option<bool>,
+    /// The comparison with the set's depth.
+    pub comparison: Option<SingleComparison>,
+    /// Seconds of the solve (its known-depth search included).
+    pub seconds: f64,
+}
+
+/// The part's report.
+#[derive(Clone, Debug, Serialize)]
+pub struct AlbedoReport {
+    /// The command line.
+    pub command: String,
+    /// The renders.
+    pub rows: Vec<AlbedoRow>,
+    /// The shared face (empty when its photographs are missing).
+    pub face: Vec<FaceAlbedoRow>,
+    /// Scenes that could not be rendered.
+    pub skipped: Vec<String>,
+}
+
+/// The lights of the two set-ups, in units of the scene.
+fn setups() -> [(&'static str, Vec<PointLight>); 2] {
+    [
+        ("centred", Vec::new()),
+        (
+            "beside",
+            vec![PointLight {
+                position: [0.3, 0.0, 0.0],
+                direction: None,
+                mu: 0.0,
+                intensity: 1.0,
+            }],
+        ),
+    ]
+}
+
+/// The scene `name` at `side` pixels (Suzanne twice as wide) under `lights`.
+fn render(name: &str, meshes: &Path, side: usize, lights: &[PointLight]) -> Result<Scene> {
+    let Some(file) = mesh_file(name)? else {
+        return Ok(sombrero_lit(side, side, lights));
+    };
+    let path = meshes.join(file);
+    let width = if name == "suzanne" { 2 * side } else { side };
+    mesh::load_obj(&path)
+        .and_then(|m| mesh::render_lit(&m, width, side, &mesh::Placement::default(), lights, name))
+        .with_context(|| format!("{name}: {}", path.display()))
+}
+
+/// A problem of `scene` with `image` under `lights`.
+fn problem_of(scene: &Scene, image: Grid<f64>, lights: &[PointLight]) -> Problem {
+    Problem {
+        image,
+        camera: scene.camera,
+        intensity_scale: scene.intensity_scale,
+        object_mask: Some(scene.object_mask.clone()),
+        confidence: None,
+        lights: lights.to_vec(),
+    }
+}
+
+/// The albedo a solve used: auto's estimate when used, else 1.
+fn albedo_used(solution: &Solution, size: (usize, usize)) -> Grid<f64> {
+    match &solution.albedo_fit {
+        Some(fit) if fit.used => fit.albedo.clone(),
+        _ => Grid::filled(size.0, size.1, 1.0),
+    }
+}
+
+/// Runs the part and writes `albedo.md` and `albedo.json`.
+pub fn run(args: &BenchArgs) -> Result<()> {
+    let side = if args.quick { 64 } else { 256 };
+    let auto = SolverParams {
+        albedo: AlbedoChoice::Auto,
+        ..SolverParams::default()
+    };
+    let one = SolverParams::default();
+    let mut rows = Vec::new();
+    let mut skipped = Vec::new();
+    for name in ["sombrero", "bunny", "dragon", "suzanne"] {
+        if !wanted(args, name) {
+            continue;
+        }
+        for (light, lights) in setups() {
+            let scene = match render(name, &args.meshes, side, &lights) {
+                Ok(scene) => scene,
+                Err(e) if name != "sombrero" => {
+                    eprintln!("  skipped {name}: {e:#}");
+                    if !skipped.contains(&name.to_string()) {
+                        skipped.push(name.to_string());
+                    }
+                    break;
+                }
+                Err(e) => return Err(e),
+            };
+            let (w, h) = scene.image.size();
+            for pattern in PATTERNS {
+                let truth = if pattern == "uniform" {
+                    Grid::filled(w, h, 1.0)
+                } else {
+                    albedo_pattern(w, h, pattern)
+                };
+                let top = truth.as_slice().iter().copied().fold(0.0, f64::max);
+                let truth = truth.map(|a| a / top);
+                let clean = scene.image.zip_map(&truth, |i, a| i * a);
+                for noise in [0.0, NOISE] {
+                    let image = if noise > 0.0 {
+                        scene::add_noise(&clean, noise, SEED)
+                    } else {
+                        clean.clone()
+                    };
+                    let divided = image.zip_map(&truth, |i, a| i / a);
+                    let rse = |solution: &Solution| metrics::rse(&solution.depth, &scene.depth_gt);
+                    let plain = solve(&problem_of(&scene, image.clone(), &lights), &one, &mut ())?;
+                    let started = Instant::now();
+                    let estimated =
+                        solve(&problem_of(&scene, image.clone(), &lights), &auto, &mut ())?;
+                    let seconds = started.elapsed().as_secs_f64();
+                    let given = solve(&problem_of(&scene, divided, &lights), &one, &mut ())?;
+                    let fit = estimated.albedo_fit.as_ref();
+                    let row = AlbedoRow {
+                        scene: name.into(),
+                        size: format!("{w}x{h}"),
+                        light: light.into(),
+                        pattern: pattern.into(),
+                        noise,
+                        rse_one: rse(&plain)?,
+                        rse_auto: rse(&estimated)?,
+                        rse_true: rse(&given)?,
+                        auto_used: fit.is_some_and(|f| f.used),
+                        misfit_ratio: fit.map_or(f64::NAN, |f| f.misfit_ratio),
+                        albedo_error: albedo_error(
+                            &albedo_used(&estimated, (w, h)),
+                            &truth,
+                            &scene.object_mask,
+                        ),
+                        albedo_error_one: albedo_error(
+                            &Grid::filled(w, h, 1.0),
+                            &truth,
+                            &scene.object_mask,
+                        ),
+                        seconds,
+                    };
+                    eprintln!(
+                        "  {name} {light} {pattern} sigma {noise}: RSE albedo 1 {:.4}, auto {:.4}{}, true {:.4}",
+                        row.rse_one,
+                        row.rse_auto,
+                        if row.auto_used { " (used)" } else { "" },
+                        row.rse_true
+                    );
+                    rows.push(row);
+                }
+            }
+        }
+    }
+    let face = if wanted(args, "face") && !args.quick {
+        face(args)?
+    } else {
+        Vec::new()
+    };
+    let report = AlbedoReport {
+        command: super::command_line(),
+        rows,
+        face,
+        skipped,
+    };
+    io::write_json(&args.out.join("albedo.json"), &report)?;
+    std::fs::write(args.out.join("albedo.md"), markdown(&report))
+        .with_context(|| format!("cannot write {}", args.out.join("albedo.md").display()))?;
+    Ok(())
+}
+
+/// The working size of the face's solves (half the photographs' width).
+const FACE_SIDE: usize = 648;
+
+/// LED 4 alone with albedo 1, auto and the set's albedo, each scaled by
+/// the nose's distance in the seven-photo depth, against that depth.
+fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
+    let dir = args.real.join("near_ps_human1");
+    let camera = dir.join("calibration.json");
+    if !camera.is_file() {
+        return Ok(Vec::new());
+    }
+    let images: Vec<PathBuf> = (1..=8)
+        .map(|k| dir.join(format!("led{k}.png")))
+        .filter(|p| p.is_file())
+        .collect();
+    let set = PhotoInput {
+        images: images.clone(),
+        camera: CameraSpec::File(camera),
+        lights: LightSpec::CameraFile { picks: Vec::new() },
+        object_mask: Some(dir.join("mask.png")),
+        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
+        photometric_stereo: true,
+        max_side: Some(FACE_SIDE),
+        ..PhotoInput::new(&images[0])
+    };
+    let prepared = photo::prepare(&set)?;
+    let problem = photo::photometric_problem(&prepared, &set)?;
+    let ps = solve_photometric(&problem, &PhotometricParams::default(), &mut ())?;
+    // The nearest point of the set's surface: the nose.
+    let (w, _) = ps.depth.size();
+    let Some((nose, depth)) = ps
+        .depth
+        .as_slice()
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| z.is_finite() && **z > 0.0)
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(q, z)| (q, *z))
+    else {
+        return Ok(Vec::new());
+    };
+    let known = [KnownDepth {
+        column_px: (nose % w) as f64,
+        row_px: (nose / w) as f64,
+        depth,
+    }];
+    let Some(input) = set.one_of_set(3) else {
+        return Ok(Vec::new());
+    };
+    let one = photo::prepare(&input)?;
+    let white = ps
+        .albedo
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|a| a.is_finite() && *a > 0.0)
+        .fold(0.0, f64::max);
+    let set_albedo = ps.albedo.map(|a| {
+        if a.is_finite() && *a > 0.0 {
+            (a / white).max(0.02)
+        } else {
+            1.0
+        }
+    });
+    let mut rows = Vec::new();
+    for (label, params, albedo) in [
+        ("albedo 1", SolverParams::default(), None),
+        (
+            "auto",
+            SolverParams {
+                albedo: AlbedoChoice::Auto,
+                ..SolverParams::default()
+            },
+            None,
+        ),
+        (
+            "the set's albedo given",
+            SolverParams::default(),
+            Some(&set_albedo),
+        ),
+    ] {
+        let mut problem = one.problem.clone();
+        if let Some(albedo) = albedo {
+            // Divided out; the known distance searches the scale, so a
+            // division by the brightest value keeps it below clipping.
+            let divided = problem.image.zip_map(albedo, |i, a| i / a);
+            let top = divided.as_slice().iter().copied().fold(0.0, f64::max);
+            problem.image = divided.map(|v| v / (top * 1.001).max(f64::MIN_POSITIVE));
+        }
+        let started = Instant::now();
+        let (solution, _) =
+            solve_with_known_depths(&mut problem, &params, &Method::Linearised, &known, &mut ())?;
+        let seconds = started.elapsed().as_secs_f64();
+        if label == "auto" {
+            let used = albedo_used(&solution, solution.depth.size());
+            io::write_png16(&args.out.join("albedo-face-auto.png"), &used)?;
+            io::write_png16(&args.out.join("albedo-face-set.png"), &set_albedo)?;
+        }
+        rows.push(FaceAlbedoRow {
+            albedo: label.into(),
+            auto_used: (label == "auto")
+                .then(|| solution.albedo_fit.as_ref().is_some_and(|f| f.used)),
+            comparison: compare_single(&ps.depth, &solution.depth, prepared.problem.camera),
+            seconds,
+        });
+    }
+    Ok(rows)
+}
+
+/// The report as markdown.
+fn markdown(report: &AlbedoReport) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Albedo from one photograph\n");
+    let _ = writeln!(md, "Command: `{}`\n", report.command);
+    let _ = writeln!(
+        md,
+        "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
+         auto used (misfit ratio) | albedo error auto / 1 | auto s |"
+    );
+    let _ = writeln!(
+        md,
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    );
+    for r in &report.rows {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {} ({:.2}) | {:.3} / {:.3} | {:.2} |",
+            r.scene,
+            r.size,
+            r.light,
+            r.pattern,
+            r.noise,
+            r.rse_one,
+            r.rse_auto,
+            r.rse_true,
+            if r.auto_used { "yes" } else { "no" },
+            r.misfit_ratio,
+            r.albedo_error,
+            r.albedo_error_one,
+            r.seconds
+        );
+    }
+    if !report.face.is_empty() {
+        let _ = writeln!(
+            md,
+            "\n## The shared face: LED 4 alone against the seven photographs\n\n\
+             | albedo | auto used | mean / median normal angle (deg) | depth range single / set | s |\n\
+             | --- | --- | --- | --- | --- |"
+        );
+        for f in &report.face {
+            let (angles, ranges) =
+                f.comparison
+                    .as_ref()
+                    .map_or(("-".to_string(), "-".to_string()), |c| {
+                        (
+                            format!(
+                                "{:.1} / {:.1}",
+                                c.mean_normal_angle_deg, c.median_normal_angle_deg
+                            ),
+                            format!("{:.1} / {:.1}", c.single_depth_range, c.set_depth_range),
+                        )
+                    });
+            let _ = writeln!(
+                md,
+                "| {} | {} | {angles} | {ranges} | {:.1} |",
+                f.albedo,
+                f.auto_used.map_or("-", |u| if u { "yes" } else { "no" }),
+                f.seconds
+            );
+        }
+    }
+    if !report.skipped.is_empty() {
+        let _ = writeln!(
+            md,
+            "\nSkipped (mesh missing): {}",
+            report.skipped.join(", ")
+        );
+    }
+    md
+}
