@@ -730,8 +730,25 @@ fn a_set_folder_opens_as_one_document_solves_and_shows_its_panels() {
     assert!(compare.failure.is_none(), "{:?}", compare.failure);
     let c = compare.comparison.as_ref().expect("compared");
     assert!(c.pixels > 100 && c.rse_to_set.is_finite(), "{c:?}");
+    assert!(!compare.with_set_albedo);
+    let alone = c.mean_normal_angle_deg;
     harness.state_mut().show_panel(Panel2d::SingleDifference);
     harness.step();
+    // The same photograph with the set's albedo divided out: compared too.
+    harness.state_mut().solve_single_with_set_albedo(0);
+    step_until(&mut harness, |app| {
+        let c = app.compare_state();
+        !c.running && (c.comparison.is_some() || c.failure.is_some())
+    });
+    let compare = harness.state().compare_state();
+    assert!(compare.failure.is_none(), "{:?}", compare.failure);
+    assert!(compare.with_set_albedo);
+    let c = compare.comparison.as_ref().expect("compared");
+    assert!(
+        c.pixels > 100 && c.mean_normal_angle_deg.is_finite(),
+        "{c:?} (alone: {alone})"
+    );
+    harness.get_by_label("use the albedo from photometric stereo");
 
     // Several photographs given at once: the same set.
     harness

@@ -7,7 +7,8 @@
 //! given) and the estimate (the image divided by it). Each is scored by
 //! how well it reproduces the photograph itself: `sum c (I - rho R)^2`.
 //! The estimate is used when its misfit is at least [`MIN_GAIN`] below
-//! albedo 1's; otherwise the solve is exactly today's. Why a test with the shape: an occluding
+//! albedo 1's, and by more than its edges could gain by fitting the noise
+//! (`AlbedoFit::noise_share`); otherwise the solve is exactly today's. Why a test with the shape: an occluding
 //! contour is a brightness step just like an albedo edge, and taking it
 //! for albedo bends the whole region behind it (measured on uniform mesh
 //! renders, the estimate alone made RSE 2-10x worse); there the shape
@@ -69,6 +70,10 @@ pub struct AlbedoFit {
     pub edge_log_step: f64,
     /// The image's noise the edges were measured against (image units).
     pub noise_sigma: f64,
+    /// The share of albedo 1's misfit the estimate's edges could remove by
+    /// fitting the noise alone (2 sigma^2 per edge on the working copy);
+    /// the estimate must remove more than this and than [`MIN_GAIN`].
+    pub noise_share: f64,
     /// The power of two the divided image and the intensity scale were
     /// divided by (1 when unused).
     pub divisor: f64,
@@ -153,6 +158,7 @@ pub fn apply(
         min_albedo,
         edge_log_step: params.albedo_edge,
         noise_sigma,
+        noise_share: 0.0,
         divisor: 1.0,
         working_side: GATE_SIDE,
         seconds: 0.0,
@@ -165,9 +171,19 @@ pub fn apply(
         fit.seconds = started.elapsed().as_secs_f64();
         return Ok((None, Some(fit)));
     }
-    let ratio = misfit_ratio(problem, &divided, &estimate, divisor, params, observer)?;
+    let misfits = misfit_ratio(
+        problem,
+        &divided,
+        &estimate,
+        divisor,
+        noise_sigma,
+        params,
+        observer,
+    )?;
+    let ratio = misfits.ratio;
     fit.misfit_ratio = ratio;
-    fit.used = ratio < 1.0 - MIN_GAIN;
+    fit.noise_share = misfits.noise_share;
+    fit.used = ratio < 1.0 - MIN_GAIN.max(misfits.noise_share);
     fit.summary = if fit.used {
         format!(
             "albedo estimated: {:.1} % of the object beside an albedo edge, down to {:.2} of \
@@ -250,9 +266,10 @@ fn misfit_ratio(
     divided: &Problem,
     estimate: &AlbedoEstimate,
     divisor: f64,
+    noise_sigma: f64,
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
-) -> Result<f64, SolveError> {
+) -> Result<Misfits, SolveError> {
     let params = SolverParams {
         albedo: AlbedoChoice::One,
         ..params.clone()
@@ -276,11 +293,30 @@ fn misfit_ratio(
         e_one += c * (i - r_one) * (i - r_one);
         e_with += c * (i - r_with) * (i - r_with);
     }
+    // What the estimate's edges could remove by fitting noise alone: 2
+    // sigma^2 per edge (a free step each), the edges and the noise as the
+    // working copy sees them (an edge spans 1/f of its pairs there, the
+    // noise of an f x f average is sigma / f).
+    let f = problem.image.width().max(problem.image.height()) as f64 / sw.max(sh) as f64;
+    let noise_misfit = 2.0 * estimate.edge_pairs as f64 / f * (noise_sigma / f).powi(2);
     Ok(if e_one > 0.0 {
-        e_with / e_one
+        Misfits {
+            ratio: e_with / e_one,
+            noise_share: noise_misfit / e_one,
+        }
     } else {
-        f64::NAN
+        Misfits {
+            ratio: f64::NAN,
+            noise_share: 0.0,
+        }
     })
+}
+
+/// The estimate's misfit over albedo 1's, and the share of albedo 1's
+/// misfit its edges could remove by fitting the noise alone.
+struct Misfits {
+    ratio: f64,
+    noise_share: f64,
 }
 
 #[cfg(test)]

@@ -1376,7 +1376,8 @@ impl Panels {
                 .as_ref()
                 .is_some_and(|s| s.albedo_fit.is_some())
         {
-            rows[0].push((Panel2d::Albedo, "albedo"));
+            // On a row of its own: a sixth tab does not fit the first.
+            rows.push(vec![(Panel2d::Albedo, "albedo")]);
         }
         if set_names.is_some() {
             // A set's own panels on a row of their own: nine tabs do not
