@@ -16,12 +16,16 @@
 //! 1 is decided with the shape (`solver::albedo_fit`), not here. Pure
 //! functions over `grid`, polling a `Cancel` between iterations.
 
+use rayon::prelude::*;
+
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 
 /// The default edge step `tau`: the smallest change of log brightness
 /// between neighbours taken as an albedo edge (0.2: a ratio of 1.22).
 pub const DEFAULT_EDGE_LOG_STEP: f64 = 0.2;
+/// Elements per partial sum of the integration's dot products.
+const DOT_CHUNK: usize = 8192;
 /// The lowest albedo an estimate holds (relative to the common material).
 pub const ALBEDO_FLOOR: f64 = 0.05;
 /// The object's albedo percentile that is set to 1.
@@ -272,24 +276,28 @@ struct Stencil {
 }
 
 impl Stencil {
-    /// `A v`.
+    /// `A v`, each pixel gathering its own links (rows in parallel).
     fn apply(&self, v: &[f64], out: &mut [f64]) {
         let w = self.width;
-        for (p, o) in out.iter_mut().enumerate() {
-            *o = self.screen[p] * v[p];
-        }
-        for p in 0..v.len() {
-            if self.right[p] > 0.0 {
-                let d = self.right[p] * (v[p + 1] - v[p]);
-                out[p] -= d;
-                out[p + 1] += d;
+        out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+            for (c, o) in row.iter_mut().enumerate() {
+                let p = r * w + c;
+                let mut sum = self.screen[p] * v[p];
+                if self.right[p] > 0.0 {
+                    sum += self.right[p] * (v[p] - v[p + 1]);
+                }
+                if c > 0 && self.right[p - 1] > 0.0 {
+                    sum += self.right[p - 1] * (v[p] - v[p - 1]);
+                }
+                if self.down[p] > 0.0 {
+                    sum += self.down[p] * (v[p] - v[p + w]);
+                }
+                if r > 0 && self.down[p - w] > 0.0 {
+                    sum += self.down[p - w] * (v[p] - v[p - w]);
+                }
+                *o = sum;
             }
-            if self.down[p] > 0.0 {
-                let d = self.down[p] * (v[p + w] - v[p]);
-                out[p] -= d;
-                out[p + w] += d;
-            }
-        }
+        });
     }
 
     /// The diagonal of `A`.
@@ -372,18 +380,23 @@ fn conjugate_gradients(
     const RELATIVE_TOLERANCE: f64 = 1e-4;
     let n = x.len();
     let diagonal = stencil.diagonal();
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    // Partial sums over fixed chunks, added in order: the same bits on
+    // every run and any number of threads.
+    let dot = |a: &[f64], b: &[f64]| {
+        a.par_chunks(DOT_CHUNK)
+            .zip(b.par_chunks(DOT_CHUNK))
+            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+            .collect::<Vec<f64>>()
+            .iter()
+            .sum::<f64>()
+    };
     let mut ax = vec![0.0; n];
     stencil.apply(x, &mut ax);
     let mut r: Vec<f64> = stencil.rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
     let precondition = |r: &[f64], z: &mut [f64]| {
-        for p in 0..n {
-            z[p] = if diagonal[p] > 0.0 {
-                r[p] / diagonal[p]
-            } else {
-                0.0
-            };
-        }
+        z.par_iter_mut()
+            .zip(r.par_iter().zip(diagonal.par_iter()))
+            .for_each(|(z, (r, d))| *z = if *d > 0.0 { r / d } else { 0.0 });
     };
     let mut z = vec![0.0; n];
     precondition(&r, &mut z);
@@ -404,17 +417,20 @@ fn conjugate_gradients(
             return Ok(iteration);
         }
         let step = rz / curvature;
-        for p in 0..n {
-            x[p] += step * d[p];
-            r[p] -= step * ad[p];
-        }
+        x.par_iter_mut()
+            .zip(r.par_iter_mut())
+            .zip(d.par_iter().zip(ad.par_iter()))
+            .for_each(|((x, r), (d, ad))| {
+                *x += step * d;
+                *r -= step * ad;
+            });
         precondition(&r, &mut z);
         let rz_next = dot(&r, &z);
         let beta = rz_next / rz;
         rz = rz_next;
-        for p in 0..n {
-            d[p] = z[p] + beta * d[p];
-        }
+        d.par_iter_mut()
+            .zip(z.par_iter())
+            .for_each(|(d, z)| *d = z + beta * *d);
     }
     Ok(MAX_ITERATIONS)
 }
