@@ -797,17 +797,8 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     }
     io::write_mask_png(&stage.path("occlusion_edges.png"), &occlusion_edges)?;
     if let Some(fit) = &solution.albedo_fit {
-        // The albedo the solve used (the estimate, or 1 where it was not
-        // used), relative: the object's 90th percentile is 1.
-        let used = fit.albedo.zip_map(&solution.depth, |a, z| {
-            if !z.is_finite() {
-                f64::NAN
-            } else if fit.used {
-                *a
-            } else {
-                1.0
-            }
-        });
+        // Relative: the object's 90th percentile is 1.
+        let used = fit.used_albedo(&solution.depth);
         io::write_npy_f32(&stage.path("albedo.npy"), &used)?;
         io::write_png16(
             &stage.path("albedo.png"),

@@ -448,19 +448,19 @@ mod tests {
         (shading.zip_map(&albedo, |s, a| s * a), albedo)
     }
 
+    /// [`estimate`] over every pixel of `image` at the default edge step,
+    /// without noise.
+    fn clean_estimate(image: &Grid<f64>) -> AlbedoEstimate {
+        let (w, h) = image.size();
+        let all = Grid::filled(w, h, true);
+        estimate(image, &all, &all, DEFAULT_EDGE_LOG_STEP, 0.0, Cancel::NEVER)
+            .expect("not cancelled")
+    }
+
     #[test]
     fn a_patch_is_found_and_shading_is_left_alone() {
         let (image, truth) = patched(0.5);
-        let all = Grid::filled(40, 30, true);
-        let found = estimate(
-            &image,
-            &all,
-            &all,
-            DEFAULT_EDGE_LOG_STEP,
-            0.0,
-            Cancel::NEVER,
-        )
-        .expect("not cancelled");
+        let found = clean_estimate(&image);
         for (a, t) in found.albedo.as_slice().iter().zip(truth.as_slice()) {
             assert!((a - t).abs() < 0.01, "albedo {a} against {t}");
         }
@@ -468,15 +468,7 @@ mod tests {
         assert!(found.explained_share > 0.3, "{}", found.explained_share);
         // Smooth shading alone has no edge: the albedo stays 1.
         let (shading, _) = patched(1.0);
-        let none = estimate(
-            &shading,
-            &all,
-            &all,
-            DEFAULT_EDGE_LOG_STEP,
-            0.0,
-            Cancel::NEVER,
-        )
-        .expect("not cancelled");
+        let none = clean_estimate(&shading);
         assert_eq!(none.edge_pairs, 0);
         assert!(none.albedo.as_slice().iter().all(|&a| a == 1.0));
     }
@@ -484,12 +476,7 @@ mod tests {
     #[test]
     fn the_estimate_is_invariant_to_exposure() {
         let (image, _) = patched(0.6);
-        let all = Grid::filled(40, 30, true);
-        let at = |k: f64| {
-            estimate(&image.map(|v| v * k), &all, &all, 0.2, 0.0, Cancel::NEVER)
-                .expect("not cancelled")
-                .albedo
-        };
+        let at = |k: f64| clean_estimate(&image.map(|v| v * k)).albedo;
         let (a, b) = (at(1.0), at(0.25));
         for (x, y) in a.as_slice().iter().zip(b.as_slice()) {
             assert!((x - y).abs() < 1e-9, "{x} {y}");

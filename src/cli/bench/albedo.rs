@@ -15,7 +15,7 @@
 //! `albedo.md` and `albedo.json`.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -28,14 +28,16 @@ use sfs_core::metrics;
 use sfs_core::params::{AlbedoChoice, SolverParams};
 use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput};
 use sfs_core::scene::photometric::{albedo_error, albedo_pattern};
-use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero_lit};
+use sfs_core::scene::{self, Scene};
+use sfs_core::solver::albedo_fit::divide_out;
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
 use sfs_core::solver::photometric::{
     PhotometricParams, SingleComparison, compare_single, solve_photometric,
 };
 use sfs_core::solver::{Method, Problem, Solution, solve};
 
-use super::robustness::mesh_file;
+use super::lights::render;
+use super::robustness::problem;
 use super::{BenchArgs, wanted};
 
 /// Seed of the noise.
@@ -119,35 +121,22 @@ fn setups() -> [(&'static str, Vec<PointLight>); 2] {
     ]
 }
 
-/// The scene `name` at `side` pixels (Suzanne twice as wide) under `lights`.
-fn render(name: &str, meshes: &Path, side: usize, lights: &[PointLight]) -> Result<Scene> {
-    let Some(file) = mesh_file(name)? else {
-        return Ok(sombrero_lit(side, side, lights));
-    };
-    let path = meshes.join(file);
-    let width = if name == "suzanne" { 2 * side } else { side };
-    mesh::load_obj(&path)
-        .and_then(|m| mesh::render_lit(&m, width, side, &mesh::Placement::default(), lights, name))
-        .with_context(|| format!("{name}: {}", path.display()))
-}
-
 /// A problem of `scene` with `image` under `lights`.
 fn problem_of(scene: &Scene, image: Grid<f64>, lights: &[PointLight]) -> Problem {
     Problem {
-        image,
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
         lights: lights.to_vec(),
+        ..problem(scene, image)
     }
 }
 
-/// The albedo a solve used: auto's estimate when used, else 1.
-fn albedo_used(solution: &Solution, size: (usize, usize)) -> Grid<f64> {
+/// The albedo a solve used (auto's estimate when used, else 1), NaN off
+/// its surface.
+fn albedo_used(solution: &Solution) -> Grid<f64> {
     match &solution.albedo_fit {
-        Some(fit) if fit.used => fit.albedo.clone(),
-        _ => Grid::filled(size.0, size.1, 1.0),
+        Some(fit) => fit.used_albedo(&solution.depth),
+        None => solution
+            .depth
+            .map(|z| if z.is_finite() { 1.0 } else { f64::NAN }),
     }
 }
 
@@ -214,7 +203,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         auto_used: fit.is_some_and(|f| f.used),
                         misfit_ratio: fit.map_or(f64::NAN, |f| f.misfit_ratio),
                         albedo_error: albedo_error(
-                            &albedo_used(&estimated, (w, h)),
+                            &albedo_used(&estimated),
                             &truth,
                             &scene.object_mask,
                         ),
@@ -335,20 +324,18 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
             Some(&set_albedo),
         ),
     ] {
-        let mut problem = one.problem.clone();
-        if let Some(albedo) = albedo {
-            // Divided out; the known distance searches the scale, so a
-            // division by the brightest value keeps it below clipping.
-            let divided = problem.image.zip_map(albedo, |i, a| i / a);
-            let top = divided.as_slice().iter().copied().fold(0.0, f64::max);
-            problem.image = divided.map(|v| v / (top * 1.001).max(f64::MIN_POSITIVE));
-        }
+        // Divided out (the known distance searches the scale).
+        let mut problem = match albedo {
+            Some(albedo) => divide_out(&one.problem, albedo).0,
+            None => one.problem.clone(),
+        };
         let started = Instant::now();
         let (solution, _) =
             solve_with_known_depths(&mut problem, &params, &Method::Linearised, &known, &mut ())?;
         let seconds = started.elapsed().as_secs_f64();
         if label == "auto" {
-            let used = albedo_used(&solution, solution.depth.size());
+            // White off the surface, as the set's picture.
+            let used = albedo_used(&solution).map(|a| if a.is_finite() { *a } else { 1.0 });
             io::write_png16(&args.out.join("albedo-face-auto.png"), &used)?;
             io::write_png16(&args.out.join("albedo-face-set.png"), &set_albedo)?;
         }

@@ -84,13 +84,16 @@ fn setups() -> Vec<(&'static str, Vec<PointLight>)> {
     ]
 }
 
-fn render(name: &str, meshes: &Path, side: usize, lights: &[PointLight]) -> Result<Scene> {
-    let file = match name {
-        "sombrero" => return Ok(sombrero_lit(side, side, lights)),
-        "bunny" => "stanford-bunny.obj",
-        "dragon" => "dragon.obj",
-        "suzanne" => "suzanne.obj",
-        other => anyhow::bail!("no scene called {other}"),
+/// The scene `name` at `side` pixels (Suzanne twice as wide) under
+/// `lights` (the albedo part renders with it too).
+pub(super) fn render(
+    name: &str,
+    meshes: &Path,
+    side: usize,
+    lights: &[PointLight],
+) -> Result<Scene> {
+    let Some(file) = super::robustness::mesh_file(name)? else {
+        return Ok(sombrero_lit(side, side, lights));
     };
     let path = meshes.join(file);
     let width = if name == "suzanne" { 2 * side } else { side };

@@ -29,7 +29,7 @@ use serde::Serialize;
 
 use super::problem::{Problem, SATURATED, Solution, SolveError, SolveObserver};
 use super::working::{Forward, working_copy};
-use crate::albedo::{self, AlbedoEstimate};
+use crate::albedo;
 use crate::cancel::Cancel;
 use crate::grid::Grid;
 use crate::params::{AlbedoChoice, SolverParams};
@@ -86,6 +86,21 @@ pub struct AlbedoFit {
 }
 
 impl AlbedoFit {
+    /// The albedo the solve used, NaN where `depth` has no surface: the
+    /// estimate when [`Self::used`], else 1 (what `albedo.npy` holds and
+    /// the viewer's albedo tab shows).
+    pub fn used_albedo(&self, depth: &Grid<f64>) -> Grid<f64> {
+        self.albedo.zip_map(depth, |a, z| {
+            if !z.is_finite() {
+                f64::NAN
+            } else if self.used {
+                *a
+            } else {
+                1.0
+            }
+        })
+    }
+
     /// Puts the albedo back into `solution` (its reprojection and
     /// brightness scale become the photograph's: `rho * divisor * R`, `I_ref
     /// * divisor`) and keeps the fit in it.
@@ -148,9 +163,9 @@ pub fn apply(
         .filter(|(_, o)| **o)
         .map(|(a, _)| *a)
         .fold(1.0, f64::min);
-    let (divided, divisor) = divide(problem, &estimate.albedo, &object);
+    let (divided, divisor) = divide_out(problem, &estimate.albedo);
     let mut fit = AlbedoFit {
-        albedo: estimate.albedo.clone(),
+        albedo: estimate.albedo,
         used: false,
         misfit_ratio: f64::NAN,
         edge_share: estimate.edge_share,
@@ -171,19 +186,21 @@ pub fn apply(
         fit.seconds = started.elapsed().as_secs_f64();
         return Ok((None, Some(fit)));
     }
-    let misfits = misfit_ratio(
-        problem,
-        &divided,
-        &estimate,
-        divisor,
-        noise_sigma,
-        params,
-        observer,
-    )?;
-    let ratio = misfits.ratio;
+    let misfits = misfits(problem, &divided, &fit.albedo, divisor, params, observer)?;
+    // What the estimate's edges could remove by fitting noise alone: 2
+    // sigma^2 per edge (a free step each), the edges and the noise as the
+    // working copy sees them (an edge spans 1/f of its pairs there, the
+    // noise of an f x f average is sigma / f).
+    let f = misfits.reduction;
+    let noise_misfit = 2.0 * estimate.edge_pairs as f64 / f * (noise_sigma / f).powi(2);
+    let (ratio, noise_share) = if misfits.one > 0.0 {
+        (misfits.with / misfits.one, noise_misfit / misfits.one)
+    } else {
+        (f64::NAN, 0.0)
+    };
     fit.misfit_ratio = ratio;
-    fit.noise_share = misfits.noise_share;
-    fit.used = ratio < 1.0 - MIN_GAIN.max(misfits.noise_share);
+    fit.noise_share = noise_share;
+    fit.used = ratio < 1.0 - MIN_GAIN.max(noise_share);
     fit.summary = if fit.used {
         format!(
             "albedo estimated: {:.1} % of the object beside an albedo edge, down to {:.2} of \
@@ -197,14 +214,12 @@ pub fn apply(
     } else {
         format!(
             "albedo 1: the estimated albedo ({:.1} % of the object beside an edge) reproduces \
-             the photograph {} with its shape than albedo 1 (misfit x{ratio:.2}): its edges \
-             are taken for shading (occluding contours, creases)",
+             the photograph with its shape x{ratio:.2} as well as albedo 1, short of the {:.0} % \
+             it must remove (the prior's cost of its edges, and what they could gain by \
+             fitting the noise): its edges are taken for shading (occluding contours, creases, \
+             noise)",
             100.0 * fit.edge_share,
-            if ratio.is_finite() {
-                "no better"
-            } else {
-                "not measurably better"
-            }
+            100.0 * MIN_GAIN.max(fit.noise_share)
         )
     };
     fit.seconds = started.elapsed().as_secs_f64();
@@ -216,30 +231,35 @@ pub fn apply(
     }
 }
 
-/// The problem with its image divided by `albedo` and by the power of two
-/// that keeps every divided object pixel below [`SATURATED`]; the intensity
-/// scale is divided alike, and pixels clipped as taken get confidence 0
-/// (their value is only a lower bound).
-fn divide(problem: &Problem, albedo: &Grid<f64>, object: &Grid<bool>) -> (Problem, f64) {
-    let raised = problem.image.zip_map(albedo, |i, a| i / a);
-    let top = raised
-        .as_slice()
-        .iter()
-        .zip(problem.image.as_slice())
-        .zip(object.as_slice())
-        .filter(|((_, i), o)| **o && **i < SATURATED)
-        .map(|((v, _), _)| *v)
+/// `problem` with its image divided by `albedo` (any scale) and by the
+/// power of two that keeps every divided object pixel below [`SATURATED`];
+/// the intensity scale is divided by that power too (exact), and returned
+/// with it. Pixels clipped as taken (their value is only a lower bound)
+/// and pixels whose albedo is not positive and finite (value 0) get
+/// confidence 0. The one division of a known or estimated albedo out of a
+/// problem: `--albedo auto`, the viewer's "use the albedo from photometric
+/// stereo" and the albedo bench.
+pub fn divide_out(problem: &Problem, albedo: &Grid<f64>) -> (Problem, f64) {
+    let usable = |a: f64| a.is_finite() && a > 0.0;
+    let raised = problem
+        .image
+        .zip_map(albedo, |i, a| if usable(*a) { i / a } else { 0.0 });
+    let in_object = |q: usize| problem.object_mask.as_ref().is_none_or(|m| m.as_slice()[q]);
+    let top = (0..raised.len())
+        .filter(|&q| in_object(q) && problem.image.as_slice()[q] < SATURATED)
+        .map(|q| raised.as_slice()[q])
         .fold(0.0, f64::max);
     let mut divisor = 1.0;
-    while top / divisor >= SATURATED * 0.999 && divisor < 1e6 {
+    while top / divisor >= SATURATED * 0.999 && divisor < 1e12 {
         divisor *= 2.0;
     }
-    let image = raised.map(|v| v / divisor);
-    let clipped = problem.image.map(|&i| i >= SATURATED);
-    let confidence = if clipped.as_slice().iter().any(|&c| c) {
-        let (w, h) = image.size();
+    let untrusted = problem
+        .image
+        .zip_map(albedo, |i, a| *i >= SATURATED || !usable(*a));
+    let confidence = if untrusted.as_slice().iter().any(|&u| u) {
+        let (w, h) = raised.size();
         Some(Grid::from_fn(w, h, |c, r| {
-            if *clipped.at(c, r) {
+            if *untrusted.at(c, r) {
                 0.0
             } else {
                 problem.confidence.as_ref().map_or(1.0, |k| *k.at(c, r))
@@ -250,7 +270,7 @@ fn divide(problem: &Problem, albedo: &Grid<f64>, object: &Grid<bool>) -> (Proble
     };
     (
         Problem {
-            image,
+            image: raised.map(|v| v / divisor),
             intensity_scale: problem.intensity_scale / divisor,
             confidence,
             ..problem.clone()
@@ -259,14 +279,14 @@ fn divide(problem: &Problem, albedo: &Grid<f64>, object: &Grid<bool>) -> (Proble
     )
 }
 
-/// The estimate's misfit to the photograph over albedo 1's, each solved on
-/// the working copy: `sum c (I - rho d R)^2` over pixels both solved.
-fn misfit_ratio(
+/// The misfits to the photograph of albedo 1 and of the estimate, each
+/// solved on the working copy: `sum c (I - rho d R)^2` over pixels both
+/// solved.
+fn misfits(
     problem: &Problem,
     divided: &Problem,
-    estimate: &AlbedoEstimate,
+    estimate: &Grid<f64>,
     divisor: f64,
-    noise_sigma: f64,
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Misfits, SolveError> {
@@ -277,11 +297,15 @@ fn misfit_ratio(
     let plain = working_copy(problem, GATE_SIDE);
     let work = working_copy(divided, GATE_SIDE);
     let (sw, sh) = plain.image.size();
-    let albedo = crate::resample::resize_area(&estimate.albedo, sw, sh, Cancel::NEVER)
+    let albedo = crate::resample::resize_area(estimate, sw, sh, Cancel::NEVER)
         .map_err(|_| SolveError::Cancelled)?;
     let one = super::driver::solve(&plain, &params, &mut Forward(observer))?;
     let with = super::driver::solve(&work, &params, &mut Forward(observer))?;
-    let (mut e_one, mut e_with) = (0.0, 0.0);
+    let mut misfits = Misfits {
+        one: 0.0,
+        with: 0.0,
+        reduction: problem.image.width().max(problem.image.height()) as f64 / sw.max(sh) as f64,
+    };
     for q in 0..plain.image.len() {
         if !(one.depth.as_slice()[q].is_finite() && with.depth.as_slice()[q].is_finite()) {
             continue;
@@ -290,33 +314,18 @@ fn misfit_ratio(
         let i = plain.image.as_slice()[q];
         let r_one = one.reprojection.as_slice()[q];
         let r_with = albedo.as_slice()[q] * divisor * with.reprojection.as_slice()[q];
-        e_one += c * (i - r_one) * (i - r_one);
-        e_with += c * (i - r_with) * (i - r_with);
+        misfits.one += c * (i - r_one) * (i - r_one);
+        misfits.with += c * (i - r_with) * (i - r_with);
     }
-    // What the estimate's edges could remove by fitting noise alone: 2
-    // sigma^2 per edge (a free step each), the edges and the noise as the
-    // working copy sees them (an edge spans 1/f of its pairs there, the
-    // noise of an f x f average is sigma / f).
-    let f = problem.image.width().max(problem.image.height()) as f64 / sw.max(sh) as f64;
-    let noise_misfit = 2.0 * estimate.edge_pairs as f64 / f * (noise_sigma / f).powi(2);
-    Ok(if e_one > 0.0 {
-        Misfits {
-            ratio: e_with / e_one,
-            noise_share: noise_misfit / e_one,
-        }
-    } else {
-        Misfits {
-            ratio: f64::NAN,
-            noise_share: 0.0,
-        }
-    })
+    Ok(misfits)
 }
 
-/// The estimate's misfit over albedo 1's, and the share of albedo 1's
-/// misfit its edges could remove by fitting the noise alone.
+/// The two misfits of [`misfits`] and how much smaller the working copy is
+/// (its longest side's ratio).
 struct Misfits {
-    ratio: f64,
-    noise_share: f64,
+    one: f64,
+    with: f64,
+    reduction: f64,
 }
 
 #[cfg(test)]
@@ -340,31 +349,34 @@ mod tests {
         )
     }
 
-    /// Relative RMS depth error over the finite pixels.
-    fn depth_error(depth: &Grid<f64>, truth: &Grid<f64>) -> f64 {
-        let (mut num, mut den) = (0.0, 0.0);
-        for (z, t) in depth.as_slice().iter().zip(truth.as_slice()) {
-            if z.is_finite() && t.is_finite() {
-                num += (z - t) * (z - t);
-                den += t * t;
-            }
-        }
-        (num / den).sqrt()
-    }
-
-    #[test]
-    fn a_patch_albedo_is_used_and_a_uniform_one_changes_nothing() {
-        let auto = SolverParams {
+    /// The default parameters with `--albedo auto`.
+    fn auto() -> SolverParams {
+        SolverParams {
             albedo: AlbedoChoice::Auto,
             ..SolverParams::default()
-        };
-        let patches = Grid::from_fn(64, 64, |c, r| {
+        }
+    }
+
+    /// A checkerboard of 16 px squares of albedo 1 and 0.55.
+    fn patches() -> Grid<f64> {
+        Grid::from_fn(64, 64, |c, r| {
             if (c / 16 + r / 16) % 2 == 0 {
                 1.0
             } else {
                 0.55
             }
-        });
+        })
+    }
+
+    /// The depth's bits, to compare two solves exactly.
+    fn bits(depth: &Grid<f64>) -> Vec<u64> {
+        depth.as_slice().iter().map(|z| z.to_bits()).collect()
+    }
+
+    #[test]
+    fn a_patch_albedo_is_used_and_a_uniform_one_changes_nothing() {
+        let auto = auto();
+        let patches = patches();
         let (textured, truth) = problem(&patches);
         let one = super::super::solve(&textured, &SolverParams::default(), &mut ())
             .expect("albedo 1 solves");
@@ -372,10 +384,8 @@ mod tests {
         let fit = estimated.albedo_fit.as_ref().expect("auto reports its fit");
         assert!(fit.used, "{}", fit.summary);
         assert!(fit.misfit_ratio < 1.0 - MIN_GAIN, "{}", fit.misfit_ratio);
-        let (e_one, e_auto) = (
-            depth_error(&one.depth, &truth),
-            depth_error(&estimated.depth, &truth),
-        );
+        let rse = |depth: &Grid<f64>| crate::metrics::rse(depth, &truth).expect("an RSE");
+        let (e_one, e_auto) = (rse(&one.depth), rse(&estimated.depth));
         assert!(
             e_auto < 0.25 * e_one,
             "auto {e_auto} against albedo 1 {e_one}"
@@ -386,35 +396,13 @@ mod tests {
             super::super::solve(&plain, &SolverParams::default(), &mut ()).expect("solves");
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
         assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
-        assert_eq!(
-            uniform_one
-                .depth
-                .as_slice()
-                .iter()
-                .map(|z| z.to_bits())
-                .collect::<Vec<_>>(),
-            uniform_auto
-                .depth
-                .as_slice()
-                .iter()
-                .map(|z| z.to_bits())
-                .collect::<Vec<_>>()
-        );
+        assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
     }
 
     #[test]
     fn auto_is_invariant_to_exposure_and_depth_unit() {
-        let auto = SolverParams {
-            albedo: AlbedoChoice::Auto,
-            ..SolverParams::default()
-        };
-        let patches = Grid::from_fn(64, 64, |c, r| {
-            if (c / 16 + r / 16) % 2 == 0 {
-                1.0
-            } else {
-                0.55
-            }
-        });
+        let auto = auto();
+        let patches = patches();
         let (base, _) = problem(&patches);
         let reference = super::super::solve(&base, &auto, &mut ()).expect("solves");
         // Exposure x0.25 with s x0.25: the same depth. Depth unit x1000:

@@ -18,6 +18,7 @@ use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
+use sfs_core::solver::albedo_fit::divide_out;
 use sfs_core::solver::calibrate::KnownDepthFit;
 use sfs_core::solver::photometric::{
     PhotometricParams, PhotometricSolution, SingleComparison, compare_single,
@@ -170,42 +171,6 @@ pub struct CompareState {
     pub completed: usize,
     /// Whether the photograph was solved with the set's albedo divided out.
     pub with_set_albedo: bool,
-}
-
-/// Divides `albedo` (a set's: absolute, or `s rho` when `relative`) out of
-/// `problem`'s image: where it is not positive and finite the pixel gets
-/// confidence 0; a relative albedo carries `s`, so the scale becomes 1; the
-/// image and the scale are then divided by the power of two that keeps the
-/// divided image below the top of the range (exact).
-pub fn divide_by_set_albedo(
-    problem: &mut sfs_core::solver::Problem,
-    albedo: &Grid<f64>,
-    relative: bool,
-) {
-    let usable = albedo.map(|a| a.is_finite() && *a > 1e-6);
-    let (w, h) = problem.image.size();
-    let confidence = Grid::from_fn(w, h, |c, r| {
-        let base = problem.confidence.as_ref().map_or(1.0, |k| *k.at(c, r));
-        if *usable.at(c, r) { base } else { 0.0 }
-    });
-    let divided = problem.image.zip_map(albedo, |i, a| {
-        if a.is_finite() && *a > 1e-6 {
-            i / a
-        } else {
-            0.0
-        }
-    });
-    let top = divided.as_slice().iter().copied().fold(0.0, f64::max);
-    let mut divisor = 1.0;
-    while top / divisor >= 0.999 && divisor < 1e12 {
-        divisor *= 2.0;
-    }
-    problem.image = divided.map(|v| v / divisor);
-    if relative {
-        problem.intensity_scale = 1.0;
-    }
-    problem.intensity_scale /= divisor;
-    problem.confidence = Some(confidence);
 }
 
 /// What `Session::export` writes.
@@ -928,7 +893,12 @@ impl Session {
         let mut params = params;
         let mut estimate_scale = !prepared.intensity_scale_given;
         if set_albedo && let Some(set) = &self.solve.set {
-            divide_by_set_albedo(&mut problem, &set.albedo, set.albedo_relative);
+            // A relative albedo is `s rho`: it carries the scale.
+            let (divided, divisor) = divide_out(&problem, &set.albedo);
+            problem = divided;
+            if set.albedo_relative {
+                problem.intensity_scale = 1.0 / divisor;
+            }
             params.albedo = sfs_core::params::AlbedoChoice::One;
             estimate_scale = estimate_scale && !set.albedo_relative;
         }

@@ -69,16 +69,7 @@ fn white_point(values: &Grid<f64>) -> f64 {
 /// without a finished solve or without `auto`).
 fn single_albedo(session: &Session) -> Option<Grid<f64>> {
     let solution = session.solve.finished.as_ref()?;
-    let fit = solution.albedo_fit.as_ref()?;
-    Some(fit.albedo.zip_map(&solution.depth, |a, z| {
-        if !z.is_finite() {
-            f64::NAN
-        } else if fit.used {
-            *a
-        } else {
-            1.0
-        }
-    }))
+    Some(solution.albedo_fit.as_ref()?.used_albedo(&solution.depth))
 }
 
 /// Normal-map colours of `normals` (black where there is no surface).
