@@ -73,7 +73,8 @@ pub struct ViewArgs {
     /// or photo-residual (a set's).
     #[arg(long, value_name = "PANEL", value_parser = parse_panel)]
     pub panel: Option<Panel2d>,
-    /// Show a set's albedo on the 3-D surface (its texture) once solved.
+    /// Show the albedo (a set's, or the one a photograph was solved with) on
+    /// the 3-D surface (its texture) once solved.
     #[arg(long)]
     pub albedo_texture: bool,
     /// Window size in points, WIDTHxHEIGHT.

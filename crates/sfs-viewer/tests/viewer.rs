@@ -224,6 +224,19 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
         .and_then(|s| s.albedo_fit.clone())
         .expect("albedo auto reports its fit");
     assert!(!albedo.used, "{}", albedo.summary);
+    // What the surface carries as its albedo texture: 1 wherever solved.
+    let surface = harness
+        .state()
+        .surface_albedo()
+        .expect("a single solve's albedo");
+    assert!(surface.as_slice().iter().any(|a| a.is_finite()));
+    assert!(
+        surface
+            .as_slice()
+            .iter()
+            .filter(|a| a.is_finite())
+            .all(|&a| a == 1.0)
+    );
     harness.get_by_label("estimate the albedo");
     // The 2-D panels' "albedo" tab, beside the photo section's albedo file
     // and the 3-D view's texture choice.

@@ -37,7 +37,8 @@ pub struct LevelInputs {
     /// image's units) is shown the same way, so the two compare.
     pub display: images::DisplayMapping,
     /// The grey the surface carries as its texture instead of the image
-    /// (a set's albedo, NaN where there is none), at the image's size.
+    /// (the albedo of a set or of a single solve, NaN where there is none),
+    /// at the image's size.
     pub texture: Option<Arc<Grid<f64>>>,
 }
 

@@ -52,7 +52,8 @@ pub struct ViewerOptions {
     pub set_images: Vec<PathBuf>,
     /// The 2-D panel shown first (`None`: the input).
     pub panel: Option<Panel2d>,
-    /// Show a set's albedo on the surface (the 3-D view's texture).
+    /// Show the albedo (a set's or a single solve's) on the surface (the
+    /// 3-D view's texture).
     pub albedo_texture: bool,
     /// Camera JSON to open the image with.
     pub camera: Option<PathBuf>,
@@ -326,6 +327,13 @@ impl ViewerApp {
     /// The comparison of one photograph solved alone with the set.
     pub fn compare_state(&self) -> &CompareState {
         &self.session.compare
+    }
+
+    /// The albedo the 3-D surface carries when its texture is the albedo:
+    /// a set's, or the one the finished single-image solve used (`None`
+    /// before a result, or when it estimated none).
+    pub fn surface_albedo(&self) -> Option<sfs_core::grid::Grid<f64>> {
+        self.session.surface_albedo()
     }
 
     /// The open document, to edit (tests: masks, a photograph's layer).

@@ -743,9 +743,16 @@ impl Session {
                         let taken = shadow.as_slice().iter().filter(|&&t| t).count();
                         taken as f64 / object.count().max(1) as f64
                     });
+                    let estimated_albedo = solution.albedo_fit.is_some();
                     self.solve.finished = Some(solution);
                     self.solve.running = false;
                     self.solve.completed_jobs += 1;
+                    if self.albedo_texture
+                        && estimated_albedo
+                        && let Some(level) = self.textured_level()
+                    {
+                        levels.push(level);
+                    }
                 }
                 Event::SetFinished { solution, .. } => {
                     self.solve.set = Some(solution);
@@ -813,9 +820,10 @@ impl Session {
         });
     }
 
-    /// Whether the surface carries a set's albedo instead of the image; a
-    /// change returns the last level again with that texture, to prepare
-    /// for display.
+    /// Whether the surface carries the albedo (a set's, or the one a single
+    /// photograph's finished solve used) instead of the image; a change
+    /// returns the last level again with that texture, to prepare for
+    /// display.
     pub fn set_albedo_texture(&mut self, albedo: bool) -> Option<ArrivedLevel> {
         if self.albedo_texture == albedo {
             return None;
@@ -824,17 +832,30 @@ impl Session {
         self.textured_level()
     }
 
-    /// The last level with the texture chosen (the set's albedo when there
-    /// is one and it is chosen, else the image).
+    /// The albedo the surface can carry: a set's, or the one the finished
+    /// single-image solve used (its estimate, or 1 where it kept albedo 1;
+    /// `None` when it estimated none).
+    pub fn surface_albedo(&self) -> Option<Grid<f64>> {
+        match &self.solve.set {
+            Some(set) => Some(set.albedo.clone()),
+            None => {
+                let solution = self.solve.finished.as_ref()?;
+                Some(solution.albedo_fit.as_ref()?.used_albedo(&solution.depth))
+            }
+        }
+    }
+
+    /// The last level with the texture chosen (the albedo when there is one
+    /// and it is chosen, else the image).
     fn textured_level(&self) -> Option<ArrivedLevel> {
         let result = self.last_level.clone()?;
         let mut inputs = self.level_inputs.clone()?;
         inputs.texture = self
-            .solve
-            .set
-            .as_ref()
-            .filter(|_| self.albedo_texture)
-            .map(|s| Arc::new(s.albedo.clone()));
+            .albedo_texture
+            .then(|| self.surface_albedo())
+            .flatten()
+            .filter(|albedo| albedo.size() == inputs.image.size())
+            .map(Arc::new);
         Some(ArrivedLevel {
             result,
             inputs,

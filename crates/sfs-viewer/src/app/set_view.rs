@@ -64,14 +64,6 @@ fn white_point(values: &Grid<f64>) -> f64 {
     *finite.select_nth_unstable_by(k, f64::total_cmp).1
 }
 
-/// The albedo the finished single-image solve used, NaN off its surface:
-/// with `--albedo auto` the estimate when it was used, else 1 (`None`
-/// without a finished solve or without `auto`).
-fn single_albedo(session: &Session) -> Option<Grid<f64>> {
-    let solution = session.solve.finished.as_ref()?;
-    Some(solution.albedo_fit.as_ref()?.used_albedo(&solution.depth))
-}
-
 /// Normal-map colours of `normals` (black where there is no surface).
 fn normal_image(normals: &Grid<[f64; 3]>) -> egui::ColorImage {
     let (w, h) = normals.size();
@@ -115,12 +107,10 @@ impl SetView {
         match panel {
             Panel2d::Albedo => {
                 // A set's albedo, or the albedo one photograph was solved
-                // with (`auto`: the estimate when used, else 1).
-                let albedo = match solution {
-                    Some(set) => set.albedo.clone(),
-                    None => single_albedo(session)?,
-                };
+                // with (`auto`: the estimate when used, else 1); built once
+                // per result.
                 if self.albedo.as_ref().is_none_or(|b| b.key != key) {
+                    let albedo = session.surface_albedo()?;
                     let white = white_point(&albedo);
                     let mapping = images::DisplayMapping {
                         exposure: 1.0 / white,
