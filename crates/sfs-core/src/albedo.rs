@@ -2,7 +2,7 @@
 //! reflectance of a matte surface is taken as piecewise constant with
 //! sparse, sharp changes, the shading as varying smoothly. Between two
 //! 4-neighbouring trusted object pixels, a step of the log brightness larger
-//! than the edge step `tau` (and than three times its noise) is an albedo
+//! than the edge step `tau` (and than five times its noise) is an albedo
 //! edge; any smaller step is shading. The log albedo is the least-squares
 //! integral of the edges (a screened Poisson equation over the object,
 //! conjugate gradients), normalised so that the object's 90th percentile
@@ -13,8 +13,11 @@
 //! this rule (`a = g` where `|g| > tau`), so `tau` is the weight of the L0
 //! prior on the log albedo's gradient. An occluding contour is a brightness
 //! step too; whether the estimate explains a photograph better than albedo
-//! 1 is decided with the shape (`solver::albedo_fit`), not here. Pure
-//! functions over `grid`, polling a `Cancel` between iterations.
+//! 1 is decided with the shape (`solver::albedo_fit`), not here.
+//! [`refine`] adds the edges left in an image once an albedo found on a
+//! smaller copy (where an edge blurred over several pixels is a step) is
+//! divided out. Pure functions over `grid`, polling a `Cancel` between
+//! iterations.
 
 use rayon::prelude::*;
 
@@ -72,9 +75,112 @@ pub fn estimate(
     cancel: Cancel<'_>,
 ) -> Result<AlbedoEstimate, Cancelled> {
     let (w, h) = image.size();
-    let floor = (2.0 * noise_sigma).max(1e-4);
-    let usable = |q: usize| trusted.as_slice()[q] && image.as_slice()[q] > floor;
+    let log = image.map(|&v| v.max(noise_floor(noise_sigma)).ln());
+    let edges = integrated_edges(
+        image,
+        &log,
+        object,
+        trusted,
+        edge_log_step,
+        noise_sigma,
+        cancel,
+    )?;
+    let albedo = normalise(&edges.log_albedo, object, w, h);
+    Ok(edges.estimate(albedo, &log, object))
+}
+
+/// Refines `coarse`, an albedo (any scale, positive) estimated on a
+/// smaller copy of `image` and brought to its size: the edges of `image`
+/// divided by `coarse` (the steps the coarse copy blurred or could not
+/// see, as thin lines) are integrated and added to it, and the product is
+/// normalised as [`estimate`]'s. The noise threshold is `image`'s own. The
+/// counts returned are the refinement's edges.
+///
+/// # Errors
+/// `Cancelled` when `cancel` says so between iterations.
+pub fn refine(
+    image: &Grid<f64>,
+    coarse: &Grid<f64>,
+    object: &Grid<bool>,
+    trusted: &Grid<bool>,
+    edge_log_step: f64,
+    noise_sigma: f64,
+    cancel: Cancel<'_>,
+) -> Result<AlbedoEstimate, Cancelled> {
+    let (w, h) = image.size();
+    let floor = noise_floor(noise_sigma);
     let log = image.map(|&v| v.max(floor).ln());
+    let log_coarse = coarse.map(|&a| {
+        if a > 0.0 && a.is_finite() {
+            a.ln()
+        } else {
+            0.0
+        }
+    });
+    let residual = log.zip_map(&log_coarse, |l, a| l - a);
+    let edges = integrated_edges(
+        image,
+        &residual,
+        object,
+        trusted,
+        edge_log_step,
+        noise_sigma,
+        cancel,
+    )?;
+    let combined: Vec<f64> = edges
+        .log_albedo
+        .iter()
+        .zip(log_coarse.as_slice())
+        .map(|(f, c)| f + c)
+        .collect();
+    let albedo = normalise(&combined, object, w, h);
+    Ok(edges.estimate(albedo, &log, object))
+}
+
+/// The darkest value whose logarithm is taken: twice the noise.
+fn noise_floor(noise_sigma: f64) -> f64 {
+    (2.0 * noise_sigma).max(1e-4)
+}
+
+/// The edges of `log` (the log brightness, or what is left of it) and
+/// their least-squares integral, before normalisation.
+struct IntegratedEdges {
+    log_albedo: Vec<f64>,
+    edge_pairs: usize,
+    beside_edge: usize,
+    objects: usize,
+    iterations: usize,
+}
+
+impl IntegratedEdges {
+    /// The estimate with `albedo`, its variance share measured on `log`.
+    fn estimate(&self, albedo: Grid<f64>, log: &Grid<f64>, object: &Grid<bool>) -> AlbedoEstimate {
+        let explained_share = explained(log, &albedo, object);
+        AlbedoEstimate {
+            albedo,
+            edge_pairs: self.edge_pairs,
+            edge_share: self.beside_edge as f64 / self.objects.max(1) as f64,
+            explained_share,
+            iterations: self.iterations,
+        }
+    }
+}
+
+/// The albedo edges of `log` between trusted object pixels (their noise
+/// threshold from `image`, whose pixels below the noise floor have no
+/// difference) and their integral over the object.
+fn integrated_edges(
+    image: &Grid<f64>,
+    log: &Grid<f64>,
+    object: &Grid<bool>,
+    trusted: &Grid<bool>,
+    edge_log_step: f64,
+    noise_sigma: f64,
+    cancel: Cancel<'_>,
+) -> Result<IntegratedEdges, Cancelled> {
+    let (w, h) = image.size();
+    let floor = noise_floor(noise_sigma);
+    let usable = |q: usize| trusted.as_slice()[q] && image.as_slice()[q] > floor;
     // Each pixel's edge target to its right and below neighbour (0 where
     // the difference is shading), and whether that difference exists.
     let mut stencil = Stencil {
@@ -112,7 +218,7 @@ pub fn estimate(
         .map(|r| (0..w).map(|c| r * w + c).collect::<Vec<_>>())
         .chain((0..w).map(|c| (0..h).map(|r| r * w + c).collect::<Vec<_>>()));
     for line in lines {
-        for (p, q, step) in edge_steps(&line, &log, &usable, |p, q| {
+        for (p, q, step) in edge_steps(&line, log, &usable, |p, q| {
             let (a, b) = (image.as_slice()[p], image.as_slice()[q]);
             edge_log_step.max(NOISE_SIGMAS * noise_sigma * (1.0 / (a * a) + 1.0 / (b * b)).sqrt())
         }) {
@@ -130,13 +236,11 @@ pub fn estimate(
     if edge_pairs > 0 {
         iterations = integrate(&stencil, &mut solution, cancel)?;
     }
-    let albedo = normalise(&solution, object, w, h);
-    let explained_share = explained(&log, &albedo, object);
-    Ok(AlbedoEstimate {
-        albedo,
+    Ok(IntegratedEdges {
+        log_albedo: solution,
         edge_pairs,
-        edge_share: beside_edge.iter().filter(|&&b| b).count() as f64 / objects.max(1) as f64,
-        explained_share,
+        beside_edge: beside_edge.iter().filter(|&&b| b).count(),
+        objects,
         iterations,
     })
 }
@@ -471,6 +575,36 @@ mod tests {
         let none = clean_estimate(&shading);
         assert_eq!(none.edge_pairs, 0);
         assert!(none.albedo.as_slice().iter().all(|&a| a == 1.0));
+    }
+
+    #[test]
+    fn a_refinement_adds_only_what_its_coarse_albedo_leaves() {
+        let (image, truth) = patched(0.5);
+        let (w, h) = image.size();
+        let all = Grid::filled(w, h, true);
+        let refine_with = |coarse: &Grid<f64>| {
+            refine(
+                &image,
+                coarse,
+                &all,
+                &all,
+                DEFAULT_EDGE_LOG_STEP,
+                0.0,
+                Cancel::NEVER,
+            )
+            .expect("not cancelled")
+        };
+        // Nothing known yet: the estimate itself.
+        assert_eq!(
+            refine_with(&Grid::filled(w, h, 1.0)),
+            clean_estimate(&image)
+        );
+        // The albedo known (at another scale): no edge is left to add.
+        let known = refine_with(&truth.map(|a| 0.8 * a));
+        assert_eq!(known.edge_pairs, 0);
+        for (a, t) in known.albedo.as_slice().iter().zip(truth.as_slice()) {
+            assert!((a - t).abs() < 1e-12, "albedo {a} against {t}");
+        }
     }
 
     #[test]

@@ -2,6 +2,13 @@
 //! Retinex with an L0 edge prior) and kept only when it explains the
 //! photograph better together with a shape than albedo 1 does.
 //!
+//! The edges are found at two scales: on the working copy of at most
+//! [`GATE_SIDE`] pixels, where an edge blurred over a few pixels of a large
+//! photograph (a brow, the border of a beard) is a step, at the same scale
+//! of the object whatever the photograph's size; then at the photograph's
+//! own size, with that albedo divided out, for what the copy blurs (thin
+//! lines). A photograph no larger than the copy has one scale.
+//!
 //! Both explanations are solved on a working copy of at most
 //! [`GATE_SIDE`] pixels at the user's parameters: albedo 1 (the image as
 //! given) and the estimate (the image divided by it). Each is scored by
@@ -28,6 +35,7 @@ use std::time::Instant;
 use serde::Serialize;
 
 use super::problem::{Problem, SATURATED, Solution, SolveError, SolveObserver};
+use super::pyramid::{bilinear_taps, map_coordinate};
 use super::working::{Forward, working_copy};
 use crate::albedo;
 use crate::cancel::Cancel;
@@ -58,7 +66,8 @@ pub struct AlbedoFit {
     /// their solved shapes on the working copy (below 1: the estimate
     /// explains it better). NaN when there was nothing to compare.
     pub misfit_ratio: f64,
-    /// Share of the object's pixels beside an albedo edge.
+    /// Share of the object's pixels beside an albedo edge (on the working
+    /// copy and at the full size, summed; at most 1).
     pub edge_share: f64,
     /// Share of the variance of the object's log brightness that the
     /// albedo explains.
@@ -131,30 +140,73 @@ pub fn apply(
         return Ok((None, None));
     }
     let started = Instant::now();
-    let (w, h) = problem.image.size();
-    let object = problem
-        .object_mask
-        .clone()
-        .unwrap_or_else(|| Grid::filled(w, h, true));
-    let trusted = Grid::from_fn(w, h, |c, r| {
-        *object.at(c, r)
-            && problem
-                .confidence
-                .as_ref()
-                .is_none_or(|k| *k.at(c, r) >= 0.5)
-            && *problem.image.at(c, r) < SATURATED
-    });
     let cancel_probe = || observer.is_cancelled();
+    // Edges are found on the working copy first, where an edge blurred
+    // over a few pixels of a large photograph (a brow, a beard's border)
+    // is a step, at the same scale of the object whatever the photograph's
+    // size; at the full size the refinement adds what that copy blurs
+    // (thin lines).
+    let plain = working_copy(problem, GATE_SIDE);
+    let (object, trusted) = trusted_pixels(problem);
     let noise_sigma =
         crate::denoise::robust_noise_sigma(&problem.image, &trusted, Cancel::new(&cancel_probe))?;
-    let estimate = albedo::estimate(
-        &problem.image,
-        &object,
-        &trusted,
-        params.albedo_edge,
-        noise_sigma,
-        Cancel::new(&cancel_probe),
-    )?;
+    let coarse = if plain.image.size() == problem.image.size() {
+        None
+    } else {
+        let (small_object, small_trusted) = trusted_pixels(&plain);
+        let sigma = crate::denoise::robust_noise_sigma(
+            &plain.image,
+            &small_trusted,
+            Cancel::new(&cancel_probe),
+        )?;
+        let found = albedo::estimate(
+            &plain.image,
+            &small_object,
+            &small_trusted,
+            params.albedo_edge,
+            sigma,
+            Cancel::new(&cancel_probe),
+        )?;
+        Some((
+            to_size(&found.albedo, &small_object, problem.image.size()),
+            found,
+            sigma,
+        ))
+    };
+    let estimate = match &coarse {
+        None => albedo::estimate(
+            &problem.image,
+            &object,
+            &trusted,
+            params.albedo_edge,
+            noise_sigma,
+            Cancel::new(&cancel_probe),
+        )?,
+        Some((brought, _, _)) => albedo::refine(
+            &problem.image,
+            brought,
+            &object,
+            &trusted,
+            params.albedo_edge,
+            noise_sigma,
+            Cancel::new(&cancel_probe),
+        )?,
+    };
+    // The edges as the working copy sees them: its own, and each full-size
+    // edge spanning 1/f of its pairs there, its noise of an f x f average
+    // sigma / f.
+    let f = problem.image.width().max(problem.image.height()) as f64
+        / plain.image.width().max(plain.image.height()) as f64;
+    let (coarse_pairs, coarse_sigma, coarse_share) =
+        coarse.as_ref().map_or((0, 0.0, 0.0), |(_, found, sigma)| {
+            (found.edge_pairs, *sigma, found.edge_share)
+        });
+    let edge_pairs = estimate.edge_pairs + coarse_pairs;
+    // What the edges could remove by fitting noise alone: 2 sigma^2 per
+    // edge (a free step each) on the working copy.
+    let noise_misfit = 2.0
+        * (estimate.edge_pairs as f64 / f * (noise_sigma / f).powi(2)
+            + coarse_pairs as f64 * coarse_sigma.powi(2));
     let min_albedo = estimate
         .albedo
         .as_slice()
@@ -168,7 +220,7 @@ pub fn apply(
         albedo: estimate.albedo,
         used: false,
         misfit_ratio: f64::NAN,
-        edge_share: estimate.edge_share,
+        edge_share: (estimate.edge_share + coarse_share).min(1.0),
         explained_share: estimate.explained_share,
         min_albedo,
         edge_log_step: params.albedo_edge,
@@ -179,20 +231,14 @@ pub fn apply(
         seconds: 0.0,
         summary: String::new(),
     };
-    if estimate.edge_pairs == 0 {
+    if edge_pairs == 0 {
         fit.summary = "albedo 1: no albedo edge found (no step of log brightness above the \
                        edge step and its noise)"
             .into();
         fit.seconds = started.elapsed().as_secs_f64();
         return Ok((None, Some(fit)));
     }
-    let misfits = misfits(problem, &divided, &fit.albedo, divisor, params, observer)?;
-    // What the estimate's edges could remove by fitting noise alone: 2
-    // sigma^2 per edge (a free step each), the edges and the noise as the
-    // working copy sees them (an edge spans 1/f of its pairs there, the
-    // noise of an f x f average is sigma / f).
-    let f = misfits.reduction;
-    let noise_misfit = 2.0 * estimate.edge_pairs as f64 / f * (noise_sigma / f).powi(2);
+    let misfits = misfits(&plain, &divided, &fit.albedo, divisor, params, observer)?;
     let (ratio, noise_share) = if misfits.one > 0.0 {
         (misfits.with / misfits.one, noise_misfit / misfits.one)
     } else {
@@ -229,6 +275,46 @@ pub fn apply(
     } else {
         Ok((None, Some(fit)))
     }
+}
+
+/// The object (every pixel without a mask) and its trusted pixels:
+/// confidence at least 0.5 and not clipped.
+fn trusted_pixels(problem: &Problem) -> (Grid<bool>, Grid<bool>) {
+    let (w, h) = problem.image.size();
+    let object = problem
+        .object_mask
+        .clone()
+        .unwrap_or_else(|| Grid::filled(w, h, true));
+    let trusted = Grid::from_fn(w, h, |c, r| {
+        *object.at(c, r)
+            && problem
+                .confidence
+                .as_ref()
+                .is_none_or(|k| *k.at(c, r) >= 0.5)
+            && *problem.image.at(c, r) < SATURATED
+    });
+    (object, trusted)
+}
+
+/// `albedo` of a smaller copy brought to `size`: bilinear in the log over
+/// the copy's `object` pixels only (1 where none is near).
+fn to_size(albedo: &Grid<f64>, object: &Grid<bool>, (w, h): (usize, usize)) -> Grid<f64> {
+    let (sw, sh) = albedo.size();
+    Grid::from_fn(w, h, |c, r| {
+        let taps = bilinear_taps((sw, sh), map_coordinate(c, w, sw), map_coordinate(r, h, sh));
+        let (mut sum, mut weight) = (0.0, 0.0);
+        for (q, tap) in taps {
+            if object.as_slice()[q] && tap > 0.0 {
+                sum += tap * albedo.as_slice()[q].ln();
+                weight += tap;
+            }
+        }
+        if weight > 0.0 {
+            (sum / weight).exp()
+        } else {
+            1.0
+        }
+    })
 }
 
 /// `problem` with its image divided by `albedo` (any scale) and by the
@@ -280,10 +366,10 @@ pub fn divide_out(problem: &Problem, albedo: &Grid<f64>) -> (Problem, f64) {
 }
 
 /// The misfits to the photograph of albedo 1 and of the estimate, each
-/// solved on the working copy: `sum c (I - rho d R)^2` over pixels both
-/// solved.
+/// solved on the working copy (`plain`, the photograph's): `sum c (I -
+/// rho d R)^2` over pixels both solved.
 fn misfits(
-    problem: &Problem,
+    plain: &Problem,
     divided: &Problem,
     estimate: &Grid<f64>,
     divisor: f64,
@@ -294,17 +380,15 @@ fn misfits(
         albedo: AlbedoChoice::One,
         ..params.clone()
     };
-    let plain = working_copy(problem, GATE_SIDE);
     let work = working_copy(divided, GATE_SIDE);
     let (sw, sh) = plain.image.size();
     let albedo = crate::resample::resize_area(estimate, sw, sh, Cancel::NEVER)
         .map_err(|_| SolveError::Cancelled)?;
-    let one = super::driver::solve(&plain, &params, &mut Forward(observer))?;
+    let one = super::driver::solve(plain, &params, &mut Forward(observer))?;
     let with = super::driver::solve(&work, &params, &mut Forward(observer))?;
     let mut misfits = Misfits {
         one: 0.0,
         with: 0.0,
-        reduction: problem.image.width().max(problem.image.height()) as f64 / sw.max(sh) as f64,
     };
     for q in 0..plain.image.len() {
         if !(one.depth.as_slice()[q].is_finite() && with.depth.as_slice()[q].is_finite()) {
@@ -320,12 +404,10 @@ fn misfits(
     Ok(misfits)
 }
 
-/// The two misfits of [`misfits`] and how much smaller the working copy is
-/// (its longest side's ratio).
+/// The two misfits of [`misfits`].
 struct Misfits {
     one: f64,
     with: f64,
-    reduction: f64,
 }
 
 #[cfg(test)]
@@ -335,7 +417,8 @@ mod tests {
 
     /// The Sombrero at 64 px as a problem, its image times `albedo`.
     fn problem(albedo: &Grid<f64>) -> (Problem, Grid<f64>) {
-        let scene = sombrero(64, 64);
+        let (w, h) = albedo.size();
+        let scene = sombrero(w, h);
         (
             Problem {
                 image: scene.image.zip_map(albedo, |i, a| i * a),
@@ -397,6 +480,42 @@ mod tests {
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
         assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
         assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
+    }
+
+    #[test]
+    fn an_edge_blurred_over_the_photographs_pixels_is_found_on_the_working_copy() {
+        // A 512 px photograph whose albedo steps from 1 to 0.5 over four
+        // pixels: too gradual for an edge at the full size, a step on the
+        // 256 px working copy.
+        let side = 4 * GATE_SIDE / 2;
+        let dark = 0.5_f64;
+        let albedo = Grid::from_fn(side, side, |c, _| {
+            let t = ((c as f64 - (side / 2) as f64) / 4.0).clamp(0.0, 1.0);
+            (t * dark.ln()).exp()
+        });
+        let (photo, _) = problem(&albedo);
+        let (object, trusted) = trusted_pixels(&photo);
+        let full = albedo::estimate(
+            &photo.image,
+            &object,
+            &trusted,
+            auto().albedo_edge,
+            0.0,
+            Cancel::NEVER,
+        )
+        .expect("not cancelled");
+        assert_eq!(full.edge_pairs, 0, "no edge at the full size");
+        let (_, fit) = apply(&photo, &auto(), &mut ()).expect("solves");
+        let fit = fit.expect("auto reports its fit");
+        let ratio = |c: usize| fit.albedo.at(c, side / 2) / fit.albedo.at(side / 4, side / 2);
+        // Either side of the ramp, away from the Sombrero's rim.
+        for (c, want) in [(side / 2 - 40, 1.0), (side / 2 + 40, dark)] {
+            assert!(
+                (ratio(c) - want).abs() < 0.05,
+                "{} against {want}",
+                ratio(c)
+            );
+        }
     }
 
     #[test]
