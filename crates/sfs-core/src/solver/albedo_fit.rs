@@ -397,9 +397,15 @@ fn misfits(
         let c = plain.confidence.as_ref().map_or(1.0, |k| k.as_slice()[q]);
         let i = plain.image.as_slice()[q];
         let r_one = one.reprojection.as_slice()[q];
-        let r_with = albedo.as_slice()[q] * divisor * with.reprojection.as_slice()[q];
+        // The estimate's residual in the divided image it was solved on,
+        // back in the photograph's units: the mean of `I / rho` over a
+        // block is not the block's `I` over its mean `rho` where the
+        // albedo varies inside it.
+        let e_with = albedo.as_slice()[q]
+            * divisor
+            * (work.image.as_slice()[q] - with.reprojection.as_slice()[q]);
         misfits.one += c * (i - r_one) * (i - r_one);
-        misfits.with += c * (i - r_with) * (i - r_with);
+        misfits.with += c * e_with * e_with;
     }
     Ok(misfits)
 }
