@@ -952,7 +952,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         }
         if let Some(fit) = &solution.albedo_fit {
             eprintln!(
-                "albedo ({} px working copy, {:.1} s): {}",
+                "albedo (decided at {} px, {:.1} s): {}",
                 fit.working_side, fit.seconds, fit.summary
             );
         }

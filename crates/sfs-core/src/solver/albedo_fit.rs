@@ -86,7 +86,9 @@ pub struct AlbedoFit {
     /// The power of two the divided image and the intensity scale were
     /// divided by (1 when unused).
     pub divisor: f64,
-    /// Side of the working copy, pixels.
+    /// Longest side, pixels, of the images the decision compared: the
+    /// working copy, or the photograph's full size where a known-depth
+    /// search gave each explanation its own scale.
     pub working_side: usize,
     /// Seconds spent estimating and comparing.
     pub seconds: f64,
@@ -108,6 +110,35 @@ impl AlbedoFit {
                 1.0
             }
         })
+    }
+
+    /// Decides with `ratio`, the estimate's misfit to the photograph over
+    /// albedo 1's: used when below `1 - max(MIN_GAIN, noise_share)`; says
+    /// so in the summary.
+    pub fn decide(&mut self, ratio: f64) {
+        self.misfit_ratio = ratio;
+        self.used = ratio < 1.0 - MIN_GAIN.max(self.noise_share);
+        self.summary = if self.used {
+            format!(
+                "albedo estimated: {:.1} % of the object beside an albedo edge, down to {:.2} \
+                 of the common albedo; with its shape it reproduces the photograph {:.0} % \
+                 better than albedo 1 ({:.0} % of the log brightness's variance is albedo)",
+                100.0 * self.edge_share,
+                self.min_albedo,
+                100.0 * (1.0 - ratio),
+                100.0 * self.explained_share
+            )
+        } else {
+            format!(
+                "albedo 1: the estimated albedo ({:.1} % of the object beside an edge) \
+                 reproduces the photograph with its shape x{ratio:.2} as well as albedo 1, short \
+                 of the {:.0} % it must remove (the prior's cost of its edges, and what they \
+                 could gain by fitting the noise): its edges are taken for shading (occluding \
+                 contours, creases, noise)",
+                100.0 * self.edge_share,
+                100.0 * MIN_GAIN.max(self.noise_share)
+            )
+        };
     }
 
     /// Puts the albedo back into `solution` (its reprojection and
@@ -244,36 +275,36 @@ pub fn apply(
     } else {
         (f64::NAN, 0.0)
     };
-    fit.misfit_ratio = ratio;
     fit.noise_share = noise_share;
-    fit.used = ratio < 1.0 - MIN_GAIN.max(noise_share);
-    fit.summary = if fit.used {
-        format!(
-            "albedo estimated: {:.1} % of the object beside an albedo edge, down to {:.2} of \
-             the common albedo; with its shape it reproduces the photograph {:.0} % better \
-             than albedo 1 ({:.0} % of the log brightness's variance is albedo)",
-            100.0 * fit.edge_share,
-            min_albedo,
-            100.0 * (1.0 - ratio),
-            100.0 * fit.explained_share
-        )
-    } else {
-        format!(
-            "albedo 1: the estimated albedo ({:.1} % of the object beside an edge) reproduces \
-             the photograph with its shape x{ratio:.2} as well as albedo 1, short of the {:.0} % \
-             it must remove (the prior's cost of its edges, and what they could gain by \
-             fitting the noise): its edges are taken for shading (occluding contours, creases, \
-             noise)",
-            100.0 * fit.edge_share,
-            100.0 * MIN_GAIN.max(fit.noise_share)
-        )
-    };
+    fit.decide(ratio);
     fit.seconds = started.elapsed().as_secs_f64();
     if fit.used {
         fit.divisor = divisor;
         Ok((Some(divided), Some(fit)))
     } else {
         Ok((None, Some(fit)))
+    }
+}
+
+/// The misfit to `problem`'s photograph of `with` over `one`'s, two
+/// full-size solutions whose reprojections are the photograph's (the
+/// estimate's restored): `sum c (I - R)^2` over pixels both solved (NaN
+/// when `one` fits exactly).
+pub fn misfit_ratio(problem: &Problem, one: &Solution, with: &Solution) -> f64 {
+    let (mut e_one, mut e_with) = (0.0, 0.0);
+    for q in 0..problem.image.len() {
+        if !(one.depth.as_slice()[q].is_finite() && with.depth.as_slice()[q].is_finite()) {
+            continue;
+        }
+        let c = problem.confidence.as_ref().map_or(1.0, |k| k.as_slice()[q]);
+        let i = problem.image.as_slice()[q];
+        e_one += c * (i - one.reprojection.as_slice()[q]).powi(2);
+        e_with += c * (i - with.reprojection.as_slice()[q]).powi(2);
+    }
+    if e_one > 0.0 {
+        e_with / e_one
+    } else {
+        f64::NAN
     }
 }
 
@@ -522,6 +553,19 @@ mod tests {
                 ratio(c)
             );
         }
+    }
+
+    #[test]
+    fn the_full_size_comparison_measures_each_reprojection_against_the_photograph() {
+        let (photo, _) = problem(&patches());
+        let one = super::super::solve(&photo, &SolverParams::default(), &mut ()).expect("solves");
+        assert_eq!(misfit_ratio(&photo, &one, &one), 1.0);
+        let exact = Solution {
+            reprojection: photo.image.clone(),
+            ..one.clone()
+        };
+        assert_eq!(misfit_ratio(&photo, &one, &exact), 0.0);
+        assert!(misfit_ratio(&photo, &exact, &one).is_nan());
     }
 
     #[test]

@@ -445,12 +445,45 @@ pub fn solve_with_known_depths(
         return Ok((solution, fit));
     }
     let (divided, albedo) = super::albedo_fit::apply(problem, params, observer)?;
-    let Some(albedo) = albedo else {
+    let Some(mut albedo) = albedo else {
         return Ok((solution, fit));
     };
-    let Some(mut divided) = divided else {
-        albedo.restore(&mut solution);
-        return Ok((solution, fit));
+    let mut divided = match divided {
+        Some(divided) => divided,
+        // Judged at albedo 1's scale, the estimate fell short but fitted
+        // better: that scale is the one that puts albedo 1's shape (dark
+        // albedo read as slopes) at the known distances. The estimate's
+        // shape gets its own scale, and the two searched solutions are
+        // compared on the photograph at its full size.
+        None if albedo.misfit_ratio < 1.0 => {
+            let (mut divided, divisor) = super::albedo_fit::divide_out(problem, &albedo.albedo);
+            let (mut again, mut fit_again) =
+                search_known_depths(&mut divided, params, method, points, observer)?;
+            let mut trial = albedo.clone();
+            trial.used = true;
+            trial.divisor = divisor;
+            trial.restore(&mut again);
+            albedo.decide(super::albedo_fit::misfit_ratio(problem, &solution, &again));
+            if !albedo.used {
+                albedo.restore(&mut solution);
+                return Ok((solution, fit));
+            }
+            albedo.divisor = divisor;
+            let (w, h) = problem.image.size();
+            albedo.working_side = w.max(h);
+            albedo
+                .summary
+                .push_str(" (each at the scale its own search found)");
+            problem.intensity_scale = divided.intensity_scale * divisor;
+            fit_again.intensity_scale = problem.intensity_scale;
+            fit_again.solves += fit.solves;
+            again.albedo_fit = Some(albedo);
+            return Ok((again, fit_again));
+        }
+        None => {
+            albedo.restore(&mut solution);
+            return Ok((solution, fit));
+        }
     };
     let (mut again, mut fit_again) =
         search_known_depths(&mut divided, params, method, points, observer)?;
