@@ -427,7 +427,9 @@ fn frame_at_points(problem: &Problem, points: &[KnownDepth]) -> bool {
 /// With `--albedo auto` the albedo is decided once, at the scale the search
 /// found with albedo 1 ([`super::albedo_fit`]); when it is used, the search
 /// runs again on the image divided by it, so every solve of a search
-/// solves one model.
+/// solves one model. When the estimate fitted better at that scale but fell
+/// short of the margin, it is searched on its own scale too and the two
+/// solutions are compared on the full photograph by the same rule.
 ///
 /// # Errors
 /// As [`super::solve_method`]; `SolveError::Input` when there is no point,
@@ -448,37 +450,16 @@ pub fn solve_with_known_depths(
     let Some(mut albedo) = albedo else {
         return Ok((solution, fit));
     };
-    let mut divided = match divided {
-        Some(divided) => divided,
-        // Judged at albedo 1's scale, the estimate fell short but fitted
-        // better: that scale is the one that puts albedo 1's shape (dark
-        // albedo read as slopes) at the known distances. The estimate's
-        // shape gets its own scale, and the two searched solutions are
-        // compared on the photograph at its full size.
+    // Judged at albedo 1's scale, an estimate that fitted better but fell
+    // short is searched on its own scale too: albedo 1's is the one that
+    // puts albedo 1's shape (dark albedo read as slopes) at the known
+    // distances. The two searched solutions are then compared on the
+    // photograph at its full size.
+    let judged = albedo.used;
+    let (mut divided, divisor) = match divided {
+        Some(divided) => (divided, albedo.divisor),
         None if albedo.misfit_ratio < 1.0 => {
-            let (mut divided, divisor) = super::albedo_fit::divide_out(problem, &albedo.albedo);
-            let (mut again, mut fit_again) =
-                search_known_depths(&mut divided, params, method, points, observer)?;
-            let mut trial = albedo.clone();
-            trial.used = true;
-            trial.divisor = divisor;
-            trial.restore(&mut again);
-            albedo.decide(super::albedo_fit::misfit_ratio(problem, &solution, &again));
-            if !albedo.used {
-                albedo.restore(&mut solution);
-                return Ok((solution, fit));
-            }
-            albedo.divisor = divisor;
-            let (w, h) = problem.image.size();
-            albedo.working_side = w.max(h);
-            albedo
-                .summary
-                .push_str(" (each at the scale its own search found)");
-            problem.intensity_scale = divided.intensity_scale * divisor;
-            fit_again.intensity_scale = problem.intensity_scale;
-            fit_again.solves += fit.solves;
-            again.albedo_fit = Some(albedo);
-            return Ok((again, fit_again));
+            super::albedo_fit::divide_out(problem, &albedo.albedo)
         }
         None => {
             albedo.restore(&mut solution);
@@ -487,10 +468,25 @@ pub fn solve_with_known_depths(
     };
     let (mut again, mut fit_again) =
         search_known_depths(&mut divided, params, method, points, observer)?;
-    problem.intensity_scale = divided.intensity_scale * albedo.divisor;
+    let mut used = albedo.clone();
+    used.used = true;
+    used.divisor = divisor;
+    used.restore(&mut again);
+    if !judged {
+        albedo.decide(super::albedo_fit::misfit_ratio(problem, &solution, &again));
+        if !albedo.used {
+            albedo.restore(&mut solution);
+            return Ok((solution, fit));
+        }
+        albedo.divisor = divisor;
+        let (w, h) = problem.image.size();
+        albedo.working_side = w.max(h);
+        albedo.summary.push_str(" (each at the scale its own search found)");
+    }
+    problem.intensity_scale = divided.intensity_scale * divisor;
     fit_again.intensity_scale = problem.intensity_scale;
     fit_again.solves += fit.solves;
-    albedo.restore(&mut again);
+    again.albedo_fit = Some(albedo);
     Ok((again, fit_again))
 }
 
