@@ -458,9 +458,7 @@ pub fn solve_with_known_depths(
     let judged = albedo.used;
     let (mut divided, divisor) = match divided {
         Some(divided) => (divided, albedo.divisor),
-        None if albedo.misfit_ratio < 1.0 => {
-            super::albedo_fit::divide_out(problem, &albedo.albedo)
-        }
+        None if albedo.misfit_ratio < 1.0 => super::albedo_fit::divide_out(problem, &albedo.albedo),
         None => {
             albedo.restore(&mut solution);
             return Ok((solution, fit));
@@ -481,7 +479,9 @@ pub fn solve_with_known_depths(
         albedo.divisor = divisor;
         let (w, h) = problem.image.size();
         albedo.working_side = w.max(h);
-        albedo.summary.push_str(" (each at the scale its own search found)");
+        albedo
+            .summary
+            .push_str(" (each at the scale its own search found)");
     }
     problem.intensity_scale = divided.intensity_scale * divisor;
     fit_again.intensity_scale = problem.intensity_scale;
