@@ -63,8 +63,9 @@ pub struct AlbedoFit {
     /// Whether the solve used the estimate (else albedo 1).
     pub used: bool,
     /// The estimate's misfit to the photograph over albedo 1's, both with
-    /// their solved shapes on the working copy (below 1: the estimate
-    /// explains it better). NaN when there was nothing to compare.
+    /// their solved shapes on the working copy, or at the full size (see
+    /// [`Self::working_side`]); below 1: the estimate explains it better.
+    /// NaN when there was nothing to compare.
     pub misfit_ratio: f64,
     /// Share of the object's pixels beside an albedo edge (on the working
     /// copy and at the full size, summed; at most 1).
