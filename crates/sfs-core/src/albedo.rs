@@ -14,9 +14,9 @@
 //! prior on the log albedo's gradient. An occluding contour is a brightness
 //! step too; whether the estimate explains a photograph better than albedo
 //! 1 is decided with the shape (`solver::albedo_fit`), not here.
-//! [`refine`] adds the edges left in an image once an albedo found on a
-//! smaller copy (where an edge blurred over several pixels is a step) is
-//! divided out. Pure functions over `grid`, polling a `Cancel` between
+//! Given an albedo found on a smaller copy (where an edge blurred over
+//! several pixels is a step), [`estimate`] adds the edges left in the
+//! image once it is divided out. Pure functions over `grid`, polling a `Cancel` between
 //! iterations.
 
 use rayon::prelude::*;
@@ -64,10 +64,17 @@ pub struct AlbedoEstimate {
 /// at edge step `edge_log_step` and the image's noise `noise_sigma` (its
 /// standard deviation, image units).
 ///
+/// With `known`, an albedo (any scale, positive) estimated on a smaller
+/// copy of `image` and brought to its size, the edges are those of `image`
+/// divided by it (the steps the copy blurred or could not see, as thin
+/// lines), integrated and added to it before the normalisation; the noise
+/// threshold is still `image`'s own and the counts are those edges'.
+///
 /// # Errors
 /// `Cancelled` when `cancel` says so between iterations.
 pub fn estimate(
     image: &Grid<f64>,
+    known: Option<&Grid<f64>>,
     object: &Grid<bool>,
     trusted: &Grid<bool>,
     edge_log_step: f64,
@@ -76,49 +83,20 @@ pub fn estimate(
 ) -> Result<AlbedoEstimate, Cancelled> {
     let (w, h) = image.size();
     let log = image.map(|&v| v.max(noise_floor(noise_sigma)).ln());
-    let edges = integrated_edges(
-        image,
-        &log,
-        object,
-        trusted,
-        edge_log_step,
-        noise_sigma,
-        cancel,
-    )?;
-    let albedo = normalise(&edges.log_albedo, object, w, h);
-    Ok(edges.estimate(albedo, &log, object))
-}
-
-/// Refines `coarse`, an albedo (any scale, positive) estimated on a
-/// smaller copy of `image` and brought to its size: the edges of `image`
-/// divided by `coarse` (the steps the coarse copy blurred or could not
-/// see, as thin lines) are integrated and added to it, and the product is
-/// normalised as [`estimate`]'s. The noise threshold is `image`'s own. The
-/// counts returned are the refinement's edges.
-///
-/// # Errors
-/// `Cancelled` when `cancel` says so between iterations.
-pub fn refine(
-    image: &Grid<f64>,
-    coarse: &Grid<f64>,
-    object: &Grid<bool>,
-    trusted: &Grid<bool>,
-    edge_log_step: f64,
-    noise_sigma: f64,
-    cancel: Cancel<'_>,
-) -> Result<AlbedoEstimate, Cancelled> {
-    let (w, h) = image.size();
-    let floor = noise_floor(noise_sigma);
-    let log = image.map(|&v| v.max(floor).ln());
-    let log_coarse = coarse.map(|&a| {
-        if a > 0.0 && a.is_finite() {
-            a.ln()
-        } else {
-            0.0
-        }
+    let log_known = known.map(|k| {
+        k.map(|&a| {
+            if a > 0.0 && a.is_finite() {
+                a.ln()
+            } else {
+                0.0
+            }
+        })
     });
-    let residual = log.zip_map(&log_coarse, |l, a| l - a);
-    let edges = integrated_edges(
+    let residual = match &log_known {
+        Some(k) => log.zip_map(k, |l, a| l - a),
+        None => log.clone(),
+    };
+    let mut edges = integrated_edges(
         image,
         &residual,
         object,
@@ -127,13 +105,12 @@ pub fn refine(
         noise_sigma,
         cancel,
     )?;
-    let combined: Vec<f64> = edges
-        .log_albedo
-        .iter()
-        .zip(log_coarse.as_slice())
-        .map(|(f, c)| f + c)
-        .collect();
-    let albedo = normalise(&combined, object, w, h);
+    if let Some(k) = &log_known {
+        for (f, c) in edges.log_albedo.iter_mut().zip(k.as_slice()) {
+            *f += c;
+        }
+    }
+    let albedo = normalise(&edges.log_albedo, object, w, h);
     Ok(edges.estimate(albedo, &log, object))
 }
 
@@ -557,8 +534,16 @@ mod tests {
     fn clean_estimate(image: &Grid<f64>) -> AlbedoEstimate {
         let (w, h) = image.size();
         let all = Grid::filled(w, h, true);
-        estimate(image, &all, &all, DEFAULT_EDGE_LOG_STEP, 0.0, Cancel::NEVER)
-            .expect("not cancelled")
+        estimate(
+            image,
+            None,
+            &all,
+            &all,
+            DEFAULT_EDGE_LOG_STEP,
+            0.0,
+            Cancel::NEVER,
+        )
+        .expect("not cancelled")
     }
 
     #[test]
@@ -578,14 +563,14 @@ mod tests {
     }
 
     #[test]
-    fn a_refinement_adds_only_what_its_coarse_albedo_leaves() {
+    fn a_known_coarse_albedo_leaves_only_what_it_misses() {
         let (image, truth) = patched(0.5);
         let (w, h) = image.size();
         let all = Grid::filled(w, h, true);
         let refine_with = |coarse: &Grid<f64>| {
-            refine(
+            estimate(
                 &image,
-                coarse,
+                Some(coarse),
                 &all,
                 &all,
                 DEFAULT_EDGE_LOG_STEP,
@@ -623,9 +608,9 @@ mod tests {
         // 0.6): at its noise sigma no step is an edge; at sigma 0 they are.
         let image = Grid::from_fn(20, 20, |c, r| if (c + r) % 2 == 0 { 0.13 } else { 0.07 });
         let all = Grid::filled(20, 20, true);
-        let quiet = estimate(&image, &all, &all, 0.2, 0.03, Cancel::NEVER).expect("ok");
+        let quiet = estimate(&image, None, &all, &all, 0.2, 0.03, Cancel::NEVER).expect("ok");
         assert_eq!(quiet.edge_pairs, 0);
-        let loud = estimate(&image, &all, &all, 0.2, 0.0, Cancel::NEVER).expect("ok");
+        let loud = estimate(&image, None, &all, &all, 0.2, 0.0, Cancel::NEVER).expect("ok");
         assert!(loud.edge_pairs > 0);
     }
 }

@@ -147,13 +147,19 @@ impl AlbedoFit {
     /// * divisor`) and keeps the fit in it.
     pub fn restore(self, solution: &mut Solution) {
         if self.used {
-            let scale = self.divisor;
-            solution.scales.intensity *= scale;
-            solution.reprojection = solution
-                .reprojection
-                .zip_map(&self.albedo, |r, a| r * a * scale);
+            self.multiply_back(self.divisor, solution);
         }
         solution.albedo_fit = Some(self);
+    }
+
+    /// Puts the estimate back into the reprojection and brightness scale
+    /// of `solution`, solved on the image divided by it and by `divisor`
+    /// (`rho * divisor * R`, `I_ref * divisor`), used or not.
+    pub(crate) fn multiply_back(&self, divisor: f64, solution: &mut Solution) {
+        solution.scales.intensity *= divisor;
+        solution.reprojection = solution
+            .reprojection
+            .zip_map(&self.albedo, |r, a| r * a * divisor);
     }
 }
 
@@ -193,6 +199,7 @@ pub fn apply(
         )?;
         let found = albedo::estimate(
             &plain.image,
+            None,
             &small_object,
             &small_trusted,
             params.albedo_edge,
@@ -205,25 +212,15 @@ pub fn apply(
             sigma,
         ))
     };
-    let estimate = match &coarse {
-        None => albedo::estimate(
-            &problem.image,
-            &object,
-            &trusted,
-            params.albedo_edge,
-            noise_sigma,
-            Cancel::new(&cancel_probe),
-        )?,
-        Some((brought, _, _)) => albedo::refine(
-            &problem.image,
-            brought,
-            &object,
-            &trusted,
-            params.albedo_edge,
-            noise_sigma,
-            Cancel::new(&cancel_probe),
-        )?,
-    };
+    let estimate = albedo::estimate(
+        &problem.image,
+        coarse.as_ref().map(|(brought, _, _)| brought),
+        &object,
+        &trusted,
+        params.albedo_edge,
+        noise_sigma,
+        Cancel::new(&cancel_probe),
+    )?;
     // The edges as the working copy sees them: its own, and each full-size
     // edge spanning 1/f of its pairs there, its noise of an f x f average
     // sigma / f.
@@ -535,6 +532,7 @@ mod tests {
         let (object, trusted) = trusted_pixels(&photo);
         let full = albedo::estimate(
             &photo.image,
+            None,
             &object,
             &trusted,
             auto().albedo_edge,

@@ -466,10 +466,7 @@ pub fn solve_with_known_depths(
     };
     let (mut again, mut fit_again) =
         search_known_depths(&mut divided, params, method, points, observer)?;
-    let mut used = albedo.clone();
-    used.used = true;
-    used.divisor = divisor;
-    used.restore(&mut again);
+    albedo.multiply_back(divisor, &mut again);
     if !judged {
         albedo.decide(super::albedo_fit::misfit_ratio(problem, &solution, &again));
         if !albedo.used {
