@@ -248,3 +248,61 @@ fn a_camera_files_scale_counts_only_when_marked_measured() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An LED nearer the object than the camera (0.1 beside the axis, more
+/// than half-way to a Sombrero disc 2 away, 3 degrees off the camera seen
+/// from it), at the true scale. Marched in its frame, the centred march put
+/// the surface as far from the camera as it is from the LED: in front of
+/// it, where it could not light the side the camera sees (median depth
+/// 0.86, RSE 0.57). Started from the plane up the pyramid (beyond a third of
+/// the way, `light_frame::MAX_FRAME_DEPTH_SHARE`): median 2.11, RSE 0.062.
+#[test]
+fn an_led_in_front_of_the_camera_starts_the_surface_beyond_it() {
+    let side = 96;
+    let lights = [PointLight {
+        position: [0.0, -0.1, 1.05],
+        direction: None,
+        mu: 0.0,
+        intensity: 1.0,
+    }];
+    let mut scene = sombrero_lit(side, side, &lights);
+    // The object a disc in the middle of the view, as a face in a portrait.
+    let radius = side as f64 / 4.0;
+    scene.object_mask = sfs_core::grid::Grid::from_fn(side, side, |c, r| {
+        let (x, y) = (
+            c as f64 + 0.5 - side as f64 / 2.0,
+            r as f64 + 0.5 - side as f64 / 2.0,
+        );
+        x.hypot(y) <= radius
+    });
+    let off_object = scene.object_mask.map(|&o| !o);
+    for (z, off) in scene
+        .depth_gt
+        .as_mut_slice()
+        .iter_mut()
+        .zip(off_object.as_slice())
+    {
+        if *off {
+            *z = f64::NAN;
+        }
+    }
+    let solution =
+        solve(&problem(&scene, &lights), &SolverParams::default(), &mut ()).expect("solves");
+    let mut depths: Vec<f64> = solution
+        .depth
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|z| z.is_finite())
+        .collect();
+    depths.sort_by(f64::total_cmp);
+    let median = depths[depths.len() / 2];
+    assert!(
+        median > 1.9,
+        "median depth {median}: in front of the LED at 1.05"
+    );
+    let solved_rse = rse(&solution.depth, &scene);
+    assert!(solved_rse < 0.1, "RSE {solved_rse}");
+    // The plane up the pyramid: more than one level.
+    assert!(solution.levels.len() > 1);
+}

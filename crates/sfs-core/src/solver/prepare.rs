@@ -168,7 +168,8 @@ pub(crate) fn prepare<'a>(
     };
     // Fast marching knows only the centred light. Lights beside the lens
     // (within `light_frame::MAX_FRAME_ANGLE_DEG` of the camera, seen from
-    // the object) are centred in their own frame, where the start is
+    // the object, and at most `light_frame::MAX_FRAME_DEPTH_SHARE` of the
+    // way to it) are centred in their own frame, where the start is
     // marched (`light_frame`); lights farther off start from the plane that
     // best explains the image, refined through the whole pyramid (the
     // paper's path).
