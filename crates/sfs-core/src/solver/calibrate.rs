@@ -402,7 +402,8 @@ fn search_scale(
 }
 
 /// Whether the start is marched in the lights' frame for an object at the
-/// known points (see [`super::light_frame::MAX_FRAME_ANGLE_DEG`]).
+/// known points (see [`super::light_frame::MAX_FRAME_ANGLE_DEG`] and
+/// [`super::light_frame::MAX_FRAME_DEPTH_SHARE`]).
 fn frame_at_points(problem: &Problem, points: &[KnownDepth]) -> bool {
     let camera = problem.camera;
     let centre = points
@@ -414,6 +415,28 @@ fn frame_at_points(problem: &Problem, points: &[KnownDepth]) -> bool {
         .sum::<DVec3>()
         / points.len().max(1) as f64;
     super::light_frame::faces_the_frame(&problem.lights, centre)
+}
+
+/// `params` with the start every solve of a known-depth search uses:
+/// lights far beside the lens (seen from the known points) start from the
+/// plane up the pyramid in every solve, and so do the albedo decision's
+/// trial solves. Left to each solve's own guess of the distance, the start
+/// would switch with `s` and the depth jump between them; and the albedo
+/// decision, started from the march, compared solutions on another branch
+/// than the search's (the shared face with LED 4 at 648 px: albedo 1's trial
+/// solve 29 cm away, in front of the LED, against the searched 66 cm).
+fn search_params(problem: &Problem, params: &SolverParams, points: &[KnownDepth]) -> SolverParams {
+    match params.initial_depth {
+        crate::params::InitialDepth::FastMarching
+            if !problem.light_is_centred() && !frame_at_points(problem, points) =>
+        {
+            SolverParams {
+                initial_depth: crate::params::InitialDepth::FromImage,
+                ..params.clone()
+            }
+        }
+        _ => params.clone(),
+    }
 }
 
 /// Solves `problem` so that its depth meets `points` in relative least
@@ -442,6 +465,7 @@ pub fn solve_with_known_depths(
     points: &[KnownDepth],
     observer: &mut dyn SolveObserver,
 ) -> Result<(super::Solution, KnownDepthFit), SolveError> {
+    let params = &search_params(problem, params, points);
     let (mut solution, fit) = search_known_depths(problem, params, method, points, observer)?;
     if params.albedo != crate::params::AlbedoChoice::Auto {
         return Ok((solution, fit));
@@ -513,23 +537,6 @@ fn search_known_depths(
     let auto = params.fixed_material().is_none();
     let user_params = params;
     let params = &resolved;
-    // Lights far beside the lens (seen from the known points) start from
-    // the plane up the pyramid in every solve of the search: left to each
-    // solve's own guess of the distance, the start would switch with `s`
-    // and the depth jump between them.
-    let pinned;
-    let params = match params.initial_depth {
-        crate::params::InitialDepth::FastMarching
-            if !problem.light_is_centred() && !frame_at_points(problem, points) =>
-        {
-            pinned = SolverParams {
-                initial_depth: crate::params::InitialDepth::FromImage,
-                ..params.clone()
-            };
-            &pinned
-        }
-        _ => params,
-    };
     if !problem.light_is_centred() {
         // With lights off the centre the depth is metric: the search starts
         // from the scale at which a plane at the known points' mean depth
