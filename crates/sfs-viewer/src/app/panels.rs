@@ -766,7 +766,7 @@ impl Panels {
         let before = *initial;
         ui.horizontal_wrapped(|ui| {
             ui.label("start")
-                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre fast marching runs in the lights' own frame (within 20 degrees of the camera), else from the best-fitting plane; the paper's start is that plane");
+                .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre fast marching runs in the lights' own frame (within 20 degrees of the camera and a third of the way to the object), else from the best-fitting plane; the paper's start is that plane");
             ui.selectable_value(initial, InitialChoice::FastMarching, fast_marching.0)
                 .on_hover_text(fast_marching.1);
             ui.selectable_value(initial, InitialChoice::FromImage, from_image.0)
@@ -1950,7 +1950,8 @@ fn start_labels(lights_off_centre: bool) -> [(&'static str, &'static str); 2] {
                 "Fast marching solves the light at the optical centre: with these lights it is \
                  marched in their own frame (a camera at the lights, where they are centred) \
                  and refined by the solver at full resolution. Lights more than 20 degrees off \
-                 the camera, seen from the object, start from the constant depth \
+                 the camera, seen from the object, or more than a third of the way to it, start \
+                 from the constant depth \
                  (fronto-parallel plane) whose rendering best fits the image, refined through \
                  the whole pyramid.",
             ),
