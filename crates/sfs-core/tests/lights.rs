@@ -1,6 +1,8 @@
 //! Lights beside the lens: the start marched in the light's frame, known
 //! distances, and the honesty of the scale estimate.
 
+mod common;
+
 use sfs_core::light::PointLight;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
@@ -275,19 +277,11 @@ fn an_led_in_front_of_the_camera_starts_the_surface_beyond_it() {
         );
         x.hypot(y) <= radius
     });
-    let off_object = scene.object_mask.map(|&o| !o);
-    for (z, off) in scene
+    scene.depth_gt = scene
         .depth_gt
-        .as_mut_slice()
-        .iter_mut()
-        .zip(off_object.as_slice())
-    {
-        if *off {
-            *z = f64::NAN;
-        }
-    }
-    let solution =
-        solve(&problem(&scene, &lights), &SolverParams::default(), &mut ()).expect("solves");
+        .zip_map(&scene.object_mask, |z, on| if *on { *z } else { f64::NAN });
+    let lit = problem(&scene, &lights);
+    let solution = solve(&lit, &SolverParams::default(), &mut ()).expect("solves");
     let mut depths: Vec<f64> = solution
         .depth
         .as_slice()
@@ -305,4 +299,16 @@ fn an_led_in_front_of_the_camera_starts_the_surface_beyond_it() {
     assert!(solved_rse < 0.1, "RSE {solved_rse}");
     // The plane up the pyramid: more than one level.
     assert!(solution.levels.len() > 1);
+    // The rule is the same at another exposure (image and scale x0.25).
+    let darker = Problem {
+        image: lit.image.map(|v| v * 0.25),
+        intensity_scale: lit.intensity_scale * 0.25,
+        ..lit.clone()
+    };
+    let again = solve(&darker, &SolverParams::default(), &mut ()).expect("solves");
+    let difference = common::largest_relative_difference(&again.depth, 1.0, &solution.depth);
+    assert!(
+        difference < common::ROUND_OFF,
+        "exposure x0.25 moved the depth by {difference}"
+    );
 }
