@@ -285,6 +285,19 @@ fn edge_steps(
     edges
 }
 
+/// `albedo` times `factor` (both positive), normalised again as
+/// [`estimate`] normalises: the object's 90th percentile 1, clamped.
+pub fn renormalised(albedo: &Grid<f64>, factor: &Grid<f64>, object: &Grid<bool>) -> Grid<f64> {
+    let (w, h) = albedo.size();
+    let log: Vec<f64> = albedo
+        .as_slice()
+        .iter()
+        .zip(factor.as_slice())
+        .map(|(a, f)| (a * f).max(1e-12).ln())
+        .collect();
+    normalise(&log, object, w, h)
+}
+
 /// `exp` of the log albedo, its object's 90th percentile set to 1, clamped.
 fn normalise(log_albedo: &[f64], object: &Grid<bool>, w: usize, h: usize) -> Grid<f64> {
     let mut values: Vec<f64> = log_albedo
