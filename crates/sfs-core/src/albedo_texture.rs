@@ -9,7 +9,8 @@
 //! its blur over [`DETAIL_SIGMA_PX`] pixels, pooled over
 //! [`POOL_SIGMA_PX`] pixels, with what the image's noise puts there taken
 //! out (the noise of a log is `sigma / I`, so a dark, noisy render is not
-//! textured), less the object's [`BASE_PERCENTILE`] (skin has pores). How
+//! textured), less the object's median [`BASE_PERCENTILE`] (the untextured
+//! material's own grain: skin has pores; at most half the object is hair). How
 //! much darker a unit of texture makes the albedo is measured in the image
 //! itself: the log brightness left once the edge estimate is divided out
 //! is regressed on the texture between two blurs of 1/324 and 1/81 of the
@@ -19,8 +20,8 @@
 //! magnitude; otherwise the texture says nothing (a render's patches,
 //! lines or noise). Measured on the shared face (LED 4, 648 px, the nose's
 //! distance given): the texture alone correlates -0.80 with the log of the
-//! seven photographs' albedo, the edge estimate 0.51; the slope found in
-//! the image is -5.2 to -6.1, the solve's best -6 (README, "Albedo").
+//! seven photographs' albedo, the edge estimate 0.51 (README, "Albedo",
+//! step 6).
 //! Pure functions over `grid` and `resample`, polling a `Cancel`.
 
 use rayon::prelude::*;
@@ -34,10 +35,16 @@ use crate::resample::resize_area;
 pub const DETAIL_SIGMA_PX: f64 = 1.0;
 /// The blur (pixels of the image) over which the detail's power is pooled.
 pub const POOL_SIGMA_PX: f64 = 4.0;
-/// The object's percentile of texture taken as untextured (skin, paint).
-pub const BASE_PERCENTILE: f64 = 0.1;
+/// The object's percentile of texture taken as the untextured material's
+/// own (at most half the object is hair). Measured on the face's seven LEDs
+/// alone at 648 px: the 10th percentile darkened 55 % of the face and made
+/// four of the six other LEDs 1.5-2.2 degrees worse (mean 28.9 against the
+/// edges' 28.8); the median, mean 28.3.
+pub const BASE_PERCENTILE: f64 = 0.5;
 /// The least magnitude of correlation between texture and the brightness
-/// left by the edges for the slope to be used.
+/// left by the edges for the slope to be used: the 32 local albedo renders'
+/// fine geometry (the Dragon's scales, Suzanne's facets) reached 0.30; the
+/// face 0.41-0.63 (432-1296 px).
 pub const MIN_CORRELATION: f64 = 0.4;
 /// Longest side of the copy the texture is measured on: the same albedo
 /// whatever the photograph's size (a strand's pixel at this size).
