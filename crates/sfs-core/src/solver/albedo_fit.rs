@@ -27,7 +27,7 @@
 //! image says so (`crate::albedo_texture`: its own test is the correlation
 //! of texture and brightness), an accepted estimate carries it. The shape
 //! test judges the edges alone: measured on the shared face, the texture
-//! lowers the mean normal error (27.2 -> 23.1 degrees at 648 px) while
+//! lowers the mean normal error (27.2 -> 23.9 degrees at 648 px) while
 //! its reproduction of the photograph is worse (x0.69-1.27 against x0.46-
 //! 0.58: the shape test would refuse it at 432 and 1296 px), and
 //! on renders a fine geometry (the Dragon's scales) reads as texture of
