@@ -24,11 +24,10 @@
 //! step 6).
 //! Pure functions over `grid` and `resample`, polling a `Cancel`.
 
-use rayon::prelude::*;
-
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
-use crate::resample::resize_area;
+use crate::grid::for_rows;
+use crate::resample::{gaussian_kernel, resize_area};
 
 /// The blur (standard deviation, pixels of the image) whose residual is the
 /// texture's detail: the scale of a strand of hair.
@@ -55,15 +54,10 @@ const BAND: (f64, f64) = (1.0 / 324.0, 1.0 / 81.0);
 /// (away from the object's border).
 const INTERIOR: f64 = 0.9;
 
-/// What the texture says about the albedo.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TextureAlbedo {
-    /// Per pixel of the copy of at most [`TEXTURE_SIDE`] pixels, the factor
-    /// the texture multiplies the albedo by (1 where it is not used or not
-    /// textured).
-    pub factor: Grid<f64>,
-    /// The copy's trusted pixels (where `factor` was measured).
-    pub inside: Grid<bool>,
+/// What the texture said, in numbers (the solve report's
+/// `albedo_fit.texture`).
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct TextureSummary {
     /// The slope: change of log albedo per unit of texture (negative:
     /// textured is darker); NaN when it could not be measured.
     pub log_slope: f64,
@@ -73,6 +67,29 @@ pub struct TextureAlbedo {
     pub used: bool,
     /// Share of the trusted object darkened by more than 10 %.
     pub darkened_share: f64,
+}
+
+impl TextureSummary {
+    /// Nothing measured, nothing used.
+    pub const UNMEASURED: Self = Self {
+        log_slope: f64::NAN,
+        correlation: f64::NAN,
+        used: false,
+        darkened_share: 0.0,
+    };
+}
+
+/// What the texture says about the albedo.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TextureAlbedo {
+    /// Per pixel of the copy of at most [`TEXTURE_SIDE`] pixels, the factor
+    /// the texture multiplies the albedo by (1 where it is not used or not
+    /// textured).
+    pub factor: Grid<f64>,
+    /// The copy's trusted pixels (where `factor` was measured).
+    pub inside: Grid<bool>,
+    /// The slope, its correlation and what it did.
+    pub summary: TextureSummary,
 }
 
 /// The texture's albedo factor for `image` (linear, >= 0; its noise
@@ -143,10 +160,11 @@ pub fn texture_albedo(
     let unused = |log_slope: f64, correlation: f64| TextureAlbedo {
         factor: Grid::filled(w, h, 1.0),
         inside: inside.clone(),
-        log_slope,
-        correlation,
-        used: false,
-        darkened_share: 0.0,
+        summary: TextureSummary {
+            log_slope,
+            correlation,
+            ..TextureSummary::UNMEASURED
+        },
     };
     if values.len() < 16 {
         return Ok(unused(f64::NAN, f64::NAN));
@@ -172,10 +190,12 @@ pub fn texture_albedo(
     Ok(TextureAlbedo {
         factor: Grid::from_vec(w, h, factor).unwrap_or_else(|| Grid::filled(w, h, 1.0)),
         inside,
-        log_slope,
-        correlation,
-        used: true,
-        darkened_share: darkened as f64 / trusted_count.max(1) as f64,
+        summary: TextureSummary {
+            log_slope,
+            correlation,
+            used: true,
+            darkened_share: darkened as f64 / trusted_count.max(1) as f64,
+        },
     })
 }
 
@@ -236,16 +256,6 @@ fn detail_noise_gain(sigma_px: f64) -> f64 {
     gain
 }
 
-/// A normalised Gaussian kernel of `sigma_px`, radius `3 sigma`.
-fn gaussian_kernel(sigma_px: f64) -> Vec<f64> {
-    let radius = (3.0 * sigma_px).ceil().max(1.0) as isize;
-    let kernel: Vec<f64> = (-radius..=radius)
-        .map(|k| (-((k * k) as f64) / (2.0 * sigma_px * sigma_px)).exp())
-        .collect();
-    let total: f64 = kernel.iter().sum();
-    kernel.iter().map(|k| k / total).collect()
-}
-
 /// The mean of `values` over pixels of `weight` near each pixel: the blur
 /// of `values * weight` over the blur of `weight` (0 where that is 0).
 fn masked_blur(
@@ -277,40 +287,29 @@ fn blur(
 ) -> Result<Vec<f64>, Cancelled> {
     let kernel = gaussian_kernel(sigma_px.max(0.3));
     let radius = (kernel.len() / 2) as isize;
+    let kernel = kernel.as_slice();
+    // The taps of position `i` that fall inside `0..n`, with their offsets.
+    let taps = move |i: usize, n: usize| {
+        kernel.iter().enumerate().filter_map(move |(k, g)| {
+            let j = i as isize + k as isize - radius;
+            (j >= 0 && (j as usize) < n).then_some((j as usize, *g))
+        })
+    };
     let mut across = vec![0.0; w * h];
-    across.par_chunks_mut(w.max(1)).enumerate().try_for_each(
-        |(r, out)| -> Result<(), Cancelled> {
-            cancel.check()?;
-            let row = &values[r * w..(r + 1) * w];
-            for (c, value) in out.iter_mut().enumerate() {
-                let mut sum = 0.0;
-                for (k, g) in kernel.iter().enumerate() {
-                    let i = c as isize + k as isize - radius;
-                    if i >= 0 && (i as usize) < w {
-                        sum += g * row[i as usize];
-                    }
-                }
-                *value = sum;
-            }
-            Ok(())
-        },
-    )?;
+    for_rows(&mut across, w, cancel, |r, out| {
+        let row = &values[r * w..(r + 1) * w];
+        for (c, value) in out.iter_mut().enumerate() {
+            *value = taps(c, w).map(|(j, g)| g * row[j]).sum();
+        }
+    })?;
     let mut out = vec![0.0; w * h];
-    out.par_chunks_mut(w.max(1))
-        .enumerate()
-        .try_for_each(|(r, out)| -> Result<(), Cancelled> {
-            cancel.check()?;
-            for (k, g) in kernel.iter().enumerate() {
-                let i = r as isize + k as isize - radius;
-                if i >= 0 && (i as usize) < h {
-                    let source = &across[i as usize * w..(i as usize + 1) * w];
-                    for (value, s) in out.iter_mut().zip(source) {
-                        *value += g * s;
-                    }
-                }
+    for_rows(&mut out, w, cancel, |r, out| {
+        for (j, g) in taps(r, h) {
+            for (value, s) in out.iter_mut().zip(&across[j * w..(j + 1) * w]) {
+                *value += g * s;
             }
-            Ok(())
-        })?;
+        }
+    })?;
     Ok(out)
 }
 
@@ -363,8 +362,8 @@ mod tests {
     #[test]
     fn hair_darkens_its_region_and_leaves_the_rest() {
         let found = run(&hair_image(), 1e-3);
-        assert!(found.used, "{found:?}");
-        assert!(found.log_slope < 0.0 && found.correlation <= -MIN_CORRELATION);
+        assert!(found.summary.used, "{found:?}");
+        assert!(found.summary.log_slope < 0.0 && found.summary.correlation <= -MIN_CORRELATION);
         let (mut hair, mut clean) = (Vec::new(), Vec::new());
         // Away from the squares' borders, where the pooling mixes both.
         for r in 0..SIDE {
@@ -397,7 +396,7 @@ mod tests {
             (base.at(c, r) + sigma * u * 3f64.sqrt()).max(0.0)
         });
         let found = run(&noisy, sigma);
-        assert!(!found.used, "{found:?}");
+        assert!(!found.summary.used, "{found:?}");
         assert!(found.factor.as_slice().iter().all(|&f| f == 1.0));
     }
 
@@ -406,7 +405,7 @@ mod tests {
         let image = hair_image();
         let bright = run(&image, 1e-3);
         let dark = run(&image.map(|v| v * 0.25), 0.25e-3);
-        assert!(bright.used && dark.used);
+        assert!(bright.summary.used && dark.summary.used);
         let worst = bright
             .factor
             .as_slice()

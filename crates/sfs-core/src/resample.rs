@@ -52,6 +52,18 @@ pub fn resize_area(
     Ok(out)
 }
 
+/// The sampled Gaussian of standard deviation `sigma_px` (> 0) over
+/// `-ceil(3 sigma) ..= ceil(3 sigma)`, normalised to sum 1: the one kernel
+/// of the pyramid's blur and the albedo texture's.
+pub fn gaussian_kernel(sigma_px: f64) -> Vec<f64> {
+    let radius = (3.0 * sigma_px).ceil() as isize;
+    let kernel: Vec<f64> = (-radius..=radius)
+        .map(|k| (-(k * k) as f64 / (2.0 * sigma_px * sigma_px)).exp())
+        .collect();
+    let norm: f64 = kernel.iter().sum();
+    kernel.iter().map(|k| k / norm).collect()
+}
+
 /// Per output index, the input indices it covers and their weights (sum 1).
 fn weights(input: usize, output: usize) -> Vec<Vec<(usize, f64)>> {
     let k = input as f64 / output as f64;

@@ -49,6 +49,7 @@ use super::problem::{Problem, SATURATED, Solution, SolveError, SolveObserver};
 use super::pyramid::{bilinear_taps, map_coordinate};
 use super::working::{Forward, working_copy};
 use crate::albedo;
+use crate::albedo_texture::{TextureSummary, texture_albedo};
 use crate::cancel::Cancel;
 use crate::grid::Grid;
 use crate::params::{AlbedoChoice, SolverParams};
@@ -91,7 +92,7 @@ pub struct AlbedoFit {
     pub edge_log_step: f64,
     /// Fine texture read as darker albedo (`crate::albedo_texture`): the
     /// change of log albedo per unit of texture measured in the image
-    /// (NaN when it could not be), whether it is part of the estimate, its
+    /// (NaN when it could not be, or no edge carries it), whether it is part of the estimate, its
     /// band-passed correlation with the brightness the edges leave, and the
     /// share of the trusted object it darkens by more than 10 %.
     pub texture: TextureSummary,
@@ -112,19 +113,6 @@ pub struct AlbedoFit {
     pub seconds: f64,
     /// The decision in plain words.
     pub summary: String,
-}
-
-/// What the texture said, for the report (`AlbedoFit::texture`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct TextureSummary {
-    /// Change of log albedo per unit of texture (negative: darker).
-    pub log_slope: f64,
-    /// The correlation the slope rests on.
-    pub correlation: f64,
-    /// Whether the texture is part of the estimate.
-    pub used: bool,
-    /// Share of the trusted object darkened by more than 10 %.
-    pub darkened_share: f64,
 }
 
 impl AlbedoFit {
@@ -268,21 +256,6 @@ pub fn apply(
         noise_sigma,
         Cancel::new(&cancel_probe),
     )?;
-    // Fine texture (hair) darkens gradually, without a step: measured in
-    // the image against what the edges leave. It rides on the edges: the
-    // shape test below judges the edges alone (the texture's own test is
-    // its correlation), and an accepted estimate carries it.
-    let texture = crate::albedo_texture::texture_albedo(
-        &problem.image,
-        &estimate.albedo,
-        &trusted,
-        noise_sigma,
-        Cancel::new(&cancel_probe),
-    )?;
-    let final_albedo = texture.used.then(|| {
-        let factor = to_size(&texture.factor, &texture.inside, problem.image.size());
-        albedo::renormalised(&estimate.albedo, &factor, &object)
-    });
     // The edges as the working copy sees them: its own, and each full-size
     // edge spanning 1/f of its pairs there, its noise of an f x f average
     // sigma / f.
@@ -298,6 +271,26 @@ pub fn apply(
     let noise_misfit = 2.0
         * (estimate.edge_pairs as f64 / f * (noise_sigma / f).powi(2)
             + coarse_pairs as f64 * coarse_sigma.powi(2));
+    // Fine texture (hair) darkens gradually, without a step: measured in
+    // the image against what the edges leave. It rides on the edges (none
+    // found: nothing to carry it): the shape test below judges the edges
+    // alone (the texture's own test is its correlation), and an accepted
+    // estimate carries it.
+    let texture = if edge_pairs == 0 {
+        None
+    } else {
+        Some(texture_albedo(
+            &problem.image,
+            &estimate.albedo,
+            &trusted,
+            noise_sigma,
+            Cancel::new(&cancel_probe),
+        )?)
+    };
+    let final_albedo = texture.as_ref().filter(|t| t.summary.used).map(|t| {
+        let factor = to_size(&t.factor, &t.inside, problem.image.size());
+        albedo::renormalised(&estimate.albedo, &factor, &object)
+    });
     let min_albedo = final_albedo
         .as_ref()
         .unwrap_or(&estimate.albedo)
@@ -316,12 +309,7 @@ pub fn apply(
         explained_share: estimate.explained_share,
         min_albedo,
         edge_log_step: params.albedo_edge,
-        texture: TextureSummary {
-            log_slope: texture.log_slope,
-            correlation: texture.correlation,
-            used: texture.used,
-            darkened_share: texture.darkened_share,
-        },
+        texture: texture.map_or(TextureSummary::UNMEASURED, |t| t.summary),
         noise_sigma,
         noise_share: 0.0,
         divisor: 1.0,
@@ -330,7 +318,6 @@ pub fn apply(
         summary: String::new(),
     };
     if edge_pairs == 0 {
-        fit.texture.used = false;
         fit.summary = "albedo 1: no albedo edge found (no step of log brightness above the \
                        edge step and its noise)"
             .into();

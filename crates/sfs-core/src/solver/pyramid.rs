@@ -64,12 +64,8 @@ pub fn gaussian_blur(grid: &Grid<f64>, sigma_px: f64) -> Grid<f64> {
     if sigma_px <= 1e-3 {
         return grid.clone();
     }
-    let radius = (3.0 * sigma_px).ceil() as isize;
-    let kernel: Vec<f64> = (-radius..=radius)
-        .map(|k| (-(k * k) as f64 / (2.0 * sigma_px * sigma_px)).exp())
-        .collect();
-    let norm: f64 = kernel.iter().sum();
-    let kernel: Vec<f64> = kernel.iter().map(|k| k / norm).collect();
+    let kernel = crate::resample::gaussian_kernel(sigma_px);
+    let radius = (kernel.len() / 2) as isize;
     let (w, h) = grid.size();
     let horizontal = Grid::from_fn(w, h, |c, r| {
         kernel
