@@ -4,15 +4,16 @@
 //! beside the lens, times each albedo pattern of `synth --ps-leds`
 //! (uniform, patches, lines, smooth; normalised to a maximum of 1), clean
 //! and at noise sigma 5. Each is solved at the defaults with albedo 1, with
-//! `--albedo auto` and with the true albedo divided out; the columns are
-//! the three RSEs, whether auto used its estimate (and the misfit ratio
-//! that decided), the albedo's median error (`scene::photometric::
-//! albedo_error`, up to one scale) and auto's seconds. With the shared
-//! photographs, LED 4 alone at half size (its scale from the nose's
-//! distance in the seven-photo photometric-stereo depth) with albedo 1,
-//! auto and the set's albedo given, each against the set (mean normal
-//! angle, depth range), and the pictures `albedo-face-*.png`. Writes
-//! `albedo.md` and `albedo.json`.
+//! `--albedo auto`, with the true albedo divided out, and with the true
+//! albedo 3 % off per cell (how exactly a given albedo must be known); the
+//! columns are the four RSEs, whether auto used its estimate (and the
+//! misfit ratio that decided), the albedo's median error
+//! (`scene::photometric::albedo_error`, up to one scale) and auto's
+//! seconds. With the shared photographs, each LED's photograph alone at
+//! half size (its scale from the nose's distance in the seven-photo
+//! photometric-stereo depth) with albedo 1, auto and the set's albedo
+//! given, each against the set (mean normal angle, depth range), and the
+//! pictures `albedo-face-*.png`. Writes `albedo.md` and `albedo.json`.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -27,7 +28,7 @@ use sfs_core::light::PointLight;
 use sfs_core::metrics;
 use sfs_core::params::{AlbedoChoice, SolverParams};
 use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput};
-use sfs_core::scene::photometric::{albedo_error, albedo_pattern};
+use sfs_core::scene::photometric::{albedo_error, albedo_pattern, albedo_with_cell_error};
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::albedo_fit::divide_out;
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
@@ -44,6 +45,13 @@ use super::{BenchArgs, wanted};
 const SEED: u64 = 1;
 /// The noise of the noisy rows, on the 0..255 scale.
 const NOISE: f64 = 5.0;
+/// The log standard deviation of the per-cell error of the true albedo's
+/// second solve (3 %).
+const CELL_ERROR: f64 = 0.03;
+/// The draws of that error whose median RSE is reported.
+const CELL_ERROR_DRAWS: u64 = 3;
+/// The cells per side of that error (the `patches` pattern's).
+const ERROR_CELLS: usize = 5;
 /// The albedo patterns.
 const PATTERNS: [&str; 4] = ["uniform", "patches", "lines", "smooth"];
 
@@ -66,6 +74,11 @@ pub struct AlbedoRow {
     pub rse_auto: f64,
     /// RSE with the true albedo divided out.
     pub rse_true: f64,
+    /// RSE with the true albedo divided out, each of its 5x5 cells of the
+    /// image plane off by its own factor (log standard deviation
+    /// [`CELL_ERROR`]; the median over [`CELL_ERROR_DRAWS`] draws): how
+    /// exactly a given albedo must be known.
+    pub rse_true_cell_error: f64,
     /// Whether auto used its estimate.
     pub auto_used: bool,
     /// The estimate's misfit over albedo 1's (NaN: no edge found).
@@ -79,9 +92,11 @@ pub struct AlbedoRow {
     pub seconds: f64,
 }
 
-/// LED 4 alone against the seven photographs.
+/// One photograph of the face alone against the seven photographs.
 #[derive(Clone, Debug, Serialize)]
 pub struct FaceAlbedoRow {
+    /// The photograph's file stem (`led4`).
+    pub photograph: String,
     /// `albedo 1`, `auto` or `the set's albedo given`.
     pub albedo: String,
     /// Whether auto used its estimate (auto only).
@@ -190,6 +205,17 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         solve(&problem_of(&scene, image.clone(), &lights), &auto, &mut ())?;
                     let seconds = started.elapsed().as_secs_f64();
                     let given = solve(&problem_of(&scene, divided, &lights), &one, &mut ())?;
+                    // The median over three draws of the per-cell error.
+                    let mut off_rses = Vec::new();
+                    for draw in 0..CELL_ERROR_DRAWS {
+                        let off =
+                            albedo_with_cell_error(&truth, ERROR_CELLS, CELL_ERROR, SEED + draw);
+                        let divided_off = image.zip_map(&off, |i, a| i / a);
+                        let given_off =
+                            solve(&problem_of(&scene, divided_off, &lights), &one, &mut ())?;
+                        off_rses.push(rse(&given_off)?);
+                    }
+                    off_rses.sort_by(f64::total_cmp);
                     let fit = estimated.albedo_fit.as_ref();
                     let row = AlbedoRow {
                         scene: name.into(),
@@ -200,6 +226,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         rse_one: rse(&plain)?,
                         rse_auto: rse(&estimated)?,
                         rse_true: rse(&given)?,
+                        rse_true_cell_error: off_rses[off_rses.len() / 2],
                         auto_used: fit.is_some_and(|f| f.used),
                         misfit_ratio: fit.map_or(f64::NAN, |f| f.misfit_ratio),
                         albedo_error: albedo_error(
@@ -246,8 +273,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 /// The working size of the face's solves (half the photographs' width).
 const FACE_SIDE: usize = 648;
 
-/// LED 4 alone with albedo 1, auto and the set's albedo, each scaled by
-/// the nose's distance in the seven-photo depth, against that depth.
+/// Each photograph of the set alone with albedo 1, auto and the set's
+/// albedo, each scaled by the nose's distance in the seven-photo depth,
+/// against that depth.
 fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
     let dir = args.real.join("near_ps_human1");
     let camera = dir.join("calibration.json");
@@ -289,10 +317,6 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
         row_px: (nose / w) as f64,
         depth,
     }];
-    let Some(input) = set.one_of_set(3) else {
-        return Ok(Vec::new());
-    };
-    let one = photo::prepare(&input)?;
     let white = ps
         .albedo
         .as_slice()
@@ -307,45 +331,70 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
             1.0
         }
     });
+    io::write_png16(&args.out.join("albedo-face-set.png"), &set_albedo)?;
     let mut rows = Vec::new();
-    for (label, params, albedo) in [
-        ("albedo 1", SolverParams::default(), None),
-        (
-            "auto",
-            SolverParams {
-                albedo: AlbedoChoice::Auto,
-                ..SolverParams::default()
-            },
-            None,
-        ),
-        (
-            "the set's albedo given",
-            SolverParams::default(),
-            Some(&set_albedo),
-        ),
-    ] {
-        // Divided out (the known distance searches the scale).
-        let mut problem = match albedo {
-            Some(albedo) => divide_out(&one.problem, albedo).0,
-            None => one.problem.clone(),
+    for (k, image) in images.iter().enumerate() {
+        let Some(input) = set.one_of_set(k) else {
+            continue;
         };
-        let started = Instant::now();
-        let (solution, _) =
-            solve_with_known_depths(&mut problem, &params, &Method::Linearised, &known, &mut ())?;
-        let seconds = started.elapsed().as_secs_f64();
-        if label == "auto" {
-            // White off the surface, as the set's picture.
-            let used = albedo_used(&solution).map(|a| if a.is_finite() { *a } else { 1.0 });
-            io::write_png16(&args.out.join("albedo-face-auto.png"), &used)?;
-            io::write_png16(&args.out.join("albedo-face-set.png"), &set_albedo)?;
+        let name = image
+            .file_stem()
+            .map_or_else(|| format!("{k}"), |s| s.to_string_lossy().into_owned());
+        let one = photo::prepare(&input)?;
+        for (label, params, albedo) in [
+            ("albedo 1", SolverParams::default(), None),
+            (
+                "auto",
+                SolverParams {
+                    albedo: AlbedoChoice::Auto,
+                    ..SolverParams::default()
+                },
+                None,
+            ),
+            (
+                "the set's albedo given",
+                SolverParams::default(),
+                Some(&set_albedo),
+            ),
+        ] {
+            // Divided out (the known distance searches the scale).
+            let mut problem = match albedo {
+                Some(albedo) => divide_out(&one.problem, albedo).0,
+                None => one.problem.clone(),
+            };
+            let started = Instant::now();
+            let (solution, _) = solve_with_known_depths(
+                &mut problem,
+                &params,
+                &Method::Linearised,
+                &known,
+                &mut (),
+            )?;
+            let seconds = started.elapsed().as_secs_f64();
+            if label == "auto" {
+                // White off the surface, as the set's picture.
+                let used = albedo_used(&solution).map(|a| if a.is_finite() { *a } else { 1.0 });
+                io::write_png16(
+                    &args.out.join(format!("albedo-face-auto-{name}.png")),
+                    &used,
+                )?;
+            }
+            let row = FaceAlbedoRow {
+                photograph: name.clone(),
+                albedo: label.into(),
+                auto_used: (label == "auto")
+                    .then(|| solution.albedo_fit.as_ref().is_some_and(|f| f.used)),
+                comparison: compare_single(&ps.depth, &solution.depth, prepared.problem.camera),
+                seconds,
+            };
+            eprintln!(
+                "  face {name} {label}: {:.1} deg",
+                row.comparison
+                    .as_ref()
+                    .map_or(f64::NAN, |c| c.mean_normal_angle_deg)
+            );
+            rows.push(row);
         }
-        rows.push(FaceAlbedoRow {
-            albedo: label.into(),
-            auto_used: (label == "auto")
-                .then(|| solution.albedo_fit.as_ref().is_some_and(|f| f.used)),
-            comparison: compare_single(&ps.depth, &solution.depth, prepared.problem.camera),
-            seconds,
-        });
     }
     Ok(rows)
 }
@@ -358,16 +407,17 @@ fn markdown(report: &AlbedoReport) -> String {
     let _ = writeln!(
         md,
         "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
-         auto used (misfit ratio) | albedo error auto / 1 | auto s |"
+         RSE true albedo, 3 % off per cell | auto used (misfit ratio) | albedo error auto / 1 | \
+         auto s |"
     );
     let _ = writeln!(
         md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );
     for r in &report.rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {} ({:.2}) | {:.3} / {:.3} | {:.2} |",
+            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {} ({:.2}) | {:.3} / {:.3} | {:.2} |",
             r.scene,
             r.size,
             r.light,
@@ -376,6 +426,7 @@ fn markdown(report: &AlbedoReport) -> String {
             r.rse_one,
             r.rse_auto,
             r.rse_true,
+            r.rse_true_cell_error,
             if r.auto_used { "yes" } else { "no" },
             r.misfit_ratio,
             r.albedo_error,
@@ -386,9 +437,10 @@ fn markdown(report: &AlbedoReport) -> String {
     if !report.face.is_empty() {
         let _ = writeln!(
             md,
-            "\n## The shared face: LED 4 alone against the seven photographs\n\n\
-             | albedo | auto used | mean / median normal angle (deg) | depth range single / set | s |\n\
-             | --- | --- | --- | --- | --- |"
+            "\n## The shared face: each photograph alone against the seven\n\n\
+             | photograph | albedo | auto used | mean / median normal angle (deg) | \
+             depth range single / set | s |\n\
+             | --- | --- | --- | --- | --- | --- |"
         );
         for f in &report.face {
             let (angles, ranges) =
@@ -405,11 +457,32 @@ fn markdown(report: &AlbedoReport) -> String {
                     });
             let _ = writeln!(
                 md,
-                "| {} | {} | {angles} | {ranges} | {:.1} |",
+                "| {} | {} | {} | {angles} | {ranges} | {:.1} |",
+                f.photograph,
                 f.albedo,
                 f.auto_used.map_or("-", |u| if u { "yes" } else { "no" }),
                 f.seconds
             );
+        }
+        let _ = writeln!(
+            md,
+            "\nMean over the photographs of the mean normal angle:\n"
+        );
+        for label in ["albedo 1", "auto", "the set's albedo given"] {
+            let angles: Vec<f64> = report
+                .face
+                .iter()
+                .filter(|f| f.albedo == label)
+                .filter_map(|f| f.comparison.as_ref().map(|c| c.mean_normal_angle_deg))
+                .collect();
+            if !angles.is_empty() {
+                let _ = writeln!(
+                    md,
+                    "- {label}: {:.1} deg over {}",
+                    angles.iter().sum::<f64>() / angles.len() as f64,
+                    angles.len()
+                );
+            }
         }
     }
     if !report.skipped.is_empty() {

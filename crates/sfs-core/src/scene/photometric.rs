@@ -200,6 +200,30 @@ pub fn mean_angle_deg(a: &Grid<[f64; 3]>, b: &Grid<[f64; 3]>, mask: &Grid<bool>)
     }
 }
 
+/// `albedo` with an error of its own in each cell of a `cells` x `cells`
+/// grid of the image plane (the cells of the `patches` pattern at 5): each
+/// cell multiplied by `exp(N(0, log_sigma))` from `seed`. What a given
+/// albedo a few per cent off does to a solve (`bench --part albedo`).
+pub fn albedo_with_cell_error(
+    albedo: &Grid<f64>,
+    cells: usize,
+    log_sigma: f64,
+    seed: u64,
+) -> Grid<f64> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let cells = cells.max(1);
+    let factors: Vec<f64> = (0..cells * cells)
+        .map(|_| (log_sigma * rng.sample::<f64, _>(rand_distr::StandardNormal)).exp())
+        .collect();
+    let side = albedo.width().max(albedo.height()).max(1) as f64;
+    let cell = |p: usize| ((p as f64 / side * cells as f64) as usize).min(cells - 1);
+    let (w, h) = albedo.size();
+    Grid::from_fn(w, h, |c, r| {
+        albedo.at(c, r) * factors[cell(r) * cells + cell(c)]
+    })
+}
+
 /// The median relative error of an albedo against the truth after the one
 /// scale that best matches them (the median ratio): an albedo is known up
 /// to the intensity scale. Over `mask` where both are finite and positive.
@@ -226,6 +250,23 @@ pub fn albedo_error(albedo: &Grid<f64>, truth: &Grid<f64>, mask: &Grid<bool>) ->
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_cell_error_is_constant_per_cell_and_of_its_size() {
+        let truth = albedo_pattern(100, 100, "patches");
+        let off = albedo_with_cell_error(&truth, 5, 0.03, 7);
+        let log_ratio = |c: usize, r: usize| (off.at(c, r) / truth.at(c, r)).ln();
+        // Constant within a cell (20 px here), different between cells.
+        assert!((log_ratio(0, 0) - log_ratio(19, 19)).abs() < 1e-12);
+        assert!((log_ratio(0, 0) - log_ratio(20, 0)).abs() > 1e-6);
+        let spread: Vec<f64> = (0..5)
+            .flat_map(|i| (0..5).map(move |j| (10 + 20 * i, 10 + 20 * j)))
+            .map(|(c, r)| log_ratio(c, r))
+            .collect();
+        let rms = (spread.iter().map(|v| v * v).sum::<f64>() / 25.0).sqrt();
+        assert!(rms > 0.01 && rms < 0.06, "rms {rms}");
+        assert_eq!(off, albedo_with_cell_error(&truth, 5, 0.03, 7), "seeded");
+    }
 
     #[test]
     fn the_ring_is_where_it_says() {
