@@ -14,6 +14,9 @@
 //! prior on the log albedo's gradient. An occluding contour is a brightness
 //! step too; whether the estimate explains a photograph better than albedo
 //! 1 is decided with the shape (`solver::albedo_fit`), not here.
+//! With [`EdgeRule::Chains`], only the steps that their chain confirms
+//! (`crate::albedo_chain`) are edges and the others are cut out of the
+//! integration (their link removed: neither albedo nor shading).
 //! Given an albedo found on a smaller copy (where an edge blurred over
 //! several pixels is a step), [`estimate`] adds the edges left in the
 //! image once it is divided out. Pure functions over `grid`, polling a `Cancel` between
@@ -21,6 +24,7 @@
 
 use rayon::prelude::*;
 
+use crate::albedo_chain::{EdgePair, confirmed_by_chain};
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 
@@ -43,6 +47,29 @@ const NOISE_SIGMAS: f64 = 5.0;
 /// edge joins to another, and is too small to bend a region.
 const SCREENING: f64 = 1e-6;
 
+/// Which steps of log brightness become albedo edges.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum EdgeRule {
+    /// Every step above the edge step and its noise; every other
+    /// difference is shading.
+    Steps,
+    /// Only the steps their chain confirms (`crate::albedo_chain`: the
+    /// same ratio along the edge, as between two materials); a step the
+    /// chain does not confirm (an occluding contour, a shadow's edge) is
+    /// cut out of the integration, neither albedo nor shading.
+    Chains,
+}
+
+/// The prior on the log albedo's gradient: the edge step `tau` (the L0
+/// weight) and which steps become edges.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EdgePrior {
+    /// The smallest step of log brightness taken as an edge.
+    pub log_step: f64,
+    /// Every such step, or only those their chain confirms.
+    pub rule: EdgeRule,
+}
+
 /// An albedo estimated from one image.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AlbedoEstimate {
@@ -50,6 +77,9 @@ pub struct AlbedoEstimate {
     pub albedo: Grid<f64>,
     /// Differences between object pixels taken as albedo edges.
     pub edge_pairs: usize,
+    /// Differences left out of the integration: steps that their chain
+    /// does not confirm (`crate::albedo_chain`), neither albedo nor shading.
+    pub cut_pairs: usize,
     /// Share of the object's pixels beside an albedo edge.
     pub edge_share: f64,
     /// Share of the variance of the object's log brightness that the log
@@ -77,7 +107,7 @@ pub fn estimate(
     known: Option<&Grid<f64>>,
     object: &Grid<bool>,
     trusted: &Grid<bool>,
-    edge_log_step: f64,
+    prior: EdgePrior,
     noise_sigma: f64,
     cancel: Cancel<'_>,
 ) -> Result<AlbedoEstimate, Cancelled> {
@@ -101,7 +131,7 @@ pub fn estimate(
         &residual,
         object,
         trusted,
-        edge_log_step,
+        prior,
         noise_sigma,
         cancel,
     )?;
@@ -124,6 +154,7 @@ fn noise_floor(noise_sigma: f64) -> f64 {
 struct IntegratedEdges {
     log_albedo: Vec<f64>,
     edge_pairs: usize,
+    cut_pairs: usize,
     beside_edge: usize,
     objects: usize,
     iterations: usize,
@@ -136,6 +167,7 @@ impl IntegratedEdges {
         AlbedoEstimate {
             albedo,
             edge_pairs: self.edge_pairs,
+            cut_pairs: self.cut_pairs,
             edge_share: self.beside_edge as f64 / self.objects.max(1) as f64,
             explained_share,
             iterations: self.iterations,
@@ -151,7 +183,7 @@ fn integrated_edges(
     log: &Grid<f64>,
     object: &Grid<bool>,
     trusted: &Grid<bool>,
-    edge_log_step: f64,
+    prior: EdgePrior,
     noise_sigma: f64,
     cancel: Cancel<'_>,
 ) -> Result<IntegratedEdges, Cancelled> {
@@ -188,24 +220,41 @@ fn integrated_edges(
             }
         }
     }
-    // The edges: along every row and column, the steps of `edge_steps`.
-    let mut beside_edge = vec![false; w * h];
-    let mut edge_pairs = 0;
+    // The edges: along every row and column, the steps of `edge_steps`,
+    // kept where their chain confirms them (`crate::albedo_chain`).
     let lines = (0..h)
         .map(|r| (0..w).map(|c| r * w + c).collect::<Vec<_>>())
         .chain((0..w).map(|c| (0..h).map(|r| r * w + c).collect::<Vec<_>>()));
+    let mut found = Vec::new();
     for line in lines {
-        for (p, q, step) in edge_steps(&line, log, &usable, |p, q| {
+        found.extend(edge_steps(&line, log, &usable, |p, q| {
             let (a, b) = (image.as_slice()[p], image.as_slice()[q]);
-            edge_log_step.max(NOISE_SIGMAS * noise_sigma * (1.0 / (a * a) + 1.0 / (b * b)).sqrt())
-        }) {
-            // The link's target: (x_q - x_p - step)^2.
-            stencil.rhs[p] -= step;
-            stencil.rhs[q] += step;
-            edge_pairs += 1;
-            beside_edge[p] = true;
-            beside_edge[q] = true;
+            let noise = noise_sigma * (1.0 / (a * a) + 1.0 / (b * b)).sqrt();
+            (prior.log_step.max(NOISE_SIGMAS * noise), noise)
+        }));
+    }
+    let confirmed = match prior.rule {
+        EdgeRule::Steps => vec![true; found.len()],
+        EdgeRule::Chains => confirmed_by_chain(&found, w, h),
+    };
+    let mut cut_pairs = 0;
+    for (edge, _) in found.iter().zip(&confirmed).filter(|(_, k)| !**k) {
+        cut_pairs += 1;
+        if edge.q == edge.p + 1 {
+            stencil.right[edge.p] = 0.0;
+        } else {
+            stencil.down[edge.p] = 0.0;
         }
+    }
+    let mut beside_edge = vec![false; w * h];
+    let mut edge_pairs = 0;
+    for (edge, _) in found.iter().zip(&confirmed).filter(|(_, k)| **k) {
+        // The link's target: (x_q - x_p - step)^2.
+        stencil.rhs[edge.p] -= edge.step;
+        stencil.rhs[edge.q] += edge.step;
+        edge_pairs += 1;
+        beside_edge[edge.p] = true;
+        beside_edge[edge.q] = true;
     }
     let objects = object.as_slice().iter().filter(|&&o| o).count();
     let mut solution = vec![0.0; w * h];
@@ -216,6 +265,7 @@ fn integrated_edges(
     Ok(IntegratedEdges {
         log_albedo: solution,
         edge_pairs,
+        cut_pairs,
         beside_edge: beside_edge.iter().filter(|&&b| b).count(),
         objects,
         iterations,
@@ -237,8 +287,8 @@ fn edge_steps(
     line: &[usize],
     log: &Grid<f64>,
     usable: &impl Fn(usize) -> bool,
-    threshold: impl Fn(usize, usize) -> f64,
-) -> Vec<(usize, usize, f64)> {
+    threshold: impl Fn(usize, usize) -> (f64, f64),
+) -> Vec<EdgePair> {
     let pairs: Vec<(usize, usize, f64)> = line
         .windows(2)
         .map(|pair| {
@@ -261,7 +311,7 @@ fn edge_steps(
     let mut edges = Vec::new();
     for (k, &(p, q, g)) in pairs.iter().enumerate() {
         let k = k as isize;
-        if g.is_nan() || g.abs() <= 0.5 * threshold(p, q) {
+        if g.is_nan() || g.abs() <= 0.5 * threshold(p, q).0 {
             continue;
         }
         let same = |x: f64| x.is_finite() && x.signum() == g.signum();
@@ -278,8 +328,15 @@ fn edge_steps(
         let first = if join_before { k - 1 } else { k } as usize;
         let last = if join_after { k + 1 } else { k } as usize;
         let total: f64 = pairs[first..=last].iter().map(|(_, _, g)| g).sum();
-        if total.abs() > threshold(pairs[first].0, pairs[last].1) {
-            edges.extend_from_slice(&pairs[first..=last]);
+        let (least, noise) = threshold(pairs[first].0, pairs[last].1);
+        if total.abs() > least {
+            edges.extend(pairs[first..=last].iter().map(|&(p, q, step)| EdgePair {
+                p,
+                q,
+                step,
+                total,
+                noise,
+            }));
         }
     }
     edges
@@ -533,6 +590,12 @@ fn conjugate_gradients(
 mod tests {
     use super::*;
 
+    /// Every step an edge, at the default edge step.
+    const STEPS: EdgePrior = EdgePrior {
+        log_step: DEFAULT_EDGE_LOG_STEP,
+        rule: EdgeRule::Steps,
+    };
+
     /// A smooth shading times a two-patch albedo (left 1, right `dark`).
     fn patched(dark: f64) -> (Grid<f64>, Grid<f64>) {
         let shading = Grid::from_fn(40, 30, |c, r| {
@@ -543,8 +606,13 @@ mod tests {
     }
 
     /// [`estimate`] over every pixel of `image` at the default edge step,
-    /// without noise.
+    /// without noise, every step an edge.
     fn clean_estimate(image: &Grid<f64>) -> AlbedoEstimate {
+        clean_estimate_by(image, EdgeRule::Steps)
+    }
+
+    /// [`clean_estimate`] with `rule`.
+    fn clean_estimate_by(image: &Grid<f64>, rule: EdgeRule) -> AlbedoEstimate {
         let (w, h) = image.size();
         let all = Grid::filled(w, h, true);
         estimate(
@@ -552,11 +620,65 @@ mod tests {
             None,
             &all,
             &all,
-            DEFAULT_EDGE_LOG_STEP,
+            EdgePrior {
+                log_step: DEFAULT_EDGE_LOG_STEP,
+                rule,
+            },
             0.0,
             Cancel::NEVER,
         )
         .expect("not cancelled")
+    }
+
+    #[test]
+    fn a_chain_confirms_a_constant_ratio_and_cuts_a_changing_one() {
+        // Two materials: the same estimate under either rule.
+        let (image, truth) = patched(0.5);
+        let found = clean_estimate_by(&image, EdgeRule::Chains);
+        for (a, t) in found.albedo.as_slice().iter().zip(truth.as_slice()) {
+            assert!((a - t).abs() < 0.01, "albedo {a} against {t}");
+        }
+        assert_eq!((found.edge_pairs, found.cut_pairs), (30, 0));
+        // A step that changes along its edge (the right side a sawtooth
+        // of 1, 0.85 and 0.72 down the rows, steps of 0.16-0.33 inside it:
+        // shading at an edge step of 0.5) is not two materials: cut, and
+        // the albedo stays 1 on both sides, where every step as an edge
+        // darkens the right side.
+        let (shading, _) = patched(1.0);
+        let turning = shading.zip_map(
+            &Grid::from_fn(40, 30, |c, r| {
+                if c < 25 {
+                    1.0
+                } else {
+                    0.5 * [1.0, 0.85, 0.72][r % 3]
+                }
+            }),
+            |s, f| s * f,
+        );
+        let all = Grid::filled(40, 30, true);
+        let by = |rule| {
+            let prior = EdgePrior {
+                log_step: 0.5,
+                rule,
+            };
+            estimate(&turning, None, &all, &all, prior, 0.0, Cancel::NEVER).expect("not cancelled")
+        };
+        let chains = by(EdgeRule::Chains);
+        assert_eq!(chains.edge_pairs, 0);
+        assert_eq!(chains.cut_pairs, 30);
+        assert!(
+            chains
+                .albedo
+                .as_slice()
+                .iter()
+                .all(|&a| (a - 1.0).abs() < 0.01)
+        );
+        let steps = by(EdgeRule::Steps);
+        assert!(
+            *steps.albedo.at(35, 10) < 0.8,
+            "{}",
+            steps.albedo.at(35, 10)
+        );
     }
 
     #[test]
@@ -581,16 +703,8 @@ mod tests {
         let (w, h) = image.size();
         let all = Grid::filled(w, h, true);
         let refine_with = |coarse: &Grid<f64>| {
-            estimate(
-                &image,
-                Some(coarse),
-                &all,
-                &all,
-                DEFAULT_EDGE_LOG_STEP,
-                0.0,
-                Cancel::NEVER,
-            )
-            .expect("not cancelled")
+            estimate(&image, Some(coarse), &all, &all, STEPS, 0.0, Cancel::NEVER)
+                .expect("not cancelled")
         };
         // Nothing known yet: the estimate itself.
         assert_eq!(
@@ -621,9 +735,9 @@ mod tests {
         // 0.6): at its noise sigma no step is an edge; at sigma 0 they are.
         let image = Grid::from_fn(20, 20, |c, r| if (c + r) % 2 == 0 { 0.13 } else { 0.07 });
         let all = Grid::filled(20, 20, true);
-        let quiet = estimate(&image, None, &all, &all, 0.2, 0.03, Cancel::NEVER).expect("ok");
+        let quiet = estimate(&image, None, &all, &all, STEPS, 0.03, Cancel::NEVER).expect("ok");
         assert_eq!(quiet.edge_pairs, 0);
-        let loud = estimate(&image, None, &all, &all, 0.2, 0.0, Cancel::NEVER).expect("ok");
+        let loud = estimate(&image, None, &all, &all, STEPS, 0.0, Cancel::NEVER).expect("ok");
         assert!(loud.edge_pairs > 0);
     }
 }

@@ -12,6 +12,7 @@
 #![deny(missing_docs)]
 
 pub mod albedo;
+pub mod albedo_chain;
 pub mod albedo_texture;
 pub mod camera;
 pub mod camera_file;
