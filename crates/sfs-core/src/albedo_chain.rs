@@ -50,7 +50,7 @@ pub fn confirmed_by_chain(edges: &[EdgePair], width: usize, height: usize) -> Ve
     // Each edge sits between its two pixels on a grid of twice the
     // resolution: a horizontal pair at (2r, 2c + 1), a vertical one at
     // (2r + 1, 2c).
-    let (gw, gh) = (2 * width, 2 * height);
+    let gh = 2 * height;
     let place = |e: &EdgePair| -> (usize, usize) {
         let (r, c) = (e.p / width, e.p % width);
         if e.q == e.p + 1 {
@@ -60,19 +60,26 @@ pub fn confirmed_by_chain(edges: &[EdgePair], width: usize, height: usize) -> Ve
         }
     };
     let places: Vec<(usize, usize)> = edges.iter().map(place).collect();
-    let mut at = vec![usize::MAX; gw * gh];
+    // The edges of each row of the doubled grid, ordered by column: a
+    // window visits the edges in it, not every cell.
+    let mut rows: Vec<Vec<(usize, usize)>> = vec![Vec::new(); gh];
     for (i, &(y, x)) in places.iter().enumerate() {
-        at[y * gw + x] = i;
+        rows[y].push((x, i));
+    }
+    for row in &mut rows {
+        row.sort_unstable();
     }
     let neighbours = |(y, x): (usize, usize), radius: usize| {
         let (y0, y1) = (y.saturating_sub(radius), (y + radius).min(gh - 1));
-        let (x0, x1) = (x.saturating_sub(radius), (x + radius).min(gw - 1));
-        let at = &at;
+        let (x0, x1) = (x.saturating_sub(radius), x + radius);
+        let rows = &rows;
         (y0..=y1).flat_map(move |yy| {
-            (x0..=x1).filter_map(move |xx| {
-                let j = at[yy * gw + xx];
-                (j != usize::MAX).then_some(j)
-            })
+            let row = &rows[yy];
+            let first = row.partition_point(|&(xx, _)| xx < x0);
+            row[first..]
+                .iter()
+                .take_while(move |&&(xx, _)| xx <= x1)
+                .map(|&(_, j)| j)
         })
     };
     // Chains: edges at most one pixel apart (two cells of the doubled grid).
