@@ -303,7 +303,7 @@ pub fn apply(
     // Each candidate with edges is solved and scored; the one that clears
     // its own bar (its misfit ratio below 1 - max(MIN_GAIN, noise share))
     // by the most is decided on, the plain steps on a tie.
-    let mut best: Option<(f64, f64, usize)> = None;
+    let mut best: Option<(f64, f64, f64, usize)> = None;
     for (k, c) in candidates.iter().enumerate() {
         if c.edge_pairs == 0 {
             continue;
@@ -323,11 +323,11 @@ pub fn apply(
             (f64::NAN, 0.0)
         };
         let score = ratio + MIN_GAIN.max(noise_share);
-        if best.is_none_or(|(s, _, _)| score < s || s.is_nan()) {
-            best = Some((score, noise_share, k));
+        if best.is_none_or(|(s, _, _, _)| score < s || s.is_nan()) {
+            best = Some((score, ratio, noise_share, k));
         }
     }
-    let Some((score, noise_share, k)) = best else {
+    let Some((_, ratio, noise_share, k)) = best else {
         return Ok((None, Some(fit)));
     };
     let [steps, chains] = candidates;
@@ -353,7 +353,7 @@ pub fn apply(
             (chosen.divided, chosen.divisor)
         }
     };
-    fit.decide(score - MIN_GAIN.max(noise_share));
+    fit.decide(ratio);
     fit.seconds = started.elapsed().as_secs_f64();
     if fit.used {
         fit.divisor = divisor;
