@@ -47,8 +47,10 @@ const NOISE_SIGMAS: f64 = 5.0;
 /// edge joins to another, and is too small to bend a region.
 const SCREENING: f64 = 1e-6;
 
-/// Which steps of log brightness become albedo edges.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// Which steps of log brightness become albedo edges (named in the
+/// report's `albedo_fit`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
 pub enum EdgeRule {
     /// Every step above the edge step and its noise; every other
     /// difference is shading.
@@ -237,24 +239,23 @@ fn integrated_edges(
         EdgeRule::Steps => vec![true; found.len()],
         EdgeRule::Chains => confirmed_by_chain(&found, w, h),
     };
-    let mut cut_pairs = 0;
-    for (edge, _) in found.iter().zip(&confirmed).filter(|(_, k)| !**k) {
-        cut_pairs += 1;
-        if edge.q == edge.p + 1 {
+    let (mut edge_pairs, mut cut_pairs) = (0, 0);
+    let mut beside_edge = vec![false; w * h];
+    for (edge, &kept) in found.iter().zip(&confirmed) {
+        if kept {
+            // The link's target: (x_q - x_p - step)^2.
+            stencil.rhs[edge.p] -= edge.step;
+            stencil.rhs[edge.q] += edge.step;
+            edge_pairs += 1;
+            beside_edge[edge.p] = true;
+            beside_edge[edge.q] = true;
+        } else if edge.q == edge.p + 1 {
             stencil.right[edge.p] = 0.0;
+            cut_pairs += 1;
         } else {
             stencil.down[edge.p] = 0.0;
+            cut_pairs += 1;
         }
-    }
-    let mut beside_edge = vec![false; w * h];
-    let mut edge_pairs = 0;
-    for (edge, _) in found.iter().zip(&confirmed).filter(|(_, k)| **k) {
-        // The link's target: (x_q - x_p - step)^2.
-        stencil.rhs[edge.p] -= edge.step;
-        stencil.rhs[edge.q] += edge.step;
-        edge_pairs += 1;
-        beside_edge[edge.p] = true;
-        beside_edge[edge.q] = true;
     }
     let objects = object.as_slice().iter().filter(|&&o| o).count();
     let mut solution = vec![0.0; w * h];

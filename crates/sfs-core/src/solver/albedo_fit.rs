@@ -73,16 +73,6 @@ pub const GATE_SIDE: usize = 256;
 /// removed 25 % (the face) to 96 % (the Sombrero with lines).
 pub const MIN_GAIN: f64 = 0.2;
 
-/// The edge rule of the decided estimate, as the report names it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum EdgeRuleReport {
-    /// Every step above the edge step and its noise is an albedo edge.
-    Steps,
-    /// Only steps their chain confirms; the others are cut.
-    Chains,
-}
-
 /// What `--albedo auto` found and decided.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlbedoFit {
@@ -111,7 +101,7 @@ pub struct AlbedoFit {
     pub edge_log_step: f64,
     /// Which edges the decided estimate holds: every step, or only the
     /// steps their chain confirms.
-    pub edge_rule: EdgeRuleReport,
+    pub edge_rule: EdgeRule,
     /// Steps the decided estimate cut out of its integration (its chain did
     /// not confirm them: contours, shadows' edges), at both scales.
     pub cut_pairs: usize,
@@ -192,8 +182,8 @@ impl AlbedoFit {
     /// The edge rule in words (empty for every step as an edge).
     fn rule_words(&self) -> String {
         match self.edge_rule {
-            EdgeRuleReport::Steps => String::new(),
-            EdgeRuleReport::Chains => format!(
+            EdgeRule::Steps => String::new(),
+            EdgeRule::Chains => format!(
                 ", only steps their chain confirms ({} pairs cut as contours or shadows' edges)",
                 self.cut_pairs
             ),
@@ -256,9 +246,22 @@ pub fn apply(
     let (object, trusted) = trusted_pixels(problem);
     let noise_sigma =
         crate::denoise::robust_noise_sigma(&problem.image, &trusted, Cancel::new(&cancel_probe))?;
+    let coarse = if plain.image.size() == problem.image.size() {
+        None
+    } else {
+        let (object, trusted) = trusted_pixels(&plain);
+        let noise_sigma =
+            crate::denoise::robust_noise_sigma(&plain.image, &trusted, Cancel::new(&cancel_probe))?;
+        Some(CoarsePixels {
+            object,
+            trusted,
+            noise_sigma,
+        })
+    };
     let ground = Ground {
         problem,
         plain: &plain,
+        coarse: coarse.as_ref(),
         object: &object,
         trusted: &trusted,
         noise_sigma,
@@ -284,7 +287,7 @@ pub fn apply(
         explained_share: 0.0,
         min_albedo: 1.0,
         edge_log_step: params.albedo_edge,
-        edge_rule: EdgeRuleReport::Steps,
+        edge_rule: EdgeRule::Steps,
         cut_pairs: 0,
         texture: TextureSummary::UNMEASURED,
         noise_sigma,
@@ -338,18 +341,38 @@ pub fn apply(
         return Ok((None, Some(fit)));
     };
     let chosen = candidates.swap_remove(k);
+    // Fine texture (hair) darkens gradually, without a step: measured in
+    // the image against what the edges leave, it rides on the decided
+    // edges; the shape test above judged the edges alone (the texture's
+    // own test is its correlation).
+    let cancel_probe = || observer.is_cancelled();
+    let texture = texture_albedo(
+        &problem.image,
+        &chosen.estimate.albedo,
+        &trusted,
+        noise_sigma,
+        Cancel::new(&cancel_probe),
+    )?;
+    let final_albedo = texture.summary.used.then(|| {
+        let factor = to_size(&texture.factor, &texture.inside, problem.image.size());
+        albedo::renormalised(&chosen.estimate.albedo, &factor, &object)
+    });
     fit.noise_share = noise_share;
     fit.edge_share = chosen.edge_share;
     fit.explained_share = chosen.estimate.explained_share;
-    fit.min_albedo = chosen.min_albedo;
-    fit.edge_rule = if k == 0 {
-        EdgeRuleReport::Steps
-    } else {
-        EdgeRuleReport::Chains
-    };
+    fit.min_albedo = final_albedo
+        .as_ref()
+        .unwrap_or(&chosen.estimate.albedo)
+        .as_slice()
+        .iter()
+        .zip(object.as_slice())
+        .filter(|(_, o)| **o)
+        .map(|(a, _)| *a)
+        .fold(1.0, f64::min);
+    fit.edge_rule = chosen.rule;
     fit.cut_pairs = chosen.cut_pairs;
-    fit.texture = chosen.texture;
-    let (divided, divisor) = match chosen.final_albedo {
+    fit.texture = texture.summary;
+    let (divided, divisor) = match final_albedo {
         Some(textured) => {
             fit.albedo = textured;
             divide_out(problem, &fit.albedo)
@@ -370,22 +393,31 @@ pub fn apply(
 }
 
 /// What every candidate estimate shares: the photograph, its working
-/// copy, the object and trusted pixels, the noise and the edge step.
+/// copy (and that copy's pixels and noise where it is smaller), the object
+/// and trusted pixels, the noise and the edge step.
 struct Ground<'a> {
     problem: &'a Problem,
     plain: &'a Problem,
+    coarse: Option<&'a CoarsePixels>,
     object: &'a Grid<bool>,
     trusted: &'a Grid<bool>,
     noise_sigma: f64,
     edge_log_step: f64,
 }
 
+/// The working copy's object and trusted pixels and its noise.
+struct CoarsePixels {
+    object: Grid<bool>,
+    trusted: Grid<bool>,
+    noise_sigma: f64,
+}
+
 /// One estimate of the albedo under an edge rule, ready to be scored.
 struct Candidate {
+    /// The rule it was made with.
+    rule: EdgeRule,
     /// The edges' estimate at the problem's size.
     estimate: albedo::AlbedoEstimate,
-    /// The estimate with the texture (hair) where the image says so.
-    final_albedo: Option<Grid<f64>>,
     /// The problem divided by the edges' estimate, and the power of two.
     divided: Problem,
     divisor: f64,
@@ -398,20 +430,13 @@ struct Candidate {
     /// What the edges and cuts could remove of the misfit by fitting noise
     /// alone: 2 sigma^2 per free difference on the working copy.
     noise_misfit: f64,
-    /// The lowest albedo of the final estimate over the object.
-    min_albedo: f64,
-    /// The texture's part.
-    texture: TextureSummary,
 }
 
 /// The estimate under `rule`: edges found on the working copy first, where
 /// an edge blurred over a few pixels of a large photograph (a brow, a
 /// beard's border) is a step, at the same scale of the object whatever the
 /// photograph's size; at the full size the refinement adds what that copy
-/// blurs (thin lines). Fine texture (hair) darkens gradually, without a
-/// step: measured in the image against what the edges leave, it rides on
-/// the edges (none found: nothing to carry it); the shape test judges the
-/// edges alone (the texture's own test is its correlation).
+/// blurs (thin lines).
 fn candidate(
     ground: &Ground<'_>,
     rule: EdgeRule,
@@ -419,42 +444,35 @@ fn candidate(
 ) -> Result<Candidate, SolveError> {
     let problem = ground.problem;
     let plain = ground.plain;
-    let coarse = if plain.image.size() == problem.image.size() {
-        None
-    } else {
-        let (small_object, small_trusted) = trusted_pixels(plain);
-        let sigma = crate::denoise::robust_noise_sigma(
-            &plain.image,
-            &small_trusted,
-            Cancel::new(cancel_probe),
-        )?;
-        let found = albedo::estimate(
-            &plain.image,
-            None,
-            &small_object,
-            &small_trusted,
-            EdgePrior {
-                log_step: ground.edge_log_step,
-                rule,
-            },
-            sigma,
-            Cancel::new(cancel_probe),
-        )?;
-        Some((
-            to_size(&found.albedo, &small_object, problem.image.size()),
-            found,
-            sigma,
-        ))
+    let prior = EdgePrior {
+        log_step: ground.edge_log_step,
+        rule,
+    };
+    let coarse = match ground.coarse {
+        None => None,
+        Some(small) => {
+            let found = albedo::estimate(
+                &plain.image,
+                None,
+                &small.object,
+                &small.trusted,
+                prior,
+                small.noise_sigma,
+                Cancel::new(cancel_probe),
+            )?;
+            Some((
+                to_size(&found.albedo, &small.object, problem.image.size()),
+                found,
+                small.noise_sigma,
+            ))
+        }
     };
     let estimate = albedo::estimate(
         &problem.image,
         coarse.as_ref().map(|(brought, _, _)| brought),
         ground.object,
         ground.trusted,
-        EdgePrior {
-            log_step: ground.edge_log_step,
-            rule,
-        },
+        prior,
         ground.noise_sigma,
         Cancel::new(cancel_probe),
     )?;
@@ -473,42 +491,16 @@ fn candidate(
         * ((estimate.edge_pairs + estimate.cut_pairs) as f64 / f
             * (ground.noise_sigma / f).powi(2)
             + (coarse_pairs + coarse_cuts) as f64 * coarse_sigma.powi(2));
-    let texture = if edge_pairs == 0 {
-        None
-    } else {
-        Some(texture_albedo(
-            &problem.image,
-            &estimate.albedo,
-            ground.trusted,
-            ground.noise_sigma,
-            Cancel::new(cancel_probe),
-        )?)
-    };
-    let final_albedo = texture.as_ref().filter(|t| t.summary.used).map(|t| {
-        let factor = to_size(&t.factor, &t.inside, problem.image.size());
-        albedo::renormalised(&estimate.albedo, &factor, ground.object)
-    });
-    let min_albedo = final_albedo
-        .as_ref()
-        .unwrap_or(&estimate.albedo)
-        .as_slice()
-        .iter()
-        .zip(ground.object.as_slice())
-        .filter(|(_, o)| **o)
-        .map(|(a, _)| *a)
-        .fold(1.0, f64::min);
     let (divided, divisor) = divide_out(problem, &estimate.albedo);
     Ok(Candidate {
+        rule,
         edge_share: (estimate.edge_share + coarse_share).min(1.0),
         cut_pairs: estimate.cut_pairs + coarse_cuts,
         estimate,
-        final_albedo,
         divided,
         divisor,
         edge_pairs,
         noise_misfit,
-        min_albedo,
-        texture: texture.map_or(TextureSummary::UNMEASURED, |t| t.summary),
     })
 }
 
@@ -729,7 +721,7 @@ mod tests {
         assert!(fit.misfit_ratio < 1.0 - MIN_GAIN, "{}", fit.misfit_ratio);
         // 64 px is too small to judge a chain (1/64 of the side is below
         // 4 px): the steps alone, nothing cut.
-        assert_eq!((fit.edge_rule, fit.cut_pairs), (EdgeRuleReport::Steps, 0));
+        assert_eq!((fit.edge_rule, fit.cut_pairs), (EdgeRule::Steps, 0));
         let rse = |depth: &Grid<f64>| crate::metrics::rse(depth, &truth).expect("an RSE");
         let (e_one, e_auto) = (rse(&one.depth), rse(&estimated.depth));
         assert!(
