@@ -833,6 +833,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     {
         warnings.push(fit.summary.clone());
     }
+    if let Some(close) = solution.albedo_fit.as_ref().and_then(|f| f.close_call()) {
+        warnings.push(format!("albedo: {close}"));
+    }
     warnings.extend(sfs_core::light::lights_that_miss(
         &problem.lights,
         &solution.depth,

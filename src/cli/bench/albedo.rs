@@ -83,6 +83,9 @@ pub struct AlbedoRow {
     pub auto_used: bool,
     /// The estimate's misfit over albedo 1's (NaN: no edge found).
     pub misfit_ratio: f64,
+    /// Whether the decision was a close call (within
+    /// `albedo_fit::CLOSE_MARGIN` of its bar).
+    pub close_call: bool,
     /// Median relative error of auto's albedo (the estimate when used,
     /// else 1) against the truth, up to one scale.
     pub albedo_error: f64,
@@ -231,6 +234,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         rse_true_cell_error,
                         auto_used: fit.is_some_and(|f| f.used),
                         misfit_ratio: fit.map_or(f64::NAN, |f| f.misfit_ratio),
+                        close_call: fit.is_some_and(|f| f.close_call().is_some()),
                         albedo_error: albedo_error(
                             &albedo_used(&estimated),
                             &truth,
@@ -430,7 +434,7 @@ fn markdown(report: &AlbedoReport) -> String {
     let _ = writeln!(
         md,
         "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
-         RSE true albedo, 3 % off per cell | auto used (misfit ratio) | albedo error auto / 1 | \
+         RSE true albedo, 3 % off per cell | auto used (misfit ratio; close: within 0.05 of the bar) | albedo error auto / 1 | \
          auto s |"
     );
     let _ = writeln!(
@@ -440,7 +444,7 @@ fn markdown(report: &AlbedoReport) -> String {
     for r in &report.rows {
         let _ = writeln!(
             md,
-            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {} ({:.2}) | {:.3} / {:.3} | {:.2} |",
+            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {} ({:.2}{}) | {:.3} / {:.3} | {:.2} |",
             r.scene,
             r.size,
             r.light,
@@ -452,6 +456,7 @@ fn markdown(report: &AlbedoReport) -> String {
             r.rse_true_cell_error,
             if r.auto_used { "yes" } else { "no" },
             r.misfit_ratio,
+            if r.close_call { ", close" } else { "" },
             r.albedo_error,
             r.albedo_error_one,
             r.seconds

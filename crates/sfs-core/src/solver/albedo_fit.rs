@@ -73,6 +73,16 @@ pub const GATE_SIDE: usize = 256;
 /// removed 25 % (the face) to 96 % (the Sombrero with lines).
 pub const MIN_GAIN: f64 = 0.2;
 
+/// A decision within this of its bar (the misfit ratio against `1 -
+/// max(MIN_GAIN, noise share)`) is a close call, said in the summary and
+/// as a warning: small changes of the estimate move the ratio by as much
+/// (measured on the albedo bench: a shading-corrected edge step or a
+/// contour test moved ratios by up to 0.04, 0.70 to 0.66 and 0.77 to 0.75,
+/// and flipped the noisy centred Bunny with lines from albedo 1 at RSE
+/// 0.019 to its estimate at 0.117), so the photograph hardly tells the
+/// estimate from shading.
+pub const CLOSE_MARGIN: f64 = 0.05;
+
 /// What `--albedo auto` found and decided.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct AlbedoFit {
@@ -88,6 +98,11 @@ pub struct AlbedoFit {
     /// [`Self::working_side`]); below 1: the estimate explains it better.
     /// NaN when there was nothing to compare.
     pub misfit_ratio: f64,
+    /// The decision's margin: the bar `1 - max(MIN_GAIN, noise_share)`
+    /// minus [`Self::misfit_ratio`] (positive: used). Within
+    /// [`CLOSE_MARGIN`] of 0 the decision is a close call. NaN when there
+    /// was nothing to compare.
+    pub margin: f64,
     /// Share of the object's pixels beside an albedo edge (on the working
     /// copy and at the full size, summed; at most 1).
     pub edge_share: f64,
@@ -151,8 +166,10 @@ impl AlbedoFit {
     /// so in the summary.
     pub fn decide(&mut self, ratio: f64) {
         self.misfit_ratio = ratio;
-        self.used = ratio < 1.0 - MIN_GAIN.max(self.noise_share);
-        self.summary = if self.used {
+        let bar = 1.0 - MIN_GAIN.max(self.noise_share);
+        self.margin = bar - ratio;
+        self.used = ratio < bar;
+        let mut summary = if self.used {
             format!(
                 "albedo estimated: {:.1} % of the object beside an albedo edge{}{}, down to \
                  {:.2} of the common albedo; with its shape it reproduces the photograph {:.0} % \
@@ -177,6 +194,31 @@ impl AlbedoFit {
                 100.0 * MIN_GAIN.max(self.noise_share)
             )
         };
+        if let Some(close) = self.close_call() {
+            summary.push_str("; ");
+            summary.push_str(&close);
+        }
+        self.summary = summary;
+    }
+
+    /// When the decision was within [`CLOSE_MARGIN`] of its bar, what that
+    /// means for the user, in plain words; else `None`.
+    pub fn close_call(&self) -> Option<String> {
+        (self.margin.abs() < CLOSE_MARGIN).then(|| {
+            let advice = if self.used {
+                "compare with --albedo 1"
+            } else {
+                "where the marks are known, give them as --albedo FILE or paint them out of \
+                 the confidence"
+            };
+            format!(
+                "a close call (misfit x{:.2} against a bar of x{:.2}): the photograph hardly \
+                 tells this albedo from shading, and the depth can differ much with the other \
+                 choice; {advice}",
+                self.misfit_ratio,
+                self.misfit_ratio + self.margin,
+            )
+        })
     }
 
     /// The edge rule in words (empty for every step as an edge).
@@ -283,6 +325,7 @@ pub fn apply(
         albedo: Grid::filled(problem.image.width(), problem.image.height(), 1.0),
         used: false,
         misfit_ratio: f64::NAN,
+        margin: f64::NAN,
         edge_share: 0.0,
         explained_share: 0.0,
         min_albedo: 1.0,
@@ -735,6 +778,34 @@ mod tests {
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
         assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
         assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
+    }
+
+    #[test]
+    fn a_decision_near_its_bar_says_it_is_a_close_call() {
+        let (photo, _) = problem(&patches());
+        let (_, fit) = apply(&photo, &auto(), &mut ()).expect("auto runs");
+        let mut fit = fit.expect("a fit");
+        // The bar is 1 - max(MIN_GAIN, noise share).
+        let bar = 1.0 - MIN_GAIN.max(fit.noise_share);
+        for (ratio, used, close) in [
+            (bar - 0.3, true, false),
+            (bar - 0.01, true, true),
+            (bar + 0.01, false, true),
+            (bar + 0.3, false, false),
+        ] {
+            fit.decide(ratio);
+            assert_eq!(fit.used, used, "ratio {ratio} against the bar {bar}");
+            assert!((fit.margin - (bar - ratio)).abs() < 1e-12);
+            assert_eq!(fit.close_call().is_some(), close, "{}", fit.summary);
+            assert_eq!(
+                fit.summary.contains("a close call"),
+                close,
+                "{}",
+                fit.summary
+            );
+        }
+        fit.decide(f64::NAN);
+        assert!(!fit.used && fit.close_call().is_none());
     }
 
     #[test]

@@ -676,7 +676,13 @@ impl Panels {
             .as_ref()
             .and_then(|s| s.albedo_fit.as_ref())
         {
-            ui.label(egui::RichText::new(&fit.summary).small())
+            let text = egui::RichText::new(&fit.summary).small();
+            let text = if fit.close_call().is_some() {
+                text.color(ui.visuals().warn_fg_color)
+            } else {
+                text
+            };
+            ui.label(text)
                 .on_hover_text("How the albedo estimate compared with albedo 1 on this solve");
         }
         for spec in PARAMS {
