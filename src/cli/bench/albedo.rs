@@ -234,7 +234,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         rse_true_cell_error,
                         auto_used: fit.is_some_and(|f| f.used),
                         misfit_ratio: fit.map_or(f64::NAN, |f| f.misfit_ratio),
-                        close_call: fit.is_some_and(|f| f.close_call().is_some()),
+                        close_call: fit.is_some_and(|f| f.is_close_call()),
                         albedo_error: albedo_error(
                             &albedo_used(&estimated),
                             &truth,
@@ -434,8 +434,9 @@ fn markdown(report: &AlbedoReport) -> String {
     let _ = writeln!(
         md,
         "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
-         RSE true albedo, 3 % off per cell | auto used (misfit ratio; close: within 0.05 of the bar) | albedo error auto / 1 | \
-         auto s |"
+         RSE true albedo, 3 % off per cell | auto used (misfit ratio; close: within {} of the \
+         bar) | albedo error auto / 1 | auto s |",
+        sfs_core::solver::albedo_fit::CLOSE_MARGIN
     );
     let _ = writeln!(
         md,

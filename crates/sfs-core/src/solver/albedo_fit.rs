@@ -191,7 +191,7 @@ impl AlbedoFit {
                 100.0 * self.edge_share,
                 self.rule_words(),
                 self.texture_words(),
-                100.0 * MIN_GAIN.max(self.noise_share)
+                100.0 * (1.0 - bar)
             )
         };
         if let Some(close) = self.close_call() {
@@ -201,10 +201,15 @@ impl AlbedoFit {
         self.summary = summary;
     }
 
-    /// When the decision was within [`CLOSE_MARGIN`] of its bar, what that
-    /// means for the user, in plain words; else `None`.
+    /// Whether the decision was within [`CLOSE_MARGIN`] of its bar.
+    pub fn is_close_call(&self) -> bool {
+        self.margin.abs() < CLOSE_MARGIN
+    }
+
+    /// When the decision was a close call ([`Self::is_close_call`]), what
+    /// that means for the user, in plain words; else `None`.
     pub fn close_call(&self) -> Option<String> {
-        (self.margin.abs() < CLOSE_MARGIN).then(|| {
+        self.is_close_call().then(|| {
             let advice = if self.used {
                 "compare with --albedo 1"
             } else {
@@ -796,6 +801,7 @@ mod tests {
             fit.decide(ratio);
             assert_eq!(fit.used, used, "ratio {ratio} against the bar {bar}");
             assert!((fit.margin - (bar - ratio)).abs() < 1e-12);
+            assert_eq!(fit.is_close_call(), close, "{}", fit.summary);
             assert_eq!(fit.close_call().is_some(), close, "{}", fit.summary);
             assert_eq!(
                 fit.summary.contains("a close call"),

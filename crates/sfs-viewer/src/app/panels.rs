@@ -677,7 +677,7 @@ impl Panels {
             .and_then(|s| s.albedo_fit.as_ref())
         {
             let text = egui::RichText::new(&fit.summary).small();
-            let text = if fit.close_call().is_some() {
+            let text = if fit.is_close_call() {
                 text.color(ui.visuals().warn_fg_color)
             } else {
                 text
