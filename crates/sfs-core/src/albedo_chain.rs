@@ -46,7 +46,12 @@ pub struct EdgePair {
 /// the edges within [`CHAIN_WINDOW_SHARE`] of the longer side that belong
 /// to the same chain (edges at most one pixel apart are linked) number at
 /// least three, and the median absolute deviation of their total steps'
-/// magnitudes is at most [`CHAIN_SPREAD`] of their median.
+/// magnitudes is at most [`CHAIN_SPREAD`] of their median and the spread
+/// the noise gives, added in quadrature (as independent spreads add). With
+/// the two added plainly, a noisy contour whose steps change by as much as
+/// the noise passed for a boundary: on the beside Suzanne, uniform, at
+/// sigma 5 the chains confirmed 1612 steps against 673 clean, and once the
+/// integration converged that estimate was used (RSE 0.057 to 0.260).
 pub fn confirmed_by_chain(edges: &[EdgePair], width: usize, height: usize) -> Vec<bool> {
     if edges.is_empty() {
         return Vec::new();
@@ -121,9 +126,11 @@ pub fn confirmed_by_chain(edges: &[EdgePair], width: usize, height: usize) -> Ve
             let median = median_of(&mut steps);
             let mut deviations: Vec<f64> = steps.iter().map(|s| (s - median).abs()).collect();
             // Noise alone spreads a constant step by its median absolute
-            // deviation, 0.674 sigma.
-            median_of(&mut deviations)
-                <= CHAIN_SPREAD * median + MAD_PER_SIGMA * median_of(&mut noises)
+            // deviation, 0.674 sigma; a boundary's own tolerance adds to
+            // it in quadrature.
+            let mad = median_of(&mut deviations);
+            let noise = MAD_PER_SIGMA * median_of(&mut noises);
+            mad.powi(2) <= (CHAIN_SPREAD * median).powi(2) + noise.powi(2)
         })
         .collect()
 }
@@ -170,6 +177,31 @@ mod tests {
         let kept = confirmed_by_chain(&contour, w, h);
         let share = kept.iter().filter(|&&k| k).count() as f64 / kept.len() as f64;
         assert!(share < 0.3, "a varying step is mostly not albedo: {share}");
+    }
+
+    #[test]
+    fn noise_and_a_changing_step_add_in_quadrature() {
+        // Steps of 0.3, 0.4 and 0.5 by turns: a median absolute deviation
+        // of 0.1, against a tolerance of 0.04 (CHAIN_SPREAD of the median
+        // 0.4). A noise whose own spread is 0.075 (0.674 sigma) would pass
+        // it added plainly (0.115), not in quadrature (0.085): noise that
+        // hides a changing step does not make it a boundary.
+        let (w, h) = (64, 64);
+        let sigma = 0.075 / MAD_PER_SIGMA;
+        let noisy = |totals: &[f64]| -> Vec<EdgePair> {
+            column(10, w, totals)
+                .into_iter()
+                .map(|e| EdgePair { noise: sigma, ..e })
+                .collect()
+        };
+        let varying: Vec<f64> = (0..40).map(|r| [0.3, 0.4, 0.5][r % 3]).collect();
+        let kept = confirmed_by_chain(&noisy(&varying), w, h);
+        let share = kept.iter().filter(|&&k| k).count() as f64 / kept.len() as f64;
+        assert!(share < 0.3, "a changing step under noise: {share} kept");
+        // A constant step under the same noise, spread by less than it,
+        // is a boundary.
+        let steady: Vec<f64> = (0..40).map(|r| [0.38, 0.4, 0.42][r % 3]).collect();
+        assert!(confirmed_by_chain(&noisy(&steady), w, h).iter().all(|&k| k));
     }
 
     #[test]
