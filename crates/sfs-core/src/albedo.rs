@@ -52,7 +52,9 @@ const SCREENING: f64 = 1e-6;
 /// for the others: weak, so that a region whose every link is cut keeps
 /// its surroundings' level (removed, such a region took the screening's
 /// level, log albedo 0, once the integration converged), and too weak to
-/// pull a region that an edge fixes.
+/// pull a region that an edge fixes. Measured on the bench's renders: at
+/// 1e-2 no row moves by more than 0.0022 of RSE; at 1e-4 the beside Bunny
+/// with patches goes from 0.042 to 0.086, as with the link removed.
 const CUT_WEIGHT: f64 = 1e-3;
 
 /// Which steps of log brightness become albedo edges (named in the
