@@ -490,15 +490,13 @@ impl Stencil {
             height: ch,
             right: vec![0.0; cw * ch],
             down: vec![0.0; cw * ch],
-            screen: vec![0.0; cw * ch],
-            rhs: vec![0.0; cw * ch],
+            screen: self.restrict(&self.screen),
+            rhs: self.restrict(&self.rhs),
         };
         for r in 0..h {
             for c in 0..w {
                 let p = r * w + c;
                 let q = (r / 2) * cw + c / 2;
-                coarse.screen[q] += self.screen[p];
-                coarse.rhs[q] += self.rhs[p];
                 if self.right[p] > 0.0 && c % 2 == 1 {
                     coarse.right[q] += self.right[p];
                 }
@@ -508,6 +506,32 @@ impl Stencil {
             }
         }
         coarse
+    }
+
+    /// `P^T v`: the sums of `v` (on this grid) over its 2x2 blocks, on the
+    /// coarse grid of [`Stencil::coarsen`].
+    fn restrict(&self, v: &[f64]) -> Vec<f64> {
+        let (w, cw) = (self.width, self.width.div_ceil(2));
+        let mut coarse = vec![0.0; cw * self.height.div_ceil(2)];
+        for (r, line) in v.chunks(w).enumerate() {
+            for (c, value) in line.iter().enumerate() {
+                coarse[(r / 2) * cw + c / 2] += value;
+            }
+        }
+        coarse
+    }
+
+    /// `v += weight P y`: each 2x2 block of `v` (on this grid) raised by its
+    /// coarse value in `y`.
+    fn prolong_add(&self, y: &[f64], weight: f64, v: &mut [f64]) {
+        let cw = self.width.div_ceil(2);
+        v.par_chunks_mut(self.width)
+            .enumerate()
+            .for_each(|(r, line)| {
+                for (c, value) in line.iter_mut().enumerate() {
+                    *value += weight * y[(r / 2) * cw + c / 2];
+                }
+            });
     }
 }
 
@@ -617,23 +641,16 @@ impl<'a> Hierarchy<'a> {
         }
         self.smooth(l, r, z, SMOOTHING_SWEEPS, &mut scratch);
         let stencil = self.level(l);
+        // The residual r - A z, restricted to the coarser level.
         stencil.apply(z, &mut scratch);
-        let coarse = self.level(l + 1);
-        let (w, cw) = (stencil.width, coarse.width);
-        let mut coarse_r = vec![0.0; coarse.width * coarse.height];
-        for row in 0..stencil.height {
-            for c in 0..w {
-                let p = row * w + c;
-                coarse_r[(row / 2) * cw + c / 2] += r[p] - scratch[p];
-            }
-        }
+        scratch
+            .par_iter_mut()
+            .zip(r.par_iter())
+            .for_each(|(az, r)| *az = r - *az);
+        let coarse_r = stencil.restrict(&scratch);
         let mut coarse_z = vec![0.0; coarse_r.len()];
         self.v_cycle(l + 1, &coarse_r, &mut coarse_z);
-        z.par_chunks_mut(w).enumerate().for_each(|(row, line)| {
-            for (c, v) in line.iter_mut().enumerate() {
-                *v += COARSE_CORRECTION * coarse_z[(row / 2) * cw + c / 2];
-            }
-        });
+        stencil.prolong_add(&coarse_z, COARSE_CORRECTION, z);
         self.smooth(l, r, z, SMOOTHING_SWEEPS, &mut scratch);
     }
 }
