@@ -4,14 +4,17 @@
 //! - the image times `k` together with the intensity scale: the same depth;
 //! - the image times `k` alone: the same shape at depth `/ sqrt(k)`;
 //! - depth in other units (`s` times `c^2`): depth times `c`;
-//! - the same scene at another size (same field of view): RSE does not grow.
+//! - the same scene at another size (same field of view): RSE does not grow;
+//! - a region moved m times farther with m^2 times the albedo: the same
+//!   image off the region's border (the model alone, no solve).
 //!
 //! The first three hold with a hole of confidence 0 too (filled in depth by
 //! the start's thin-plate fill, picked by energy).
 //!
 //! The first three are exact symmetries of the discrete problem, so the
-//! results agree to round-off (the SOR works in f32); the last one only
-//! through the information in the pixels.
+//! results agree to round-off (the SOR works in f32); the fourth only
+//! through the information in the pixels; the fifth is exact for the
+//! model's image off the border.
 
 mod common;
 use common::{ROUND_OFF, largest_relative_difference};
@@ -169,5 +172,78 @@ fn a_centred_light_of_intensity_phi_is_the_scale_times_phi() {
                 "noisy {noisy}, s {scale}, intensities {intensities:?}: {difference}"
             );
         }
+    }
+}
+
+/// Why one photograph cannot fix the albedo of a region by its brightness
+/// alone (README, "Albedo from one photograph"): with the light at the
+/// optical centre, a region moved `m` times farther along its rays and
+/// given `m^2` times the albedo is the same image, pixel for pixel, except
+/// where a pixel's upwind stencil reaches across the region's border (the
+/// solver's smoothness sees that seam, the data term nowhere else). So a
+/// region's albedo level is set by its edges and the surface's continuity,
+/// and a shape solved with a wrong level explains the photograph about as
+/// well by bending.
+#[test]
+fn a_region_s_albedo_level_trades_exactly_against_its_distance() {
+    use sfs_core::cancel::{Cancel, Uncancelled};
+    use sfs_core::model::{self, Lambertian, LevelGeometry};
+    let side = 64;
+    let scene = sombrero(side, side);
+    let geometry = LevelGeometry::new(side, side, side, side, scene.camera);
+    let model = Lambertian {
+        intensity_scale: scene.intensity_scale,
+    };
+    let inside = Grid::from_fn(side, side, |c, r| {
+        let (x, y) = (c as f64 - 40.0, r as f64 - 24.0);
+        x * x + y * y < 12.0 * 12.0
+    });
+    // Every 5-point neighbour on the same side of the region's border.
+    let one_side = |c: usize, r: usize| {
+        let here = *inside.at(c, r);
+        [(-1, 0), (1, 0), (0, -1), (0, 1)].iter().all(|(dc, dr)| {
+            let (nc, nr) = (c as i64 + dc, r as i64 + dr);
+            nc < 0
+                || nr < 0
+                || nc >= side as i64
+                || nr >= side as i64
+                || *inside.at(nc as usize, nr as usize) == here
+        })
+    };
+    let render = |depth: &Grid<f64>| {
+        model::reproject(&model, &geometry, &scene.object_mask, depth, Cancel::NEVER).uncancelled()
+    };
+    let original = render(&scene.depth_gt);
+    for distance in [0.8, 1.25] {
+        let moved = scene
+            .depth_gt
+            .zip_map(&inside, |z, &i| if i { z * distance } else { *z });
+        // The albedo `distance^2` inside: the image the model predicts.
+        let image = render(&moved).zip_map(
+            &inside,
+            |v, &i| {
+                if i { v * distance * distance } else { *v }
+            },
+        );
+        let (mut seam, mut largest_off_seam) = (0.0_f64, 0.0_f64);
+        for r in 0..side {
+            for c in 0..side {
+                if !scene.object_mask.at(c, r) {
+                    continue;
+                }
+                let (a, b) = (*image.at(c, r), *original.at(c, r));
+                let difference = (a - b).abs() / b.abs().max(1e-12);
+                if one_side(c, r) {
+                    largest_off_seam = largest_off_seam.max(difference);
+                } else {
+                    seam = seam.max(difference);
+                }
+            }
+        }
+        assert!(
+            largest_off_seam < 1e-12,
+            "distance x{distance}: off the seam {largest_off_seam}"
+        );
+        assert!(seam > 1e-3, "distance x{distance}: the seam shows {seam}");
     }
 }
