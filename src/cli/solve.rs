@@ -665,6 +665,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let method = args.method.method();
     let mut known_depth_fit = None;
     let mut known_depth_warning = None;
+    let mut loose_scale_warning = None;
     let solution = if known_points.is_empty() {
         solver::solve_method(&problem, &params, &method, &mut progress)
     } else {
@@ -694,6 +695,16 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                     .collect::<Vec<_>>()
                     .join("; ")
             ));
+            if let Some(precision) = &fit.scale_precision {
+                if precision.is_loose() {
+                    loose_scale_warning = Some(format!(
+                        "{}: the shape depends on the scale, so it is only as good as that",
+                        precision.words()
+                    ));
+                } else {
+                    notes.push(precision.words());
+                }
+            }
             if let Some(worst) = fit
                 .points
                 .iter()
@@ -826,6 +837,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         warnings.insert(0, w);
     }
     if let Some(w) = known_depth_warning {
+        warnings.insert(0, w);
+    }
+    if let Some(w) = loose_scale_warning {
         warnings.insert(0, w);
     }
     if let Some(fit) = &solution.material_fit

@@ -629,6 +629,13 @@ impl Panels {
                      residuals say how far off it stopped",
                 );
             }
+            if fit.scale_precision.is_some_and(|p| p.is_loose()) {
+                ui.colored_label(
+                    ui.visuals().warn_fg_color,
+                    "warning: the known distance fixes the scale only loosely (above); the \
+                     shape depends on the scale, so it is only as good as that",
+                );
+            }
         }
         if let Some(failure) = &s.failure {
             ui.colored_label(ui.visuals().error_fg_color, failure.clone());
@@ -1876,8 +1883,8 @@ fn short_material(material: &Material) -> String {
     }
 }
 
-/// The side panel's line on a known-distance fit: the scale and each
-/// point's relative residual.
+/// The side panel's line on a known-distance fit: the scale, each
+/// point's relative residual and how precisely the points fix the scale.
 fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
     let n = fit.points.len();
     let residuals: Vec<String> = fit
@@ -1885,12 +1892,17 @@ fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
         .iter()
         .map(|p| format!("{:+.2} %", 100.0 * p.relative_residual))
         .collect();
-    format!(
+    let mut summary = format!(
         "s = {:.4e} from {n} known distance{}; residuals {}",
         fit.intensity_scale,
         if n == 1 { "" } else { "s" },
         residuals.join(", ")
-    )
+    );
+    if let Some(precision) = &fit.scale_precision {
+        summary.push_str("; ");
+        summary.push_str(&precision.words());
+    }
+    summary
 }
 
 /// A distance with four significant digits (no exponent for the sizes
