@@ -394,16 +394,16 @@ impl ScalePrecision {
     pub fn words(&self) -> String {
         if self.scale_uncertainty.is_finite() {
             format!(
-                "the known distance fixes the scale to about ±{:.1} % (the solved depth \
-                 there moves by ±{:.1} % between nearly equal scales, over {} solves)",
+                "--known-depth fixes the scale to about ±{:.1} % (the solved depth at its \
+                 points moves by ±{:.1} % between nearly equal scales, over {} solves)",
                 100.0 * self.scale_uncertainty,
                 100.0 * self.depth_scatter,
                 self.solves
             )
         } else {
             format!(
-                "the known distance does not fix the scale here: over {} solves the solved \
-                 depth there did not grow with the scale (slope {:.3}, scatter ±{:.1} %)",
+                "--known-depth does not fix the scale here: over {} solves the solved depth \
+                 at its points did not grow with the scale (slope {:.3}, scatter ±{:.1} %)",
                 self.solves,
                 self.depth_per_scale,
                 100.0 * self.depth_scatter

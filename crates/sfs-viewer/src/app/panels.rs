@@ -632,7 +632,7 @@ impl Panels {
             if fit.scale_precision.is_some_and(|p| p.is_loose()) {
                 ui.colored_label(
                     ui.visuals().warn_fg_color,
-                    "warning: the known distance fixes the scale only loosely (above); the \
+                    "warning: the known distances fix the scale only loosely (above); the \
                      shape depends on the scale, so it is only as good as that",
                 );
             }
