@@ -699,10 +699,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                 if precision.is_loose() {
                     loose_scale_warning = Some(format!(
                         "{}: the shape depends on the scale, so it is only as good as that",
-                        precision.words()
+                        precision.words(fit.points.len())
                     ));
                 } else {
-                    notes.push(precision.words());
+                    notes.push(precision.words(fit.points.len()));
                 }
             }
             if let Some(worst) = fit

@@ -390,20 +390,34 @@ impl ScalePrecision {
         self.scale_uncertainty.is_nan() || self.scale_uncertainty > LOOSE_SCALE
     }
 
-    /// The precision in plain words.
-    pub fn words(&self) -> String {
+    /// The precision in plain words, for a fit to `points` known
+    /// distances.
+    pub fn words(&self, points: usize) -> String {
+        let (fixes, does, at) = if points == 1 {
+            (
+                "the known distance fixes",
+                "the known distance does",
+                "there",
+            )
+        } else {
+            (
+                "the known distances fix",
+                "the known distances do",
+                "at them",
+            )
+        };
         if self.scale_uncertainty.is_finite() {
             format!(
-                "--known-depth fixes the scale to about ±{:.1} % (the solved depth at its \
-                 points moves by ±{:.1} % between nearly equal scales, over {} solves)",
+                "{fixes} the scale to about ±{:.1} % (the solved depth {at} moves by \
+                 ±{:.1} % between nearly equal scales, over {} solves)",
                 100.0 * self.scale_uncertainty,
                 100.0 * self.depth_scatter,
                 self.solves
             )
         } else {
             format!(
-                "--known-depth does not fix the scale here: over {} solves the solved depth \
-                 at its points did not grow with the scale (slope {:.3}, scatter ±{:.1} %)",
+                "{does} not fix the scale here: over {} solves the solved depth {at} did \
+                 not grow with the scale (slope {:.3}, scatter ±{:.1} %)",
                 self.solves,
                 self.depth_per_scale,
                 100.0 * self.depth_scatter
@@ -806,7 +820,23 @@ mod tests {
         assert!(weak.is_loose(), "{weak:?}");
         let flat = ScalePrecision::from_solves(&solves(0.0, alternating), 0.0).expect("measured");
         assert!(flat.scale_uncertainty.is_infinite() && flat.is_loose());
-        assert!(flat.words().contains("does not fix"), "{}", flat.words());
+        assert!(
+            flat.words(1).contains("distance does not fix"),
+            "{}",
+            flat.words(1)
+        );
+        assert!(
+            flat.words(2).contains("distances do not fix"),
+            "{}",
+            flat.words(2)
+        );
+        assert!(
+            noisy
+                .words(2)
+                .starts_with("the known distances fix the scale to about ±4"),
+            "{}",
+            noisy.words(2)
+        );
         // Only the solves within the window count: three are too few.
         let far: Vec<(f64, f64)> = solves(0.5, |_| 0.0)
             .iter()

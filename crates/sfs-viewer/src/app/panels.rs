@@ -1900,7 +1900,7 @@ fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
     );
     if let Some(precision) = &fit.scale_precision {
         summary.push_str("; ");
-        summary.push_str(&precision.words());
+        summary.push_str(&precision.words(fit.points.len()));
     }
     summary
 }
