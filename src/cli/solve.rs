@@ -696,13 +696,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                     .join("; ")
             ));
             if let Some(precision) = &fit.scale_precision {
-                if precision.is_loose() {
-                    loose_scale_warning = Some(format!(
-                        "{}: the shape depends on the scale, so it is only as good as that",
-                        precision.words(fit.points.len())
-                    ));
-                } else {
-                    notes.push(precision.words(fit.points.len()));
+                let points = fit.points.len();
+                match precision.warning(points) {
+                    Some(warning) => loose_scale_warning = Some(warning),
+                    None => notes.push(precision.words(points)),
                 }
             }
             if let Some(worst) = fit

@@ -390,6 +390,18 @@ impl ScalePrecision {
         self.scale_uncertainty.is_nan() || self.scale_uncertainty > LOOSE_SCALE
     }
 
+    /// The warning a loosely fixed scale gets (its words and why they
+    /// matter), `None` when it is not loose; one text for the command line
+    /// and the viewer.
+    pub fn warning(&self, points: usize) -> Option<String> {
+        self.is_loose().then(|| {
+            format!(
+                "{}: the shape depends on the scale, so it is only as good as that",
+                self.words(points)
+            )
+        })
+    }
+
     /// The precision in plain words, for a fit to `points` known
     /// distances.
     pub fn words(&self, points: usize) -> String {
@@ -818,6 +830,7 @@ mod tests {
         // The same scatter on a slope of 0.06: loosely fixed; no slope: not at all.
         let weak = ScalePrecision::from_solves(&solves(0.06, alternating), 0.0).expect("measured");
         assert!(weak.is_loose(), "{weak:?}");
+        assert!(weak.warning(1).is_some() && noisy.warning(1).is_none());
         let flat = ScalePrecision::from_solves(&solves(0.0, alternating), 0.0).expect("measured");
         assert!(flat.scale_uncertainty.is_infinite() && flat.is_loose());
         assert!(

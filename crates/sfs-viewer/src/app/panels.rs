@@ -629,12 +629,11 @@ impl Panels {
                      residuals say how far off it stopped",
                 );
             }
-            if fit.scale_precision.is_some_and(|p| p.is_loose()) {
-                ui.colored_label(
-                    ui.visuals().warn_fg_color,
-                    "warning: the known distances fix the scale only loosely (above); the \
-                     shape depends on the scale, so it is only as good as that",
-                );
+            if let Some(warning) = fit
+                .scale_precision
+                .and_then(|p| p.warning(fit.points.len()))
+            {
+                ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
             }
         }
         if let Some(failure) = &s.failure {
@@ -1884,7 +1883,8 @@ fn short_material(material: &Material) -> String {
 }
 
 /// The side panel's line on a known-distance fit: the scale, each
-/// point's relative residual and how precisely the points fix the scale.
+/// point's relative residual and how precisely the points fix the scale
+/// (unless loosely: that is a warning of its own).
 fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
     let n = fit.points.len();
     let residuals: Vec<String> = fit
@@ -1898,9 +1898,10 @@ fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
         if n == 1 { "" } else { "s" },
         residuals.join(", ")
     );
-    if let Some(precision) = &fit.scale_precision {
+    // A loose scale's words are its warning instead.
+    if let Some(precision) = fit.scale_precision.filter(|p| !p.is_loose()) {
         summary.push_str("; ");
-        summary.push_str(&precision.words(fit.points.len()));
+        summary.push_str(&precision.words(n));
     }
     summary
 }
