@@ -344,7 +344,7 @@ impl ScalePrecision {
     /// least-squares factor onto the points, `1 / depth` up to a constant)
     /// around `log_s_found`; `None` with fewer than [`PRECISION_SOLVES`] in
     /// [`PRECISION_WINDOW`] or no spread of `s` among them.
-    pub fn from_solves(solves: &[(f64, f64)], log_s_found: f64) -> Option<Self> {
+    fn from_solves(solves: &[(f64, f64)], log_s_found: f64) -> Option<Self> {
         let near: Vec<(f64, f64)> = solves
             .iter()
             .copied()
@@ -553,9 +553,9 @@ fn search_scale(
     Ok((search, best_solution))
 }
 
-/// What [`search_scale`] found: the best solve's scale, whether it met the
-/// points within the tolerance, the solves it took and the precision they
-/// measure.
+/// What a scale search found (or the exact rescaling with a centred
+/// light): the best solve's scale, whether it met the points within the
+/// tolerance, the solves it took and the precision they measure.
 struct ScaleSearch {
     intensity_scale: f64,
     converged: bool,
@@ -727,7 +727,7 @@ fn search_known_depths(
             }
         }
     }
-    let (mut solution, converged, solves, scale_precision) = if problem.light_is_centred() {
+    let (search, mut solution) = if problem.light_is_centred() {
         let mut solution = super::solve_method(problem, params, method, observer)?;
         let mut solves = 1;
         let solved = depths_at(&solution.depth, points)?;
@@ -741,11 +741,17 @@ fn search_known_depths(
         let solved = depths_at(&solution.depth, points)?;
         let k = least_squares_factor(&solved, points);
         solution.depth = solution.depth.map(|z| z * k);
-        (solution, true, solves, None)
+        let exact = ScaleSearch {
+            intensity_scale: problem.intensity_scale,
+            converged: true,
+            solves,
+            precision: None,
+        };
+        (exact, solution)
     } else {
         let (search, solution) = search_scale(problem, params, method, points, observer)?;
         problem.intensity_scale = search.intensity_scale;
-        (solution, search.converged, search.solves, search.precision)
+        (search, solution)
     };
     if auto {
         solution.material_fit = Some(super::material_fit::fit_material(
@@ -778,9 +784,9 @@ fn search_known_depths(
             intensity_scale: problem.intensity_scale,
             points: residuals,
             rms_relative_residual: rms,
-            solves,
-            converged,
-            scale_precision,
+            solves: search.solves,
+            converged: search.converged,
+            scale_precision: search.precision,
         },
     ))
 }
