@@ -37,6 +37,10 @@ pub(super) struct Decided {
     pub camera: Intrinsics,
     pub source: CameraSource,
     pub lights: Vec<PointLight>,
+    /// Every light the camera file lists with a position and a principal
+    /// direction (on or off for this photograph): where a rig aims them
+    /// says where the object is (`solver::depth_unit`).
+    pub rig_lights: Vec<PointLight>,
     /// `Some(s)` when given (option or camera file); `None`: unknown.
     pub intensity_scale: Option<f64>,
     /// The unit of depth, when the camera file says it.
@@ -115,6 +119,16 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
         CameraSpec::Exif { guess } => from_exif(&input.images[0], full_size, *guess, &mut notes)?,
     };
     let lights = decide_lights(input, file.as_ref(), &mut notes)?;
+    let rig_lights = match (&input.lights, &file) {
+        (LightSpec::Given(_), _) | (_, None) => Vec::new(),
+        (_, Some((_, f))) => f
+            .lights
+            .iter()
+            .enumerate()
+            .filter_map(|(k, e)| e.light().validated(k + 1).ok())
+            .filter(|l| l.direction.is_some())
+            .collect(),
+    };
     let intensities_measured = match (&input.lights, &file) {
         (LightSpec::Given(_), _) => input.given_intensities,
         (_, Some((_, f))) => f
@@ -154,6 +168,7 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
         camera,
         source,
         lights,
+        rig_lights,
         intensity_scale,
         units: file.and_then(|(_, f)| f.units),
         intensities_measured,

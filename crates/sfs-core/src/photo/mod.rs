@@ -303,6 +303,12 @@ pub struct PhotoReport {
     /// several photographs their intensities are divided by `sum_divisor`
     /// like the sum.
     pub lights: Vec<PointLight>,
+    /// Every light of the camera file with a principal direction, on or off
+    /// for this photograph (intensities as listed): the rig whose aim is
+    /// a cue to the object's distance (`solver::depth_unit`). Empty without
+    /// a camera file or when the lights were given.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub rig_lights: Vec<PointLight>,
     /// Several photographs: the power of two their sum (and the lights'
     /// intensities) was divided by so that no trusted value the photographs
     /// did not clip reaches the top of the range (1 when none did); the
@@ -379,6 +385,18 @@ pub struct PreparedPhoto {
 }
 
 impl PreparedPhoto {
+    /// What the photograph's set-up says of the object's distance (a given
+    /// intensity scale, the rig's aimed lights), for
+    /// [`crate::solver::depth_unit::solve_photograph`]; the fronts add what
+    /// the user says (known distances, the object's distance).
+    pub fn distance_cues(&self) -> crate::solver::depth_unit::DistanceCues {
+        crate::solver::depth_unit::DistanceCues {
+            scale_given: self.intensity_scale_given,
+            rig_lights: self.report.rig_lights.clone(),
+            ..Default::default()
+        }
+    }
+
     /// The working size.
     pub fn size(&self) -> (usize, usize) {
         self.problem.image.size()
@@ -701,6 +719,7 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
             units: decided.units,
         },
         lights: lights.clone(),
+        rig_lights: decided.rig_lights,
         sum_divisor,
         clipped_share,
         notes: decided.notes,

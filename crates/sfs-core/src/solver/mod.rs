@@ -10,6 +10,7 @@ pub mod albedo_fit;
 pub mod auto_alpha;
 pub mod calibrate;
 pub(crate) mod coarse_to_fine;
+pub mod depth_unit;
 pub mod driver;
 pub mod explicit;
 pub mod fast_marching;
