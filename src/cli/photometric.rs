@@ -420,17 +420,21 @@ fn solve_single(
     let context = || format!("--compare-single {}", image.display());
     let input = set.one_of_set(k).with_context(context)?;
     let prepared = photo::prepare(&input).with_context(context)?;
+    let cues = prepared.distance_cues();
     let mut problem = prepared.problem;
     let single_params = args.params(problem.image.size())?;
-    let (single, estimate) = solver::calibrate::solve_estimating_scale(
+    let (single, unit) = solver::depth_unit::solve_photograph(
         &mut problem,
         &single_params,
         &args.method.method(),
-        prepared.intensity_scale_given,
+        &cues,
         &mut (),
     )
     .with_context(|| format!("--compare-single {}: cannot solve it", image.display()))?;
-    let estimated = estimate.is_some();
+    let estimated = !matches!(
+        unit.source,
+        solver::depth_unit::UnitSource::GivenScale | solver::depth_unit::UnitSource::CentredLight
+    );
     io::write_npy_f32(&stage.path("single_depth.npy"), &single.depth)?;
     io::write_depth_png16(&stage.path("single_depth16.png"), &single.depth)?;
     Ok(SingleReport {

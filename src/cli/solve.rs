@@ -59,6 +59,12 @@ pub struct SolveArgs {
     /// reported.
     #[arg(long, value_name = "X,Y,Z", value_parser = super::parse_floats::<3>)]
     pub known_depth: Vec<[f64; 3]>,
+    /// The object is about this far from the camera (its median depth, in
+    /// the camera file's unit, e.g. mm): sets the depth unit (and s) as
+    /// --known-depth does, without picking a pixel [default: from the
+    /// set-up (where its LEDs are aimed) or the photograph's shading].
+    #[arg(long, value_name = "DEPTH", conflicts_with = "known_depth")]
+    pub distance: Option<f64>,
     /// Where the lights are.
     #[command(flatten)]
     pub lights: super::LightArgs,
@@ -434,6 +440,8 @@ struct SolveInput {
     photo: PhotoReport,
     /// `--known-depth` as given (pixels of the photograph as given).
     known_depth: Vec<[f64; 3]>,
+    /// `--distance` as given.
+    distance: Option<f64>,
 }
 
 /// A known distance is met when the solved depth there is within this share.
@@ -443,9 +451,10 @@ const KNOWN_DEPTH_MET: f64 = 0.005;
 #[derive(Debug, Serialize)]
 struct SolveReport<'a> {
     input: SolveInput,
-    intensity_scale_search: Option<solver::calibrate::ScaleEstimate>,
-    /// How the solve met `--known-depth` (working-size pixels).
-    known_depth_fit: Option<solver::calibrate::KnownDepthFit>,
+    /// Which cue set the depth unit, how precisely, the shading search and
+    /// how the solve met `--known-depth` (working-size pixels) or
+    /// `--distance`.
+    depth_unit: &'a solver::depth_unit::DepthUnit,
     notes: &'a [String],
     parameters: serde_json::Value,
     /// The material the surface was solved as (with `--reflectance auto`,
@@ -569,7 +578,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         None => None,
     };
     let params = args.params(size)?;
-    let intensity_scale_given = prepared.intensity_scale_given;
+    let set_up_cues = prepared.distance_cues();
     let units = prepared.report.camera.units.clone();
     let mut photo_report = prepared.report.clone();
     let confidence_derived = prepared.confidence_derived;
@@ -622,61 +631,40 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             );
         }
     }
-    if !known_points.is_empty()
+    if let Some(distance) = args.distance
+        && !(distance.is_finite() && distance > 0.0)
+    {
+        bail!("--distance {distance}: must be a positive distance (the camera file's unit)");
+    }
+    if (!known_points.is_empty() || args.distance.is_some())
         && let Some(given) = &args.intensity_scale
         && given != "auto"
     {
         bail!(
-            "--known-depth and --intensity-scale {given} both set the depth unit: give one \
-             (--known-depth searches the intensity scale)"
+            "--{} and --intensity-scale {given} both set the depth unit: give one (a distance \
+             searches the intensity scale)",
+            if known_points.is_empty() {
+                "distance"
+            } else {
+                "known-depth"
+            }
         );
     }
-    let mut scale_estimate = None;
-    let mut scale_warning = None;
     let centred = problem.light_is_centred();
-    if !intensity_scale_given && !centred && known_points.is_empty() {
-        let estimate =
-            solver::calibrate::estimate_intensity_scale(&problem, &params, &mut progress)
-                .with_context(
-                    || "cannot estimate the intensity scale (give --intensity-scale S)",
-                )?;
-        problem.intensity_scale = estimate.intensity_scale;
-        let unit = units.as_deref().unwrap_or("depth units");
-        notes.push(format!(
-            "intensity scale estimated: s = {:.4e} (object about {:.1} {unit} away){}",
-            estimate.intensity_scale,
-            estimate.depth,
-            if estimate.well_determined {
-                "; determined by this image within 15 %"
-            } else {
-                ""
-            }
-        ));
-        if !estimate.well_determined {
-            scale_warning = Some(format!(
-                "this image does not determine the intensity scale, so the depth unit is a guess \
-                 (the object about {:.0} {unit} away could be much nearer or farther): give \
-                 --known-depth X,Y,Z (a pixel's distance) or a measured --intensity-scale",
-                estimate.depth
-            ));
-        }
-        scale_estimate = Some(estimate);
-    }
     let method = args.method.method();
-    let mut known_depth_fit = None;
+    let cues = solver::depth_unit::DistanceCues {
+        known_depths: known_points,
+        distance: args.distance,
+        ..set_up_cues
+    };
+    let unit_name = units.as_deref().unwrap_or("depth units");
+    let solved =
+        solver::depth_unit::solve_photograph(&mut problem, &params, &method, &cues, &mut progress);
     let mut known_depth_warning = None;
     let mut loose_scale_warning = None;
-    let solution = if known_points.is_empty() {
-        solver::solve_method(&problem, &params, &method, &mut progress)
-    } else {
-        solver::calibrate::solve_with_known_depths(
-            &mut problem,
-            &params,
-            &method,
-            &known_points,
-            &mut progress,
-        )
-        .map(|(solution, fit)| {
+    if let Ok((_, unit)) = &solved {
+        notes.push(unit.words(unit_name));
+        if let Some(fit) = unit.fit.as_ref().filter(|f| !f.points.is_empty()) {
             notes.push(format!(
                 "depth scale from --known-depth: s = {:.4e} after {} solve{}; {}",
                 fit.intensity_scale,
@@ -729,18 +717,28 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                     }
                 ));
             }
-            known_depth_fit = Some(fit);
-            solution
-        })
-    };
+        }
+        if let Some(median) = unit.fit.as_ref().and_then(|f| f.median_depth)
+            && median.relative_residual.abs() > KNOWN_DEPTH_MET
+            && unit.source == solver::depth_unit::UnitSource::Distance
+        {
+            known_depth_warning = Some(format!(
+                "--distance is not met: the surface's median depth is {:.4} for the given {:.4} \
+                 ({:+.2} %); the depth unit is off by about that much",
+                median.solved,
+                median.given,
+                100.0 * median.relative_residual
+            ));
+        }
+    }
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
     // With `--albedo auto` every solve (the searches' too) estimated the
     // albedo and compared it with albedo 1 at its own scale
     // (`solver::albedo_fit`); the reprojection is the photograph's.
-    let solution =
-        solution.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
+    let (solution, depth_unit) =
+        solved.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
     let model = problem.model(solution.material);
     let errors = match &ground_truth {
         Some(gt) => Some(metrics::errors_with_model(
@@ -830,7 +828,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         Some(&solution.reprojection),
     )?;
     let mut warnings: Vec<String> = model_fit.warnings.clone();
-    if let Some(w) = scale_warning {
+    if let Some(w) = depth_unit.warning(unit_name) {
         warnings.insert(0, w);
     }
     if let Some(w) = known_depth_warning {
@@ -863,9 +861,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         input: SolveInput {
             photo: photo_report,
             known_depth: args.known_depth.clone(),
+            distance: args.distance,
         },
-        intensity_scale_search: scale_estimate,
-        known_depth_fit,
+        depth_unit: &depth_unit,
         notes: &notes,
         parameters: params_json(&params, args),
         material: solution.material,

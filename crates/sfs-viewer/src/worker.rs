@@ -18,12 +18,14 @@
 //!   that is itself waiting in [`Worker::submit`].
 //! - Dropping the [`Worker`] requests shutdown, cancels the running solve and
 //!   joins the thread. If the UI side is gone the thread ends.
-//! - A job with known depths ([`SolveRequest::known_depths`]) runs
-//!   [`calibrate::solve_with_known_depths`] (linearised scheme) instead of
-//!   the [`SolveFn`]: every solve of its scale search streams its levels
-//!   (level indices start again at 0 with each solve), and where the search
-//!   rescaled the last solve's depth a last `Level` event carries the
-//!   rescaled depth; `Finished` then holds the [`KnownDepthFit`].
+//! - A job whose depth unit is to be decided (known depths, an object
+//!   distance, or lights off the centre with no scale given) runs the
+//!   core's one decision, [`depth_unit::solve_photograph`] (linearised
+//!   scheme), instead of the [`SolveFn`]: every solve of its scale search
+//!   streams its levels (level indices start again at 0 with each solve),
+//!   and where the search rescaled the last solve's depth a last `Level`
+//!   event carries the rescaled depth; `Finished` then holds the
+//!   [`DepthUnit`] (and with it the known distances' fit).
 //! - With `reflectance auto` the core compares the materials once per job
 //!   (`material_fit`; no events while it runs, only cancellation): a scale
 //!   estimate or known-depth search runs as Lambert, what `auto` stands
@@ -47,8 +49,10 @@ use crossbeam_channel::{
     Receiver, RecvTimeoutError, SendTimeoutError, Sender, TryRecvError, TrySendError, bounded,
 };
 
+use sfs_core::light::PointLight;
 use sfs_core::params::{InitialDepth, SolverParams};
-use sfs_core::solver::calibrate::{self, KnownDepth, KnownDepthFit};
+use sfs_core::solver::calibrate::KnownDepth;
+use sfs_core::solver::depth_unit::{self, DepthUnit, DistanceCues};
 use sfs_core::solver::photometric::{
     PhotometricParams, PhotometricProblem, PhotometricSolution, solve_photometric,
 };
@@ -83,16 +87,46 @@ pub struct SolveRequest {
     pub problem: Problem,
     /// Solver parameters (validated by the solver: bad ones end in `Failed`).
     pub params: SolverParams,
-    /// Estimate the intensity scale first (lights off the centre and no
-    /// scale given; see [`sfs_core::solver::calibrate`]). Ignored when
-    /// [`Self::known_depths`] is not empty: they set the scale.
+    /// Decide the intensity scale (no scale given; see
+    /// [`sfs_core::solver::depth_unit`]): with lights off the centre the
+    /// job runs [`depth_unit::solve_photograph`] instead of the
+    /// [`SolveFn`]. Ignored when [`Self::known_depths`] or
+    /// [`Self::distance`] set the scale.
     pub estimate_scale: bool,
     /// Distances the user knows, in pixels of `problem.image` (the working
-    /// size). Not empty: the job runs
-    /// [`calibrate::solve_with_known_depths`] with the linearised scheme,
-    /// which moves the intensity scale until the depth meets them, instead
-    /// of the [`SolveFn`] (and of the scale estimate).
+    /// size). Not empty: the job runs [`depth_unit::solve_photograph`] with
+    /// the linearised scheme, which moves the intensity scale until the
+    /// depth meets them, instead of the [`SolveFn`].
     pub known_depths: Vec<KnownDepth>,
+    /// The object's distance (median depth) the user gives: as
+    /// [`Self::known_depths`], with the median.
+    pub distance: Option<f64>,
+    /// The rig's aimed lights (`photo::PhotoReport::rig_lights`), a cue to
+    /// the distance.
+    pub rig_lights: Vec<PointLight>,
+}
+
+impl SolveRequest {
+    /// A plain request: the problem and parameters, the scale estimated
+    /// where `estimate_scale`, no distance given, no rig.
+    pub fn new(problem: Problem, params: SolverParams, estimate_scale: bool) -> Self {
+        Self {
+            problem,
+            params,
+            estimate_scale,
+            known_depths: Vec::new(),
+            distance: None,
+            rig_lights: Vec::new(),
+        }
+    }
+
+    /// Whether the job decides its depth unit ([`depth_unit::solve_photograph`])
+    /// rather than running the [`SolveFn`].
+    pub fn decides_depth_unit(&self) -> bool {
+        !self.known_depths.is_empty()
+            || self.distance.is_some()
+            || (self.estimate_scale && !self.problem.light_is_centred())
+    }
 }
 
 /// One photometric-stereo solve to run: the set and the scheme's settings.
@@ -166,12 +200,9 @@ pub enum Event {
         job: JobId,
         /// The full-resolution result.
         solution: Box<Solution>,
-        /// How the depth met the request's known depths (`None` without
-        /// known depths).
-        known_depth_fit: Option<KnownDepthFit>,
-        /// Whether the image determined the intensity scale the worker
-        /// estimated (`None` when it estimated none).
-        scale_determined: Option<bool>,
+        /// The depth unit the job decided, and how it met known depths or
+        /// the object's distance (`None` when it decided none).
+        depth_unit: Option<Box<DepthUnit>>,
     },
     /// A photometric-stereo set's solve completed.
     SetFinished {
@@ -427,53 +458,44 @@ impl Runner {
             last_level: None,
         };
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
-            if !request.known_depths.is_empty() {
+            if request.decides_depth_unit() {
                 let mut problem = request.problem.clone();
-                let (solution, fit) = calibrate::solve_with_known_depths(
+                let cues = DistanceCues {
+                    known_depths: request.known_depths.clone(),
+                    distance: request.distance,
+                    scale_given: !request.estimate_scale,
+                    rig_lights: request.rig_lights.clone(),
+                };
+                let (solution, unit) = depth_unit::solve_photograph(
                     &mut problem,
                     &request.params,
                     &Method::Linearised,
-                    &request.known_depths,
+                    &cues,
                     &mut observer,
                 )?;
-                return Ok((solution, Some(fit), None));
+                return Ok((solution, Some(Box::new(unit))));
             }
-            if request.estimate_scale && !request.problem.light_is_centred() {
-                let estimate = calibrate::estimate_intensity_scale(
-                    &request.problem,
-                    &request.params,
-                    &mut observer,
-                )?;
-                let problem = Problem {
-                    intensity_scale: estimate.intensity_scale,
-                    ..request.problem.clone()
-                };
-                return (self.solve_fn)(&problem, &request.params, &mut observer)
-                    .map(|s| (s, None, Some(estimate.well_determined)));
-            }
-            (self.solve_fn)(&request.problem, &request.params, &mut observer)
-                .map(|s| (s, None, None))
+            (self.solve_fn)(&request.problem, &request.params, &mut observer).map(|s| (s, None))
         }));
         if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
             return Err(Stop);
         }
-        if let Ok(Ok((solution, Some(_), _))) = &outcome
+        if let Ok(Ok((solution, Some(unit)))) = &outcome
+            && unit.fit.is_some()
             && let Some(level) = rescaled_level(observer.last_level.take(), solution)
         {
             // The search scaled the last solve's depth onto the known
             // distances: the UI shows what `Finished` holds.
             self.outbox.deliver(Event::Level { job, result: level })?;
         }
-        self.outbox.deliver(end_event(
-            job,
-            outcome,
-            |(solution, known_depth_fit, scale_determined)| Event::Finished {
-                job,
-                solution: Box::new(solution),
-                known_depth_fit,
-                scale_determined,
-            },
-        ))
+        self.outbox
+            .deliver(end_event(job, outcome, |(solution, depth_unit)| {
+                Event::Finished {
+                    job,
+                    solution: Box::new(solution),
+                    depth_unit,
+                }
+            }))
     }
 
     /// A job's start: `Err(Stop)` on shutdown, `Ok(false)` for a job
@@ -826,6 +848,8 @@ mod tests {
             params,
             estimate_scale: false,
             known_depths: Vec::new(),
+            distance: None,
+            rig_lights: Vec::new(),
         }
     }
 
@@ -852,6 +876,8 @@ mod tests {
             params: SolverParams::default(),
             estimate_scale: true,
             known_depths: vec![point],
+            distance: None,
+            rig_lights: Vec::new(),
         };
         (request, point)
     }
@@ -993,12 +1019,13 @@ mod tests {
         let events = events_until_end(&mut worker, job);
         let Some(Event::Finished {
             solution,
-            known_depth_fit,
+            depth_unit,
             ..
         }) = events.last()
         else {
             panic!("last event is {}", kind(events.last()));
         };
+        let known_depth_fit = depth_unit.as_ref().and_then(|u| u.fit.as_ref());
         let (c, r) = (point.column_px as usize, point.row_px as usize);
         let solved = *solution.depth.at(c, r);
         assert!(
@@ -1006,7 +1033,7 @@ mod tests {
             "solved {solved}, given {}",
             point.depth
         );
-        let fit = known_depth_fit.as_ref().expect("the fit is reported");
+        let fit = known_depth_fit.expect("the fit is reported");
         assert_eq!(fit.points.len(), 1);
         assert!(fit.converged && fit.solves >= 1, "{fit:?}");
         assert!(fit.points[0].relative_residual.abs() < 5e-3, "{fit:?}");
@@ -1032,7 +1059,7 @@ mod tests {
         assert!(matches!(
             events.last(),
             Some(Event::Finished {
-                known_depth_fit: None,
+                depth_unit: None,
                 ..
             })
         ));
@@ -1092,12 +1119,13 @@ mod tests {
         let job = worker.submit(request);
         let events = events_until_end(&mut worker, job);
         let Some(Event::Finished {
-            known_depth_fit: Some(fit),
+            depth_unit: Some(unit),
             ..
         }) = events.last()
         else {
             panic!("last event is {} without a fit", kind(events.last()));
         };
+        let fit = unit.fit.as_ref().expect("the fit is reported");
         assert!(fit.converged, "{fit:?}");
         let solution = finished_solution(&events);
         assert_fitted(solution);
@@ -1132,13 +1160,15 @@ mod tests {
             },
             estimate_scale: true,
             known_depths: Vec::new(),
+            distance: None,
+            rig_lights: Vec::new(),
         };
         let job = worker.submit(request);
         let events = events_until_end(&mut worker, job);
         assert!(matches!(
             events.last(),
             Some(Event::Finished {
-                scale_determined: Some(_),
+                depth_unit: Some(_),
                 ..
             })
         ));

@@ -244,6 +244,9 @@ pub struct Document {
     /// Distances the user knows, in pixels of the photograph, in the order
     /// given (at most one per pixel); not empty, they set the depth scale.
     pub known_depths: Vec<KnownDistance>,
+    /// The object's distance the user gives (its median depth, the
+    /// camera's unit): sets the depth unit when no known distance does.
+    pub object_distance: Option<f64>,
     /// A photometric-stereo set (`None`: one image). `path` is then the
     /// set's folder and `image` the mean of its photographs.
     pub set: Option<PhotoSet>,
@@ -529,6 +532,7 @@ impl Document {
             ground_truth: None,
             notes,
             known_depths: Vec::new(),
+            object_distance: None,
             set: Some(PhotoSet {
                 problem,
                 paths: input.images.clone(),
@@ -629,6 +633,7 @@ impl Document {
             ground_truth,
             notes,
             known_depths: Vec::new(),
+            object_distance: None,
             set: None,
         })
     }

@@ -129,6 +129,9 @@ struct KnownDistanceTool {
     text: String,
     /// Why the last pixel or distance was refused.
     refused: Option<String>,
+    /// The object's distance as typed (`None`: not being edited, show the
+    /// document's).
+    distance_text: Option<String>,
 }
 
 /// The panels' own state: which 2-D panel, its zoom and pan, the mask
@@ -574,23 +577,13 @@ impl Panels {
         if let Some((rse, rie)) = s.errors {
             ui.label(format!("against ground truth: RSE {rse:.5}, RIE {rie:.5}"));
         }
-        if let Some(fit) = &s.fit {
-            ui.label(format!(
-                "model fit: RIE {:.3} on trusted pixels, {:.0} % badly explained, {:.0} % \
-                 near-black, {:.1} % saturated",
-                fit.rie_trusted,
-                100.0 * fit.poor_share,
-                100.0 * fit.near_black_share,
-                100.0 * fit.saturated_share
-            ))
-            .on_hover_text(
-                "RIE: relative image error of the reprojection over trusted object pixels; \
-                 badly explained: residual above 15 %. See the residual panel.",
-            );
-            for warning in &fit.warnings {
-                ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
-            }
-        }
+        let units = cx
+            .session
+            .document
+            .as_ref()
+            .map_or("depth units", |d| d.depth_units())
+            .to_owned();
+        fit_line(ui, s, &units);
         if let Some(share) = s.shadow_share {
             ui.label(format!(
                 "shadow: {:.1} % of the object taken out of the data term",
@@ -606,14 +599,6 @@ impl Panels {
         if let Some(s_used) = s.intensity_scale_used {
             ui.weak(format!("intensity scale used: {s_used:.4e}"));
         }
-        if s.scale_determined == Some(false) {
-            ui.colored_label(
-                ui.visuals().warn_fg_color,
-                "warning: this image does not determine the intensity scale, so the depth unit \
-                 is a guess: set a known distance (Known distance section) or give a measured \
-                 intensity scale",
-            );
-        }
         if let Some(solution) = &s.finished {
             material_ui(ui, solution);
         }
@@ -622,19 +607,6 @@ impl Panels {
                 "The intensity scale s that puts the surface at the known distances (relative \
                  least squares); residuals: (solved - given) / given at each point",
             );
-            if !fit.converged {
-                ui.colored_label(
-                    ui.visuals().warn_fg_color,
-                    "warning: the scale search for the known distances did not settle; the \
-                     residuals say how far off it stopped",
-                );
-            }
-            if let Some(warning) = fit
-                .scale_precision
-                .and_then(|p| p.warning(fit.points.len()))
-            {
-                ui.colored_label(ui.visuals().warn_fg_color, format!("warning: {warning}"));
-            }
         }
         if let Some(failure) = &s.failure {
             ui.colored_label(ui.visuals().error_fg_color, failure.clone());
@@ -956,6 +928,58 @@ impl Panels {
             .map(|p| (*p, doc.working_pixel(p.column_px, p.row_px)))
             .collect();
         let tool = &mut self.known;
+        let current = doc.object_distance;
+        let mut distance_outcome = None;
+        ui.horizontal(|ui| {
+            let label = ui
+                .label("object distance")
+                .on_hover_text(
+                    "How far the object is from the camera, roughly (its median depth): sets \
+                     the depth unit without picking a pixel. Known distances at pixels, when \
+                     given, are used instead.",
+                )
+                .id;
+            let text = tool
+                .distance_text
+                .get_or_insert_with(|| current.map(significant).unwrap_or_default());
+            let edit = ui
+                .add(
+                    egui::TextEdit::singleline(text)
+                        .desired_width(70.0)
+                        .hint_text("e.g. 650"),
+                )
+                .labelled_by(label);
+            ui.label(&units);
+            let entered = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+            if ui.button("Set").clicked() || entered {
+                let typed = text.trim().to_owned();
+                distance_outcome = Some(if typed.is_empty() {
+                    Ok(None)
+                } else {
+                    typed.parse::<f64>().map(Some).map_err(|_| {
+                        format!("\"{typed}\" is not a number: type the distance in {units}")
+                    })
+                });
+            }
+            if current.is_some() && ui.button("Clear").clicked() {
+                distance_outcome = Some(Ok(None));
+                tool.distance_text = Some(String::new());
+            }
+        });
+        if current.is_some() && !points.is_empty() {
+            ui.weak("not used: the known distances at pixels set the depth unit");
+        }
+        if let Some(outcome) = distance_outcome {
+            match outcome.and_then(|d| cx.session.set_object_distance(d)) {
+                Ok(note) => {
+                    tool.refused = None;
+                    if let Some(note) = note {
+                        cx.actions.push(Action::Notice(note));
+                    }
+                }
+                Err(reason) => tool.refused = Some(reason),
+            }
+        }
         ui.horizontal_wrapped(|ui| {
             if ui
                 .selectable_label(tool.picking, "Set distance")
@@ -1885,6 +1909,98 @@ fn short_material(material: &Material) -> String {
 /// The side panel's line on a known-distance fit: the scale, each
 /// point's relative residual and how precisely the points fix the scale
 /// (unless loosely: that is a warning of its own).
+/// Every warning of the last solve: the model fit's, the depth unit's and
+/// the known distances'.
+fn solve_warnings(s: &super::session::SolveState, units: &str) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if let Some(w) = s.depth_unit.as_ref().and_then(|u| u.warning(units)) {
+        warnings.push(w);
+    }
+    if let Some(fit) = &s.known_depth_fit {
+        if !fit.converged {
+            warnings.push(
+                "the scale search for the known distances did not settle; the residuals say how \
+                 far off it stopped"
+                    .into(),
+            );
+        }
+        if let Some(w) = fit
+            .scale_precision
+            .and_then(|p| p.warning(fit.points.len()))
+        {
+            warnings.push(w);
+        }
+    }
+    if let Some(fit) = &s.fit {
+        warnings.extend(fit.warnings.iter().cloned());
+    }
+    warnings
+}
+
+/// The fit in one line, coloured (green: explained, no warning; orange:
+/// warnings; red: much of the image unexplained or the depth unit a
+/// guess), with the one thing to do next; the figures on hover and the
+/// warnings in a list that opens.
+fn fit_line(ui: &mut egui::Ui, s: &super::session::SolveState, units: &str) {
+    let warnings = solve_warnings(s, units);
+    let Some(fit) = &s.fit else {
+        if let Some(unit) = &s.depth_unit {
+            ui.label(unit.words(units));
+        }
+        return;
+    };
+    let guess = s
+        .depth_unit
+        .as_ref()
+        .is_some_and(|u| u.source == sfs_core::solver::depth_unit::UnitSource::Guess);
+    let (colour, verdict) = if fit.poor_share > 0.3 || guess {
+        (ui.visuals().error_fg_color, "poor")
+    } else if warnings.is_empty() {
+        (egui::Color32::from_rgb(60, 170, 80), "good")
+    } else {
+        (ui.visuals().warn_fg_color, "fair")
+    };
+    let next = if s.depth_unit.as_ref().is_some_and(|u| u.wants_distance()) {
+        "next: give the object's distance (Known distance)"
+    } else if fit.near_black_share > 0.05 || fit.poor_share > 0.15 {
+        "next: paint the shadows and highlights low confidence (Mask)"
+    } else {
+        ""
+    };
+    let mut line = format!(
+        "fit {verdict}: RIE {:.3}, {:.0} % badly explained",
+        fit.rie_trusted,
+        100.0 * fit.poor_share
+    );
+    if !next.is_empty() {
+        line.push_str(" — ");
+        line.push_str(next);
+    }
+    ui.colored_label(colour, line).on_hover_text(format!(
+        "RIE: relative image error of the reprojection over trusted object pixels; badly \
+         explained: residual above 15 %; {:.0} % near-black, {:.1} % saturated. See the \
+         residual panel.",
+        100.0 * fit.near_black_share,
+        100.0 * fit.saturated_share
+    ));
+    if let Some(unit) = &s.depth_unit {
+        ui.weak(unit.words(units));
+    }
+    if !warnings.is_empty() {
+        egui::CollapsingHeader::new(format!(
+            "{} warning{}",
+            warnings.len(),
+            if warnings.len() == 1 { "" } else { "s" }
+        ))
+        .id_salt("solve warnings")
+        .show(ui, |ui| {
+            for warning in &warnings {
+                ui.colored_label(ui.visuals().warn_fg_color, warning);
+            }
+        });
+    }
+}
+
 fn fit_summary(fit: &sfs_core::solver::calibrate::KnownDepthFit) -> String {
     let n = fit.points.len();
     let residuals: Vec<String> = fit

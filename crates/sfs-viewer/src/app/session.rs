@@ -49,6 +49,9 @@ struct KnownDepthsFile {
     width: usize,
     height: usize,
     points: Vec<KnownDistance>,
+    /// The object's distance given (its median depth), if any.
+    #[serde(default)]
+    distance: Option<f64>,
 }
 
 /// One level as received.
@@ -134,9 +137,10 @@ pub struct SolveState {
     pub occlusion_edges: Option<Grid<bool>>,
     /// The intensity scale the final result used (estimated or given).
     pub intensity_scale_used: Option<f64>,
-    /// Whether the image determined the estimated intensity scale (`None`
-    /// when the last solve estimated none).
-    pub scale_determined: Option<bool>,
+    /// The depth unit the last solve decided: which cue set it, how
+    /// precisely (`None` when it decided none: a centred light or a given
+    /// scale with no distance).
+    pub depth_unit: Option<sfs_core::solver::depth_unit::DepthUnit>,
     /// How the final result met the known distances (`None` without them).
     pub known_depth_fit: Option<KnownDepthFit>,
     /// With known distances, the solve of the scale search now running
@@ -301,14 +305,20 @@ impl Session {
         }
         if let Some(path) = self.known_depths_path(&doc) {
             match restore_known_depths(&path, &doc) {
-                Ok(points) if points.is_empty() => {}
-                Ok(points) => {
-                    notes.push(format!(
-                        "restored {} known distance{}",
-                        points.len(),
-                        if points.len() == 1 { "" } else { "s" }
-                    ));
+                Ok((points, None)) if points.is_empty() => {}
+                Ok((points, distance)) => {
+                    if !points.is_empty() {
+                        notes.push(format!(
+                            "restored {} known distance{}",
+                            points.len(),
+                            if points.len() == 1 { "" } else { "s" }
+                        ));
+                    }
+                    if let Some(d) = distance {
+                        notes.push(format!("restored the object distance {d}"));
+                    }
                     doc.known_depths = points;
+                    doc.object_distance = distance;
                 }
                 Err(e) => notes.push(format!(
                     "known distances not restored from {}: {e}",
@@ -434,6 +444,7 @@ impl Session {
             width: doc.full_size.0,
             height: doc.full_size.1,
             points: doc.known_depths.clone(),
+            distance: doc.object_distance,
         };
         let failed = |e: String| format!("cannot save the known distances: {e}");
         if let Some(dir) = path.parent() {
@@ -461,6 +472,27 @@ impl Session {
             row_px: row as f64,
             depth,
         })?;
+        Ok(self.known_depths_changed())
+    }
+
+    /// Sets (or with `None` clears) the object's distance, its median
+    /// depth in the camera's unit, saves it beside the known distances and
+    /// asks for a solve. A distance that is not positive and finite is
+    /// refused with the reason and changes nothing. `Ok` carries a note
+    /// when it could not be saved.
+    pub fn set_object_distance(&mut self, distance: Option<f64>) -> Result<Option<String>, String> {
+        let Some(doc) = &mut self.document else {
+            return Err("no image is open".into());
+        };
+        if let Some(d) = distance
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(format!("object distance {d}: must be a positive distance"));
+        }
+        if doc.object_distance == distance {
+            return Ok(None);
+        }
+        doc.object_distance = distance;
         Ok(self.known_depths_changed())
     }
 
@@ -586,6 +618,7 @@ impl Session {
                 self.solve.shadow_share = None;
                 self.solve.occlusion_edges = None;
                 self.solve.known_depth_fit = None;
+                self.solve.depth_unit = None;
                 self.solve.failure = Some(reason);
                 self.solve.running = false;
                 self.solve.completed_jobs += 1;
@@ -602,11 +635,16 @@ impl Session {
         });
         self.mask_revision_solved = doc.mask_revision();
         let estimate_scale = !doc.camera.scale_given;
+        // Known distances at pixels win over the object's distance (the
+        // panel says the distance is then not used).
+        let distance = doc.object_distance.filter(|_| known_depths.is_empty());
         let job = worker.submit(SolveRequest {
             problem,
             params,
             estimate_scale,
             known_depths,
+            distance,
+            rig_lights: doc.report.rig_lights.clone(),
         });
         self.begin_job(job);
     }
@@ -625,6 +663,7 @@ impl Session {
         solve.shadow_share = None;
         solve.occlusion_edges = None;
         solve.known_depth_fit = None;
+        solve.depth_unit = None;
         solve.search_solve = 0;
         solve.set = None;
         self.last_level = None;
@@ -684,11 +723,14 @@ impl Session {
                 }
                 Event::Finished {
                     solution,
-                    known_depth_fit,
-                    scale_determined,
+                    depth_unit,
                     ..
                 } => {
-                    self.solve.scale_determined = scale_determined;
+                    let known_depth_fit = depth_unit
+                        .as_ref()
+                        .and_then(|u| u.fit.clone())
+                        .filter(|f| !f.points.is_empty());
+                    self.solve.depth_unit = depth_unit.map(|u| *u);
                     // s = I_ref Z^2 (the problem's scales), the estimated one
                     // when the worker estimated it.
                     let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
@@ -928,6 +970,8 @@ impl Session {
             params,
             estimate_scale,
             known_depths: Vec::new(),
+            distance: None,
+            rig_lights: prepared.report.rig_lights.clone(),
         });
         self.compare.job = Some(job);
         self.compare.running = true;
@@ -1081,10 +1125,13 @@ impl Session {
 /// size. Points that cannot be given (not positive, off the photograph)
 /// are left out; points off the object are kept (the mask may change, and
 /// the solve says why it cannot use them).
-fn restore_known_depths(path: &Path, doc: &Document) -> Result<Vec<KnownDistance>, String> {
+fn restore_known_depths(
+    path: &Path,
+    doc: &Document,
+) -> Result<(Vec<KnownDistance>, Option<f64>), String> {
     let text = match std::fs::read_to_string(path) {
         Ok(text) => text,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok((Vec::new(), None)),
         Err(e) => return Err(e.to_string()),
     };
     let file: KnownDepthsFile = serde_json::from_str(&text).map_err(|e| e.to_string())?;
@@ -1098,7 +1145,7 @@ fn restore_known_depths(path: &Path, doc: &Document) -> Result<Vec<KnownDistance
             file.width, file.height
         ));
     }
-    Ok(file
+    let points = file
         .points
         .into_iter()
         .filter(|p| {
@@ -1109,7 +1156,9 @@ fn restore_known_depths(path: &Path, doc: &Document) -> Result<Vec<KnownDistance
                 && p.column_px < fw as f64
                 && p.row_px < fh as f64
         })
-        .collect())
+        .collect();
+    let distance = file.distance.filter(|d| d.is_finite() && *d > 0.0);
+    Ok((points, distance))
 }
 
 /// The autosave folder of a set's photograph `index`'s own layer, inside
