@@ -16,7 +16,6 @@
 //! pictures `albedo-face-*.png`. Writes `albedo.md` and `albedo.json`.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -27,14 +26,12 @@ use sfs_core::io;
 use sfs_core::light::PointLight;
 use sfs_core::metrics;
 use sfs_core::params::{AlbedoChoice, SolverParams};
-use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput};
+use sfs_core::photo;
 use sfs_core::scene::photometric::{albedo_error, albedo_pattern, albedo_with_cell_error};
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::albedo_fit::divide_out;
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
-use sfs_core::solver::photometric::{
-    PhotometricParams, SingleComparison, compare_single, solve_photometric,
-};
+use sfs_core::solver::photometric::{SingleComparison, compare_single};
 use sfs_core::solver::{Method, Problem, Solution, solve};
 
 use super::lights::render;
@@ -304,28 +301,10 @@ const FACE_SIDE: usize = 648;
 /// albedo, each scaled by the nose's distance in the seven-photo depth,
 /// against that depth.
 fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
-    let dir = args.real.join("near_ps_human1");
-    let camera = dir.join("calibration.json");
-    if !camera.is_file() {
+    let Some(face) = super::face::face_set(&args.real, Some(FACE_SIDE))? else {
         return Ok(Vec::new());
-    }
-    let images: Vec<PathBuf> = (1..=8)
-        .map(|k| dir.join(format!("led{k}.png")))
-        .filter(|p| p.is_file())
-        .collect();
-    let set = PhotoInput {
-        images: images.clone(),
-        camera: CameraSpec::File(camera),
-        lights: LightSpec::CameraFile { picks: Vec::new() },
-        object_mask: Some(dir.join("mask.png")),
-        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
-        photometric_stereo: true,
-        max_side: Some(FACE_SIDE),
-        ..PhotoInput::new(&images[0])
     };
-    let prepared = photo::prepare(&set)?;
-    let problem = photo::photometric_problem(&prepared, &set)?;
-    let ps = solve_photometric(&problem, &PhotometricParams::default(), &mut ())?;
+    let (images, set, prepared, ps) = (face.images, face.input, face.prepared, face.solution);
     // The nearest point of the set's surface: the nose.
     let (w, _) = ps.depth.size();
     let Some((nose, depth)) = ps
@@ -344,20 +323,7 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
         row_px: (nose / w) as f64,
         depth,
     }];
-    let white = ps
-        .albedo
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|a| a.is_finite() && *a > 0.0)
-        .fold(0.0, f64::max);
-    let set_albedo = ps.albedo.map(|a| {
-        if a.is_finite() && *a > 0.0 {
-            (a / white).max(0.02)
-        } else {
-            1.0
-        }
-    });
+    let set_albedo = super::face::relative_albedo(&ps.albedo);
     io::write_png16(&args.out.join("albedo-face-set.png"), &set_albedo)?;
     let mut rows = Vec::new();
     for (k, image) in images.iter().enumerate() {

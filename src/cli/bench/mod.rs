@@ -14,11 +14,14 @@ use anyhow::{Context, Result};
 use clap::Args;
 
 mod albedo;
+mod corpus;
 mod edges;
+mod face;
 mod holes;
 mod lights;
 mod paper_figures;
 mod ps;
+mod real;
 mod reflectance;
 mod report;
 mod robustness;
@@ -46,7 +49,7 @@ pub struct BenchArgs {
     pub quick: bool,
     /// Only these scenes (comma separated): sombrero, bunny, dragon,
     /// suzanne, highres; face (the shared photograph, `--part
-    /// reflectance`).
+    /// reflectance`); led1 ... led8 and render-led1 ... (`--part real`).
     #[arg(long, value_delimiter = ',')]
     pub scenes: Option<Vec<String>>,
     /// Time budget of the explicit scheme per solve, in seconds (default 150,
@@ -67,7 +70,10 @@ pub struct BenchArgs {
     /// the detected contours; edges.md, edges.json), `albedo` (albedo from
     /// one photograph: renders with textured albedos solved with albedo 1,
     /// auto and the true albedo, and the shared face; albedo.md,
-    /// albedo.json) or
+    /// albedo.json), `real` (the shared face's photographs at the
+    /// defaults, with a distance and a known depth, and renders of it;
+    /// real.md, real.json), `corpus` (the rates of the automatic decisions over
+    /// a randomized corpus of renders; corpus.md, corpus.json) or
     /// `speed` (time, memory and
     /// RSE over time at 256x256 and 1920x1080, with fast marching and the
     /// paper's schedule; writes speed.md and speed.json).
@@ -119,6 +125,14 @@ pub enum Part {
     /// sigma 5, solved with albedo 1, auto and the true albedo; the shared
     /// face's LED 4 against its seven photographs (albedo.md, albedo.json).
     Albedo,
+    /// The guard of the photograph path: every shared LED photograph at the
+    /// defaults, with `--distance` 10 % off and with `--known-depth`,
+    /// against the seven-photograph reconstruction; renders of that face at
+    /// the defaults (real.md, real.json).
+    Real,
+    /// The rates of the automatic decisions (depth unit, albedo) over a
+    /// randomized corpus of renders (corpus.md, corpus.json).
+    Corpus,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.
@@ -136,7 +150,29 @@ const POST_WEIGHT: f64 = 100.0;
 const TV_ITERATIONS: usize = 200;
 
 /// Every scene `--scenes` can name.
-const SCENE_NAMES: &[&str] = &["sombrero", "bunny", "dragon", "suzanne", "highres", "face"];
+const SCENE_NAMES: &[&str] = &[
+    "sombrero",
+    "bunny",
+    "dragon",
+    "suzanne",
+    "highres",
+    "face",
+    // `--part real`: the shared face's photographs and their renders.
+    "led1",
+    "led2",
+    "led3",
+    "led4",
+    "led6",
+    "led7",
+    "led8",
+    "render-led1",
+    "render-led2",
+    "render-led3",
+    "render-led4",
+    "render-led6",
+    "render-led7",
+    "render-led8",
+];
 
 /// The command line this bench was run with, for its reports.
 fn command_line() -> String {
@@ -227,6 +263,12 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else if args.part == Part::Edges {
         edges::run(args)?;
         args.out.join("edges.md")
+    } else if args.part == Part::Corpus {
+        corpus::run(args)?;
+        args.out.join("corpus.md")
+    } else if args.part == Part::Real {
+        real::run(args)?;
+        args.out.join("real.md")
     } else if args.part == Part::Shadows {
         shadows::run(args)?;
         args.out.join("shadows.md")

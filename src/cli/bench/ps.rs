@@ -376,12 +376,13 @@ fn single(
         return Ok(None);
     };
     let one = photo::prepare(&input)?;
+    let cues = one.distance_cues();
     let mut problem = one.problem;
-    let (single, _) = sfs_core::solver::calibrate::solve_estimating_scale(
+    let (single, _) = sfs_core::solver::depth_unit::solve_photograph(
         &mut problem,
         &sfs_core::params::SolverParams::default(),
         &sfs_core::solver::Method::Linearised,
-        one.intensity_scale_given,
+        &cues,
         &mut (),
     )?;
     Ok(compare_single(

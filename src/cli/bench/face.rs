@@ -1,0 +1,83 @@
+//! The shared face as the benchmarks use it: its seven photographs read as
+//! one photometric-stereo set and solved, the tool's own reconstruction
+//! that single photographs are measured against.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Result;
+
+use sfs_core::grid::Grid;
+use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput, PreparedPhoto};
+use sfs_core::solver::photometric::{
+    PhotometricParams, PhotometricProblem, PhotometricSolution, solve_photometric,
+};
+
+/// The set, read and solved.
+pub(super) struct FaceSet {
+    /// The photographs, in LED order.
+    pub images: Vec<PathBuf>,
+    /// The set's input (`one_of_set` gives each photograph's).
+    pub input: PhotoInput,
+    /// The set as the pipeline prepared it (its camera, the rig).
+    pub prepared: PreparedPhoto,
+    /// The set's problem (each photograph's light).
+    pub problem: PhotometricProblem,
+    /// Its reconstruction: depth and albedo.
+    pub solution: PhotometricSolution,
+}
+
+/// The shared face (`near_ps_human1/` in `real`) at a working size of
+/// `max_side` (the photographs' own without), solved at the set's defaults;
+/// `None` when its calibration is missing.
+pub(super) fn face_set(real: &Path, max_side: Option<usize>) -> Result<Option<FaceSet>> {
+    let dir = real.join("near_ps_human1");
+    let camera = dir.join("calibration.json");
+    if !camera.is_file() {
+        return Ok(None);
+    }
+    let images: Vec<PathBuf> = (1..=8)
+        .map(|k| dir.join(format!("led{k}.png")))
+        .filter(|p| p.is_file())
+        .collect();
+    let Some(first) = images.first() else {
+        return Ok(None);
+    };
+    let input = PhotoInput {
+        images: images.clone(),
+        camera: CameraSpec::File(camera),
+        lights: LightSpec::CameraFile { picks: Vec::new() },
+        object_mask: Some(dir.join("mask.png")),
+        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
+        photometric_stereo: true,
+        max_side,
+        ..PhotoInput::new(first)
+    };
+    let prepared = photo::prepare(&input)?;
+    let problem = photo::photometric_problem(&prepared, &input)?;
+    let solution = solve_photometric(&problem, &PhotometricParams::default(), &mut ())?;
+    Ok(Some(FaceSet {
+        images,
+        input,
+        prepared,
+        problem,
+        solution,
+    }))
+}
+
+/// The set's albedo made relative (its brightest 1; at least 0.02, 1 off
+/// the face), as a single photograph's solve takes a known albedo.
+pub(super) fn relative_albedo(albedo: &Grid<f64>) -> Grid<f64> {
+    let white = albedo
+        .as_slice()
+        .iter()
+        .copied()
+        .filter(|a| a.is_finite() && *a > 0.0)
+        .fold(0.0, f64::max);
+    albedo.map(|a| {
+        if a.is_finite() && *a > 0.0 {
+            (a / white).max(0.02)
+        } else {
+            1.0
+        }
+    })
+}
