@@ -1602,6 +1602,7 @@ fn an_object_distance_sets_the_depth_unit() {
     }
     let scene = dir.path().join("centred");
     let image = s(&scene.join("image16.png"));
+    let camera = s(&scene.join("scene.json"));
     let out = s(&dir.path().join("refused"));
     for (extra, says) in [
         (
@@ -1612,10 +1613,15 @@ fn an_object_distance_sets_the_depth_unit() {
             vec!["--distance", "2", "--intensity-scale", "3"],
             "--distance and --intensity-scale 3",
         ),
-        (vec!["--distance", "-1"], "--distance -1"),
+        (vec!["--distance=-1"], "--distance -1"),
         (vec!["--distance", "0"], "must be a positive distance"),
     ] {
-        let mut args = vec!["solve".to_owned(), image.clone()];
+        let mut args = vec![
+            "solve".to_owned(),
+            image.clone(),
+            "--camera".into(),
+            camera.clone(),
+        ];
         args.extend(extra.iter().map(|a| (*a).to_owned()));
         args.extend(["--out".to_owned(), out.clone()]);
         assert_refused(&args, &[says]);

@@ -213,7 +213,8 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     assert!(!contours.as_slice().iter().any(|&on| on));
     assert_eq!(fit.occlusion_edge_share, 0.0);
     harness.get_by_label("contours");
-    harness.get_by_label_contains("model fit: RIE");
+    // The fit in one line: the sample is explained, no warning.
+    harness.get_by_label_contains("fit good: RIE");
     // The albedo is estimated by default (a photograph's default) and the
     // uniform sample's estimate is not used: its solve is albedo 1's.
     let albedo = harness
