@@ -566,6 +566,69 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
     assert!(harness.state().solve_state().known_depth_fit.is_none());
 }
 
+/// The object's distance typed in the Known distance section: refused when
+/// it is not a positive number, else the next solve meets it (the sample's
+/// light is centred: exactly, by rescaling) and says which cue set the
+/// unit; reopening the image restores it, and "Clear" forgets it.
+#[test]
+fn an_object_distance_is_typed_solved_to_and_restored() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let mut harness = harness(options(dir.path()));
+    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    let typed = |harness: &mut Harness<'_, ViewerApp>, text: &str| {
+        harness
+            .get_by_role_and_label(Role::TextInput, "object distance")
+            .set_text_value_accesskit(text);
+        harness.step();
+        harness.get_by_label("Set").click_accesskit();
+        harness.step();
+        harness.step();
+    };
+    for bad in ["-5", "0", "far"] {
+        typed(&mut harness, bad);
+        let refused = ["must be a positive distance", "is not a number"]
+            .iter()
+            .any(|text| harness.query_by_label_contains(text).is_some());
+        assert!(refused, "{bad} was not refused with a message");
+        let doc = harness.state().document().expect("open");
+        assert_eq!(doc.object_distance, None, "{bad} was taken");
+    }
+    let job_before = harness.state().solve_state().job;
+    typed(&mut harness, "4.5");
+    assert_eq!(
+        harness.state().document().expect("open").object_distance,
+        Some(4.5)
+    );
+    step_until(&mut harness, |app| {
+        app.solve_state().job != job_before && app.solve_state().finished.is_some()
+    });
+    let solve = harness.state().solve_state();
+    let unit = solve.depth_unit.as_ref().expect("the depth unit is said");
+    assert_eq!(
+        unit.source,
+        sfs_core::solver::depth_unit::UnitSource::Distance
+    );
+    assert!((unit.solved_distance - 4.5).abs() < 1e-9, "{unit:?}");
+    harness.step();
+    harness.get_by_label_contains("depth unit from the given object distance");
+    // Kept beside the known distances: reopening the image restores it.
+    let ctx = harness.ctx.clone();
+    let sample = sample_image_path().expect("sample");
+    harness.state_mut().open(&ctx, &sample);
+    let app = harness.state();
+    assert_eq!(app.document().expect("open").object_distance, Some(4.5));
+    let notice = app.notice().unwrap_or_default();
+    assert!(notice.contains("restored the object distance"), "{notice}");
+    harness.step();
+    harness.get_by_label("Clear").click_accesskit();
+    harness.step();
+    harness.step();
+    assert_eq!(
+        harness.state().document().expect("open").object_distance,
+        None
+    );
+}
+
 /// Whether the parameter slider labelled `label` is shown.
 fn has_slider(harness: &Harness<'_, ViewerApp>, label: &str) -> bool {
     harness
