@@ -30,7 +30,7 @@ use sfs_core::photo;
 use sfs_core::scene::photometric::{albedo_error, albedo_pattern, albedo_with_cell_error};
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::albedo_fit::divide_out;
-use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
+use sfs_core::solver::calibrate::solve_with_known_depths;
 use sfs_core::solver::photometric::{SingleComparison, compare_single};
 use sfs_core::solver::{Method, Problem, Solution, solve};
 
@@ -306,23 +306,10 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
     };
     let (images, set, prepared, ps) = (face.images, face.input, face.prepared, face.solution);
     // The nearest point of the set's surface: the nose.
-    let (w, _) = ps.depth.size();
-    let Some((nose, depth)) = ps
-        .depth
-        .as_slice()
-        .iter()
-        .enumerate()
-        .filter(|(_, z)| z.is_finite() && **z > 0.0)
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .map(|(q, z)| (q, *z))
-    else {
+    let Some(nose) = super::face::nearest_point(&ps.depth) else {
         return Ok(Vec::new());
     };
-    let known = [KnownDepth {
-        column_px: (nose % w) as f64,
-        row_px: (nose / w) as f64,
-        depth,
-    }];
+    let known = [nose];
     let set_albedo = super::face::relative_albedo(&ps.albedo);
     io::write_png16(&args.out.join("albedo-face-set.png"), &set_albedo)?;
     let mut rows = Vec::new();

@@ -8,6 +8,7 @@ use anyhow::Result;
 
 use sfs_core::grid::Grid;
 use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput, PreparedPhoto};
+use sfs_core::solver::calibrate::KnownDepth;
 use sfs_core::solver::photometric::{
     PhotometricParams, PhotometricProblem, PhotometricSolution, solve_photometric,
 };
@@ -80,4 +81,21 @@ pub(super) fn relative_albedo(albedo: &Grid<f64>) -> Grid<f64> {
             1.0
         }
     })
+}
+
+/// The nearest point of a solved surface (on the face: the nose tip) as a
+/// known depth; `None` when nothing was solved.
+pub(super) fn nearest_point(depth: &Grid<f64>) -> Option<KnownDepth> {
+    let w = depth.width();
+    depth
+        .as_slice()
+        .iter()
+        .enumerate()
+        .filter(|(_, z)| z.is_finite() && **z > 0.0)
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(q, z)| KnownDepth {
+            column_px: (q % w) as f64,
+            row_px: (q / w) as f64,
+            depth: *z,
+        })
 }

@@ -22,7 +22,7 @@ use sfs_core::model::{LevelGeometry, reproject};
 use sfs_core::occlusion::cast_shadow;
 use sfs_core::params::{AlbedoChoice, SolverParams};
 use sfs_core::photo;
-use sfs_core::solver::calibrate::{KnownDepth, median_depth};
+use sfs_core::solver::calibrate::median_depth;
 use sfs_core::solver::depth_unit::{DepthUnit, DistanceCues, solve_photograph};
 use sfs_core::solver::photometric::compare_single;
 use sfs_core::solver::{Method, Problem, Solution};
@@ -85,19 +85,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let truth_distance = median_depth(&truth);
     let (w, h) = truth.size();
     // The nearest point of the set's surface: the nose.
-    let nose = truth
-        .as_slice()
-        .iter()
-        .enumerate()
-        .filter(|(_, z)| z.is_finite() && **z > 0.0)
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .map(|(q, z)| (q, *z))
-        .context("the set solved no surface")?;
-    let known = KnownDepth {
-        column_px: (nose.0 % w) as f64,
-        row_px: (nose.0 / w) as f64,
-        depth: nose.1,
-    };
+    let known = super::face::nearest_point(&truth).context("the set solved no surface")?;
     // The command line's defaults: the albedo decided (`--albedo auto`).
     let params = SolverParams {
         albedo: AlbedoChoice::Auto,
