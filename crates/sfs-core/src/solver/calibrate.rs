@@ -867,7 +867,6 @@ fn search_target(
     target: &DistanceTarget,
     observer: &mut dyn SolveObserver,
 ) -> Result<(super::Solution, KnownDepthFit), SolveError> {
-    target.check()?;
     // `auto` searches as Lambert (what it stands for: the fit only
     // reports) and compares the materials once, at the scale found.
     let resolved = params.without_fit();
