@@ -1,4 +1,4 @@
-//! The figures of the README: accuracy and speed on the test scenes, in one
+//! The figures of docs/results.md and docs/speed.md: accuracy and speed on the test scenes, in one
 //! release run, side by side with the paper's numbers.
 //!
 //!     cargo bench --bench paper_scenes -- [--meshes ../shared/meshes] [--quick]

@@ -20,7 +20,7 @@
 //! magnitude; otherwise the texture says nothing (a render's patches,
 //! lines or noise). Measured on the shared face (LED 4, 648 px, the nose's
 //! distance given): the texture alone correlates -0.80 with the log of the
-//! seven photographs' albedo, the edge estimate 0.51 (README, "Albedo",
+//! seven photographs' albedo, the edge estimate 0.51 (docs/albedo.md,
 //! step 6).
 //! Pure functions over `grid` and `resample`, polling a `Cancel`.
 

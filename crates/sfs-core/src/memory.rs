@@ -4,8 +4,7 @@
 //! driving the machine into swap or the out-of-memory killer.
 //!
 //! The per-pixel figures are measured peaks (resident set size of a release
-//! build, `/usr/bin/time -v`) with a margin; the README's "What the tool
-//! guarantees" section lists them. The free memory is Linux's
+//! build, `/usr/bin/time -v`) with a margin; docs/guarantees.md lists them. The free memory is Linux's
 //! `MemAvailable` and, inside a container, the cgroup's remaining limit;
 //! `SFS_STUDIO_MEMORY_MB` replaces it (0 turns the guard off). Elsewhere
 //! the guard is off unless that variable is set.

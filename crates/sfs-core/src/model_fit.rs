@@ -11,7 +11,7 @@
 //! Occluding contours are said plainly too ([`occlusion_edges`]): where the
 //! solved surface grazes the view beside a much brighter pixel, a surface
 //! lies behind a contour, and its distance is not fixed by its shading
-//! unless it faces the light somewhere (README "Occlusion edges").
+//! unless it faces the light somewhere (docs/occlusion-edges.md).
 
 use serde::Serialize;
 

@@ -133,7 +133,7 @@ fn a_plane_and_a_dome_with_a_band_missing_come_back_as_well_as_their_fill() {
 fn a_disc_hiding_the_point_that_faces_the_light_is_filled_without_spikes() {
     // The disc hides the plane's foot point and the dome's top: fast
     // marching has no point facing the light there (the bench's misses are
-    // of this kind, see README). The fill still stays within the depths
+    // of this kind, see docs/holes-and-shadows.md). The fill still stays within the depths
     // the truth spans over the hole: no spike, no cliff, no drift. Every
     // scene's worst excursion is reported together.
     let mut misses = Vec::new();

@@ -176,7 +176,7 @@ fn a_centred_light_of_intensity_phi_is_the_scale_times_phi() {
 }
 
 /// Why one photograph cannot fix the albedo of a region by its brightness
-/// alone (README, "Albedo from one photograph"): with the light at the
+/// alone (docs/albedo.md): with the light at the
 /// optical centre, a region moved `m` times farther along its rays and
 /// given `m^2` times the albedo is the same image, pixel for pixel, except
 /// where a pixel's upwind stencil reaches across the region's border (the

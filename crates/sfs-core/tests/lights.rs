@@ -73,7 +73,7 @@ fn a_flash_beside_the_lens_is_solved_nearly_as_well_as_a_centred_light() {
 /// exactly that solve rescaled to meet the point; beside the
 /// lens (a search over `s` from `s = 1`, 2.25 below the truth) within 1.1x
 /// of its RSE. (The solve's own error at the one pixel sets the depth
-/// scale; README, "Photographs".)
+/// scale; docs/photographs.md.)
 #[test]
 fn a_known_distance_is_met_and_gives_the_true_scales_shape() {
     let side = 128;

@@ -590,7 +590,7 @@ fn adaptive_stops_keep_the_fixed_schedules_answer() {
 }
 
 /// Up the pyramid from a constant, every inner iteration runs: there the
-/// later sweeps keep removing smooth error (README, "Speed").
+/// later sweeps keep removing smooth error (docs/speed.md).
 #[test]
 fn the_whole_pyramid_runs_every_inner_iteration() {
     let scene = sombrero(48, 48);

@@ -25,8 +25,7 @@ use crate::material::Material;
 
 pub use table::{PARAMS, ParamError, ParamKind, ParamSpec, ParamValue};
 
-/// How the domain of the unknown depth is chosen (see README, "Object mask
-/// versus confidence").
+/// How the domain of the unknown depth is chosen (see docs/mask-and-confidence.md).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum DomainMode {
@@ -37,7 +36,7 @@ pub enum DomainMode {
     Object,
     /// The paper's set-up (default): every pixel carries depth, the background
     /// only has confidence 0 and is filled in by the smoothness term. Lowest
-    /// and most stable RSE on all mesh scenes at the default alpha (README).
+    /// and most stable RSE on all mesh scenes at the default alpha (docs/mask-and-confidence.md).
     #[default]
     Paper,
 }
@@ -235,7 +234,7 @@ pub enum InitialDepth {
     /// pixels filled by diffusion first), then refined by the linearised
     /// solver at full resolution like [`InitialDepth::Map`]. A global shape
     /// in a fraction of a second; the coarse-to-fine path from a constant
-    /// depth ends in a wrong low-frequency shape more often (README,
+    /// depth ends in a wrong low-frequency shape more often (docs/results.md,
     /// "Globalisation").
     #[default]
     FastMarching,
@@ -318,7 +317,7 @@ pub struct SolverParams {
     /// Initial depth; default [`InitialDepth::FastMarching`].
     pub initial_depth: InitialDepth,
     /// Update control; default [`StepControl::Backtracking`] (lower energy
-    /// and RIE on every test scene; see README).
+    /// and RIE on every test scene; see docs/results.md).
     pub step_control: StepControl,
     /// Anti-aliasing of the pyramid: Gaussian `sigma = anti_alias_sigma *
     /// sqrt(1/eta^2 - 1)` finer pixels before each downsampling (IPOL's

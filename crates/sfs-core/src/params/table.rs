@@ -204,7 +204,7 @@ pub const PARAMS: &[ParamSpec] = &[
         name: "alpha",
         label: "alpha",
         help: "Smoothness weight, in --units, or 'auto' (default): chosen from the image's \
-               estimated noise, see README \"Choosing alpha\". Larger = smoother. In relative \
+               estimated noise, see docs/units-and-alpha.md. Larger = smoother. In relative \
                units 1e-8 to 1e-5 suit most images; the paper used 0.003 to 3 in its own units.",
         kind: ParamKind::Real {
             min: 0.0,
@@ -519,8 +519,7 @@ pub const PARAMS: &[ParamSpec] = &[
         name: "domain",
         label: "domain",
         help: "'paper' (default): every pixel carries depth, the background only has \
-               confidence 0; 'object': only object-mask pixels do (README, \"Object mask \
-               versus confidence\").",
+               confidence 0; 'object': only object-mask pixels do (docs/mask-and-confidence.md).",
         kind: ParamKind::Choice(&["paper", "object"]),
         slider: None,
         get: |p| {

@@ -10,7 +10,7 @@
 //! `alpha = (sigma_model^2 + sigma^2) / tau^2`. `sigma` is estimated from the
 //! image (robust Immerkaer estimator on trusted object pixels, relative to
 //! `I_ref`), `sigma_model` and `tau` are constants of the method, measured
-//! once over the test scenes (README, "Choosing alpha").
+//! once over the test scenes (docs/units-and-alpha.md).
 
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;

@@ -8,7 +8,7 @@
 //! smoothness fill may bridge a shadow in front of the light), so with
 //! `shadow_bound` on, the shadow pixels that the full-resolution surface
 //! would light are pushed back onto that ray, checked against the surface
-//! the solve ended with. Off by default: measured no better (README,
+//! the solve ended with. Off by default: measured no better (docs/holes-and-shadows.md,
 //! "Shadows"). Depends on the grid, the lights, `occlusion::march`, glam
 //! and the pyramid only.
 
