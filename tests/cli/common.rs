@@ -1,0 +1,231 @@
+//! What the end-to-end tests share: the binary and its runs, the files
+//! `synth` and `solve` write, the Sombrero fixture and the checks of a
+//! refused run.
+
+use std::ffi::OsStr;
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use serde_json::Value;
+use tempfile::{TempDir, tempdir};
+
+/// The binary under test.
+pub(crate) const BIN: &str = env!("CARGO_BIN_EXE_sfs-studio");
+
+/// Files `synth` writes (with `--noise` and `--inpaint-disc`), the hidden
+/// manifest of the run's outputs included.
+pub(crate) const SYNTH_FILES: [&str; 8] = [
+    ".sfs-studio-outputs",
+    "image16.png",
+    "image8.png",
+    "noisy8.png",
+    "confidence.png",
+    "mask.png",
+    "depth_gt.npy",
+    "scene.json",
+];
+
+/// Files `solve` writes, the hidden manifest of the run's outputs included.
+pub(crate) const SOLVE_FILES: [&str; 11] = [
+    ".sfs-studio-outputs",
+    "albedo.npy",
+    "albedo.png",
+    "depth.npy",
+    "depth16.png",
+    "input_linear.png",
+    "reprojection.png",
+    "residual.png",
+    "occlusion_edges.png",
+    "mesh.ply",
+    "report.json",
+];
+
+/// Runs the binary with `args`.
+pub(crate) fn sfs<I, S>(args: I) -> Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    Command::new(BIN)
+        .args(args)
+        .output()
+        .expect("cannot start the sfs-studio binary")
+}
+
+pub(crate) fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+pub(crate) fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Asserts a run succeeded, showing its output otherwise.
+#[track_caller]
+pub(crate) fn assert_success(out: &Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed with {}\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        stdout(out),
+        stderr(out)
+    );
+}
+
+/// Names of the entries of `dir` (empty if it does not exist).
+pub(crate) fn entries(dir: &Path) -> Vec<String> {
+    match fs::read_dir(dir) {
+        Ok(read) => {
+            let mut names: Vec<String> = read
+                .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+                .collect();
+            names.sort();
+            names
+        }
+        Err(_) => Vec::new(),
+    }
+}
+
+/// Paths as strings, for argument lists.
+pub(crate) fn s(path: &Path) -> String {
+    path.to_str().expect("temporary paths are UTF-8").to_owned()
+}
+
+pub(crate) fn read_json(path: &Path) -> Value {
+    let text =
+        fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
+}
+
+/// A temporary folder holding `synth sombrero --size 40x40` with noise and
+/// an inpainting disc in `scene/`.
+pub(crate) struct Fixture {
+    tmp: TempDir,
+    pub(crate) scene: PathBuf,
+}
+
+impl Fixture {
+    pub(crate) fn new() -> Self {
+        let tmp = tempdir().unwrap();
+        let scene = tmp.path().join("scene");
+        let out = sfs([
+            "synth",
+            "sombrero",
+            "--size",
+            "40x40",
+            "--noise",
+            "10",
+            "--seed",
+            "3",
+            "--inpaint-disc",
+            "0.5,0.5,0.2",
+            "--out",
+            &s(&scene),
+        ]);
+        assert_success(&out, "synth sombrero");
+        Self { tmp, scene }
+    }
+
+    /// A path in the temporary folder (not created).
+    pub(crate) fn path(&self, name: &str) -> PathBuf {
+        self.tmp.path().join(name)
+    }
+
+    /// `D/name` as a string.
+    pub(crate) fn scene_file(&self, name: &str) -> String {
+        s(&self.scene.join(name))
+    }
+
+    /// `solve D/image16.png --camera D/scene.json -q --out OUT` plus `extra`.
+    pub(crate) fn solve_args(&self, out: &Path, extra: &[&str]) -> Vec<String> {
+        let mut args: Vec<String> = vec![
+            "solve".into(),
+            self.scene_file("image16.png"),
+            "--camera".into(),
+            self.scene_file("scene.json"),
+            "-q".into(),
+            "--out".into(),
+            s(out),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    }
+
+    /// `solve IMAGE --focal 40 -q --out OUT` plus `extra`.
+    pub(crate) fn solve_focal_args(&self, image: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
+        let mut args: Vec<String> = vec![
+            "solve".into(),
+            s(image),
+            "--focal".into(),
+            "40".into(),
+            "-q".into(),
+            "--out".into(),
+            s(out),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    }
+
+    /// Writes a grey 8-bit PNG of one value.
+    pub(crate) fn grey_png(&self, name: &str, width: u32, height: u32, value: u8) -> PathBuf {
+        let path = self.path(name);
+        image::GrayImage::from_pixel(width, height, image::Luma([value]))
+            .save(&path)
+            .unwrap();
+        path
+    }
+
+    pub(crate) fn write(&self, name: &str, contents: &str) -> PathBuf {
+        let path = self.path(name);
+        fs::write(&path, contents).unwrap();
+        path
+    }
+}
+
+/// Runs a command that must fail: non-zero exit, stderr containing every
+/// one of `needles`, and `out` holding no files (no complete outputs, no
+/// `*.partial` leftovers). Returns stderr.
+#[track_caller]
+pub(crate) fn expect_failure(args: &[String], out: &Path, needles: &[&str]) -> String {
+    let result = sfs(args);
+    let err = stderr(&result);
+    assert!(
+        !result.status.success(),
+        "expected failure but it succeeded: {args:?}\nstderr:\n{err}"
+    );
+    assert_ne!(
+        result.status.code(),
+        None,
+        "killed by a signal (a crash?): {args:?}\nstderr:\n{err}"
+    );
+    for needle in needles {
+        assert!(
+            err.contains(needle),
+            "stderr does not mention `{needle}` for {args:?}:\n{err}"
+        );
+    }
+    assert!(
+        !err.contains("panicked"),
+        "the binary panicked for {args:?}:\n{err}"
+    );
+    let left = entries(out);
+    assert!(
+        left.is_empty(),
+        "{} holds {left:?} after a failed run of {args:?}",
+        out.display()
+    );
+    err
+}
+
+/// Runs `args` and asserts it fails with a message containing every one of
+/// `says`.
+#[track_caller]
+pub(crate) fn assert_refused(args: &[String], says: &[&str]) {
+    let run = sfs(args);
+    assert!(!run.status.success(), "{args:?} succeeded");
+    let message = stderr(&run);
+    for part in says {
+        assert!(message.contains(part), "{args:?}: {message}");
+    }
+}

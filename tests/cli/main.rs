@@ -1,0 +1,13 @@
+//! End-to-end tests of the `sfs-studio` binary: `synth`, `solve` and `eval`
+//! on tiny scenes, `--help`, and bad inputs (non-zero exit, a message naming
+//! the problem, and nothing left in the output folder).
+//!
+//! One test binary (one link): a module per command, the helpers in `common`.
+
+mod bench;
+mod common;
+mod depth_unit;
+mod photographs;
+mod solve;
+mod synth;
+mod usage;

@@ -1,0 +1,233 @@
+//! Several photographs: a sum of photographs each under its own light with a
+//! fit per photograph, and photometric stereo end to end.
+
+use std::fs;
+
+use serde_json::Value;
+use tempfile::tempdir;
+
+use crate::common::{assert_success, entries, expect_failure, read_json, s, sfs, stderr};
+
+/// Two photographs of the Sombrero, each under a light of its own that a
+/// camera file ties to it by name, bright enough that their sum passes 1
+/// on most of the object though neither is clipped: the solve trusts the
+/// sum (nothing saturated), and the report has the fit of the depth to
+/// each photograph alone under its light.
+#[test]
+fn two_photographs_get_a_model_fit_each() {
+    use sfs_core::light::PointLight;
+    let tmp = tempdir().unwrap();
+    let lights = [0.1, -0.1].map(|x| PointLight {
+        position: [x, 0.0, 0.0],
+        ..PointLight::CENTRED
+    });
+    let scenes = lights.map(|l| sfs_core::scene::sombrero::sombrero_lit(40, 40, &[l]));
+    // One intensity scale for both, each photograph's brightest at 0.95.
+    let scale = scenes
+        .iter()
+        .map(|scene| scene.intensity_scale)
+        .fold(f64::INFINITY, f64::min)
+        * 0.95
+        / 0.9;
+    let names = ["left.png", "right.png"];
+    for (scene, name) in scenes.iter().zip(names) {
+        let image = scene.image.map(|v| v * scale / scene.intensity_scale);
+        sfs_core::io::write_png16(&tmp.path().join(name), &image).unwrap();
+    }
+    let camera = tmp.path().join("camera.json");
+    let entries: Vec<Value> = lights
+        .iter()
+        .zip(names)
+        .map(|(l, name)| serde_json::json!({"position": l.position, "image": name}))
+        .collect();
+    fs::write(
+        &camera,
+        serde_json::json!({
+            "width": 40, "height": 40, "focal": 40.0, "cx": 19.5, "cy": 19.5,
+            "lights": entries
+        })
+        .to_string(),
+    )
+    .unwrap();
+    let r = tmp.path().join("r");
+    let out = sfs([
+        "solve",
+        &s(&tmp.path().join(names[0])),
+        &s(&tmp.path().join(names[1])),
+        "--camera",
+        &s(&camera),
+        "--intensity-scale",
+        &scale.to_string(),
+        "--out",
+        &s(&r),
+    ]);
+    assert_success(&out, "solve two photographs");
+    let err = stderr(&out);
+    for name in names {
+        assert!(err.contains(&format!("{name} alone")), "{err}");
+    }
+    let report = read_json(&r.join("report.json"));
+    assert_eq!(report["model_fit"]["saturated_share"], 0.0, "{report}");
+    assert_eq!(report["input"]["clipped_share"], 0.0);
+    assert_eq!(report["input"]["sum_divisor"], 2.0);
+    let each = report["model_fit_per_photo"].as_array().unwrap();
+    assert_eq!(each.len(), 2, "{report}");
+    for (k, (fit, name)) in each.iter().zip(names).enumerate() {
+        assert!(fit["image"].as_str().unwrap().ends_with(name), "{fit}");
+        assert_eq!(fit["light_index"], k);
+        let rie = fit["rie_trusted"].as_f64().unwrap();
+        assert!(rie < 0.15, "{name}: {fit}");
+        assert!(fit["poor_share"].is_number());
+    }
+    // One photograph has no fit per photograph.
+    let one = tmp.path().join("one");
+    assert_success(
+        &sfs([
+            "solve",
+            &s(&tmp.path().join(names[0])),
+            "--camera",
+            &s(&camera),
+            "--intensity-scale",
+            &scale.to_string(),
+            "-q",
+            "--out",
+            &s(&one),
+        ]),
+        "solve one photograph",
+    );
+    let report = read_json(&one.join("report.json"));
+    assert!(report.get("model_fit_per_photo").is_none(), "{report}");
+    assert!(report["input"].get("sum_divisor").is_none(), "{report}");
+}
+
+/// `synth --ps-leds 4` writes a set with its truth; `solve
+/// --photometric-stereo` reads it through the pipeline, writes depth,
+/// normals, albedo and a residual per photograph, measures against the
+/// truth and compares one photograph's single-image solve; bad sets are
+/// refused naming the file, with nothing written.
+#[test]
+fn photometric_stereo_end_to_end() {
+    let dir = tempdir().expect("temp dir");
+    let set = dir.path().join("set");
+    let out = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "48x48",
+        "--ps-leds",
+        "4",
+        "--out",
+        &s(&set),
+    ]);
+    assert_success(&out, "synth --ps-leds");
+    let files = entries(&set);
+    for name in [
+        "led01.png",
+        "led04.png",
+        "mask.png",
+        "depth_gt.npy",
+        "normals_gt.npy",
+        "albedo_gt.npy",
+        "scene.json",
+    ] {
+        assert!(files.contains(&name.to_owned()), "{files:?}");
+    }
+    let images: Vec<String> = (1..=4)
+        .map(|k| s(&set.join(format!("led{k:02}.png"))))
+        .collect();
+    let solved = dir.path().join("solved");
+    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    args.extend(images.iter().cloned());
+    args.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--mask".into(),
+        s(&set.join("mask.png")),
+        "--gt".into(),
+        s(&set),
+        "--compare-single".into(),
+        "led02.png".into(),
+        "--out".into(),
+        s(&solved),
+    ]);
+    let out = sfs(&args);
+    assert_success(&out, "solve --photometric-stereo");
+    let written = entries(&solved);
+    for name in [
+        "depth.npy",
+        "normals.npy",
+        "normals.png",
+        "albedo.npy",
+        "albedo.png",
+        "residual_01.png",
+        "residual_04.png",
+        "single_depth.npy",
+        "mesh.ply",
+        "report.json",
+    ] {
+        assert!(written.contains(&name.to_owned()), "{written:?}");
+    }
+    let report = read_json(&solved.join("report.json"));
+    assert_eq!(report["mode"], "photometric_stereo");
+    assert_eq!(report["photographs"].as_array().map(Vec::len), Some(4));
+    let rse = report["errors"]["rse"].as_f64().expect("rse");
+    let normals = report["errors"]["mean_normal_error_deg"]
+        .as_f64()
+        .expect("normal error");
+    let albedo = report["errors"]["albedo_median_relative_error"]
+        .as_f64()
+        .expect("albedo error");
+    assert!(rse < 0.05 && normals < 5.0 && albedo < 0.05, "{report}");
+    assert!(
+        report["single_image"]["rse_to_set"].as_f64().is_some(),
+        "{report}"
+    );
+    assert!(stderr(&out).contains("alone (single-image method"));
+
+    // Bad sets: the message names what is wrong, nothing is written.
+    let bad = dir.path().join("bad");
+    let mut one: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    one.push(images[0].clone());
+    one.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&one, &bad, &["at least 2 photographs"]);
+    let mut twice: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    twice.extend(images[..2].iter().cloned());
+    twice.extend([
+        "--focal".into(),
+        "48".into(),
+        "--light".into(),
+        "0.1,0,0".into(),
+        "--light".into(),
+        "0.1,0,0".into(),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&twice, &bad, &["led01.png", "led02.png", "same light"]);
+    let mut counts: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    counts.extend(images[..3].iter().cloned());
+    counts.extend([
+        "--focal".into(),
+        "48".into(),
+        "--light".into(),
+        "0.1,0,0".into(),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&counts, &bad, &["3 photographs but 1 lights"]);
+    let mut unknown: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    unknown.extend(images.iter().cloned());
+    unknown.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--photo-confidence".into(),
+        "led09.png=x.png".into(),
+        "--out".into(),
+        s(&bad),
+    ]);
+    expect_failure(&unknown, &bad, &["led09.png", "not one of the photographs"]);
+}

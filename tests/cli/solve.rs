@@ -1,0 +1,421 @@
+//! `solve` on rendered scenes: its options and parameters, the methods and
+//! their chaining, lights off the centre, the working size, a camera file of
+//! another size, a dark image, and a glossy render with its model.
+
+use serde_json::Value;
+use tempfile::tempdir;
+
+use crate::common::{Fixture, assert_success, expect_failure, read_json, s, sfs, stderr, stdout};
+
+#[test]
+fn solve_with_focal_and_intensity_scale() {
+    let fx = Fixture::new();
+    let r = fx.path("r");
+    let image = fx.scene.join("image16.png");
+    let args = fx.solve_focal_args(&image, &r, &["--intensity-scale", "2"]);
+    assert_success(&sfs(&args), "solve --focal --intensity-scale");
+    let report = read_json(&r.join("report.json"));
+    let camera = &report["input"]["camera"];
+    assert_eq!(camera["focal"].as_f64(), Some(40.0));
+    assert_eq!(camera["intensity_scale"].as_f64(), Some(2.0));
+    assert_eq!(camera["cx"].as_f64(), Some(19.5));
+    assert!(r.join("depth.npy").is_file());
+}
+
+#[test]
+fn solve_with_mask_confidence_and_every_parameter() {
+    let fx = Fixture::new();
+    let r = fx.path("r");
+    let mask = fx.scene_file("mask.png");
+    let confidence = fx.scene_file("confidence.png");
+    let args = fx.solve_args(
+        &r,
+        &[
+            "--mask",
+            &mask,
+            "--confidence",
+            &confidence,
+            "--alpha",
+            "0.01",
+            "--kappa",
+            "2",
+            "--inner-iters",
+            "2",
+            "--sor-iters",
+            "3",
+            "--omega",
+            "1.2",
+            "--dz-limit",
+            "0.02",
+            "--eta",
+            "0.8",
+            "--init-depth",
+            "1.8",
+        ],
+    );
+    assert_success(&sfs(&args), "solve with every option");
+    let report = read_json(&r.join("report.json"));
+    let p = &report["parameters"];
+    assert_eq!(p["alpha"].as_f64(), Some(0.01));
+    assert_eq!(report["alpha_used"].as_f64(), Some(0.01));
+    assert_eq!(p["kappa"], 2);
+    assert_eq!(p["inner-iters"], 2);
+    assert_eq!(p["sor-iters"], 3);
+    assert_eq!(p["omega"].as_f64(), Some(1.2));
+    assert_eq!(p["dz-limit"].as_f64(), Some(0.02));
+    assert_eq!(p["eta"].as_f64(), Some(0.8));
+    assert_eq!(p["init_depth"], "1.8");
+    assert_eq!(report["initial_depth"].as_f64(), Some(1.8));
+    for level in report["levels"].as_array().unwrap() {
+        assert_eq!(level["energies"].as_array().unwrap().len(), 2, "kappa = 2");
+    }
+}
+
+#[test]
+fn solve_picks_the_method_and_chains_one_into_another() {
+    let fx = Fixture::new();
+    // Fast marching alone, then the linearised solver refining its depth.
+    let fm = fx.path("fm");
+    let mut args = fx.solve_args(&fm, &["--method", "fast-marching"]);
+    args.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args), "solve --method fast-marching");
+    let report = read_json(&fm.join("report.json"));
+    assert_eq!(report["parameters"]["method"], "fast_marching");
+    let fm_rse = report["rse"].as_f64().expect("rse");
+    let chained = fx.path("chained");
+    let depth = s(&fm.join("depth.npy"));
+    let mut args = fx.solve_args(&chained, &["--init-depth", &depth]);
+    args.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args), "solve --init-depth fm/depth.npy");
+    let report = read_json(&chained.join("report.json"));
+    assert_eq!(report["parameters"]["method"], "linearised");
+    let rse = report["rse"].as_f64().expect("rse");
+    assert!(
+        rse < 0.05 && fm_rse < 0.05,
+        "rse {rse}, fast marching {fm_rse}"
+    );
+    // The explicit scheme runs from the same command.
+    let explicit = fx.path("explicit");
+    let args = fx.solve_args(
+        &explicit,
+        &["--method", "explicit", "--init-depth", "from-image"],
+    );
+    assert_success(&sfs(&args), "solve --method explicit");
+    assert_eq!(
+        read_json(&explicit.join("report.json"))["parameters"]["method"],
+        "explicit"
+    );
+    // A start that is neither a method, a number nor a file is named.
+    let bad = fx.path("bad");
+    expect_failure(
+        &fx.solve_args(&bad, &["--init-depth", "sideways"]),
+        &bad,
+        &["--init-depth", "sideways"],
+    );
+}
+
+/// A Sombrero lit from beside the lens (mu = 1 LED) is solved back with the
+/// light where it is, far better than with the light assumed at the centre;
+/// the scene file carries the lights, `solve` reads them.
+#[test]
+fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
+    let tmp = tempdir().unwrap();
+    let scene = tmp.path().join("lit");
+    assert_success(
+        &sfs([
+            "synth",
+            "sombrero",
+            "--size",
+            "64x64",
+            "--light",
+            "0.5,-0.4,0",
+            "--light-dir",
+            "-0.2,0.2,1",
+            "--light-mu",
+            "1",
+            "--out",
+            &s(&scene),
+        ]),
+        "synth with a light",
+    );
+    let camera = read_json(&scene.join("scene.json"));
+    assert_eq!(camera["lights"][0]["mu"], 1.0);
+    let rse = |out: &str, extra: &[&str]| {
+        let r = tmp.path().join(out);
+        let mut args = vec![
+            "solve".to_string(),
+            s(&scene.join("image16.png")),
+            "--camera".into(),
+            s(&scene.join("scene.json")),
+            "--gt".into(),
+            s(&scene),
+            "-q".into(),
+            "--out".into(),
+            s(&r),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        assert_success(&sfs(&args), out);
+        read_json(&r.join("report.json"))["rse"].as_f64().unwrap()
+    };
+    let with_light = rse("with", &[]);
+    let ignored = rse("ignored", &["--light", "0,0,0"]);
+    assert!(with_light < 0.05, "with the light model: rse {with_light}");
+    assert!(
+        ignored > 3.0 * with_light,
+        "ignored {ignored} vs {with_light}"
+    );
+    // Fast marching knows only the centred light and says so.
+    let out = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--camera",
+        &s(&scene.join("scene.json")),
+        "--method",
+        "fast-marching",
+        "-q",
+        "--out",
+        &s(&tmp.path().join("fm")),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("optical centre only"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+/// `--max-side` solves at a working size: outputs at that size, the report
+/// says both sizes, intrinsics follow (the RSE against a ground truth
+/// rendered at the working size stays small).
+#[test]
+fn max_side_solves_at_a_working_size() {
+    let tmp = tempdir().unwrap();
+    let big = tmp.path().join("big");
+    let small = tmp.path().join("small");
+    for (dir, size) in [(&big, "96x64"), (&small, "48x32")] {
+        assert_success(
+            &sfs(["synth", "sombrero", "--size", size, "--out", &s(dir)]),
+            "synth",
+        );
+    }
+    let r = tmp.path().join("r");
+    let args = [
+        "solve",
+        &s(&big.join("image16.png")),
+        "--focal",
+        "96",
+        "--intensity-scale",
+        "2",
+        "--max-side",
+        "48",
+        "--gt",
+        &s(&small),
+        "-q",
+        "--out",
+        &s(&r),
+    ];
+    assert_success(&sfs(args), "solve --max-side");
+    let depth = sfs_core::io::read_npy(&r.join("depth.npy")).unwrap();
+    assert_eq!(depth.size(), (48, 32));
+    let report = read_json(&r.join("report.json"));
+    assert_eq!(report["input"]["full_width"], 96);
+    assert_eq!(report["input"]["width"], 48);
+    assert!((report["input"]["camera"]["focal"].as_f64().unwrap() - 48.0).abs() < 1e-9);
+    let rse = report["rse"].as_f64().unwrap();
+    assert!(rse < 0.05, "rse at the working size {rse}");
+}
+
+/// A camera file calibrated for twice the image size gives the same solve
+/// as the right one (the intrinsics are scaled).
+#[test]
+fn calibration_for_another_size_is_scaled() {
+    let fx = Fixture::new();
+    let camera = read_json(&fx.scene.join("scene.json"));
+    let f = camera["focal"].as_f64().unwrap();
+    let doubled = fx.path("double.json");
+    std::fs::write(
+        &doubled,
+        format!(
+            r#"{{"calibration_width": 80, "calibration_height": 80, "focal": {},
+                "cx": 39.5, "cy": 39.5, "intensity_scale": 2}}"#,
+            2.0 * f
+        ),
+    )
+    .unwrap();
+    let a = fx.path("a");
+    let b = fx.path("b");
+    assert_success(&sfs(fx.solve_args(&a, &[])), "solve");
+    let mut args = fx.solve_args(&b, &[]);
+    args[3] = s(&doubled);
+    assert_success(&sfs(&args), "solve with a doubled calibration");
+    let za = sfs_core::io::read_npy(&a.join("depth.npy")).unwrap();
+    let zb = sfs_core::io::read_npy(&b.join("depth.npy")).unwrap();
+    let worst = za
+        .as_slice()
+        .iter()
+        .zip(zb.as_slice())
+        .filter(|(x, _)| x.is_finite())
+        .map(|(x, y)| ((x - y) / x).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-5, "relative difference {worst}");
+}
+
+/// A nearly black photograph is called too dark, up front and in the
+/// report's warnings; the model-fit summary is in the report.
+#[test]
+fn a_dark_image_gets_a_plain_warning() {
+    let tmp = tempdir().unwrap();
+    let scene = tmp.path().join("dark");
+    assert_success(
+        &sfs(["synth", "sombrero", "--size", "32x32", "--out", &s(&scene)]),
+        "synth",
+    );
+    let image = sfs_core::io::read_image(&scene.join("image16.png"), false).unwrap();
+    let dark = tmp.path().join("dark.png");
+    sfs_core::io::write_png16(&dark, &image.map(|v| v * 0.0008)).unwrap();
+    let r = tmp.path().join("r");
+    let out = sfs(["solve", &s(&dark), "--focal", "32", "--out", &s(&r)]);
+    assert_success(&out, "solve a dark image");
+    assert!(stderr(&out).contains("too dark"), "{}", stderr(&out));
+    let report = read_json(&r.join("report.json"));
+    let warnings = report["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("too dark"))
+    );
+    assert!(report["model_fit"]["rie_trusted"].is_number());
+    // The same image at a normal exposure has no darkness warning.
+    let r2 = tmp.path().join("r2");
+    let out = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--focal",
+        "32",
+        "--out",
+        &s(&r2),
+    ]);
+    assert_success(&out, "solve the lit image");
+    assert!(!stderr(&out).contains("too dark"), "{}", stderr(&out));
+}
+
+#[test]
+fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
+    let dir = tempdir().expect("temp dir");
+    let scene = dir.path().join("glossy");
+    let out = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "64x64",
+        "--reflectance",
+        "blinn-phong",
+        "--specular",
+        "0.3",
+        "--shininess",
+        "30",
+        "--out",
+        &s(&scene),
+    ]);
+    assert_success(&out, "synth with blinn-phong");
+    let camera = read_json(&scene.join("scene.json"));
+    assert_eq!(camera["material"]["model"], "blinn-phong");
+    assert_eq!(camera["material"]["shininess"], 30.0);
+    let solve = |name: &str, extra: &[&str]| -> Value {
+        let result = dir.path().join(name);
+        let mut args = vec![
+            "solve".to_string(),
+            s(&scene.join("image16.png")),
+            "--camera".into(),
+            s(&scene.join("scene.json")),
+            "--gt".into(),
+            s(&scene),
+            "--quiet".into(),
+            "--out".into(),
+            s(&result),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        assert_success(&sfs(&args), name);
+        read_json(&result.join("report.json"))
+    };
+    let matched = solve(
+        "matched",
+        &[
+            "--reflectance",
+            "blinn-phong",
+            "--specular",
+            "0.3",
+            "--shininess",
+            "30",
+        ],
+    );
+    let lambert = solve("lambert", &[]);
+    assert_eq!(matched["material"]["model"], "blinn-phong");
+    assert_eq!(matched["parameters"]["reflectance"], "blinn-phong");
+    assert_eq!(lambert["material"]["model"], "lambert");
+    let rse = |r: &Value| r["rse"].as_f64().expect("rse");
+    assert!(
+        rse(&matched) < 0.5 * rse(&lambert),
+        "matched {} against Lambert {}",
+        rse(&matched),
+        rse(&lambert)
+    );
+    // eval measures with scene.json's material: the matched solve explains
+    // the image, and the RIE eval prints is the one solve reported.
+    let eval = sfs([
+        "eval",
+        "--depth",
+        &s(&dir.path().join("matched").join("depth.npy")),
+        "--gt",
+        &s(&scene),
+    ]);
+    assert_success(&eval, "eval");
+    let measured: Value = serde_json::from_str(stdout(&eval).trim()).expect("eval prints JSON");
+    let rie = |r: &Value| r["rie"].as_f64().expect("rie");
+    assert!((rie(&measured) - rie(&matched)).abs() < 1e-6 * (1.0 + rie(&matched)));
+    // Auto reports the models and solves as Lambertian.
+    let auto = solve("auto", &["--reflectance", "auto"]);
+    assert_eq!(auto["material"]["model"], "lambert");
+    assert_eq!(auto["material_fit"]["determined"], false);
+    assert_eq!(
+        auto["material_fit"]["trials"].as_array().map(Vec::len),
+        Some(sfs_core::solver::material_fit::candidates().len())
+    );
+    // A model's parameter without its model, or out of range, is refused.
+    let refused = dir.path().join("refused");
+    let base = [
+        "solve".to_string(),
+        s(&scene.join("image16.png")),
+        "--camera".into(),
+        s(&scene.join("scene.json")),
+        "--out".into(),
+        s(&refused),
+    ];
+    let with = |extra: &[&str]| {
+        let mut args = base.to_vec();
+        args.extend(extra.iter().map(|a| a.to_string()));
+        args
+    };
+    expect_failure(
+        &with(&["--roughness", "0.4"]),
+        &refused,
+        &["roughness", "oren-nayar"],
+    );
+    expect_failure(
+        &with(&["--reflectance", "blinn-phong", "--shininess", "0"]),
+        &refused,
+        &["shininess"],
+    );
+    expect_failure(
+        &with(&[
+            "--method",
+            "fast-marching",
+            "--reflectance",
+            "oren-nayar",
+            "--roughness",
+            "0.9",
+        ]),
+        &refused,
+        &["fast marching", "oren-nayar"],
+    );
+}

@@ -1,0 +1,233 @@
+//! `synth` and what follows it: the synth, solve and eval round trip, a mesh
+//! rendered, and a scene with cast shadows solved with the shadow taken out.
+
+use std::collections::BTreeSet;
+use std::path::Path;
+
+use serde_json::Value;
+use sfs_core::params::SolverParams;
+use tempfile::tempdir;
+
+use crate::common::{
+    Fixture, SOLVE_FILES, SYNTH_FILES, assert_success, entries, read_json, s, sfs, stderr, stdout,
+};
+
+#[test]
+fn synth_solve_eval_round_trip() {
+    let fx = Fixture::new();
+    let names = entries(&fx.scene);
+    let expected: Vec<String> = {
+        let mut v: Vec<String> = SYNTH_FILES.iter().map(|f| f.to_string()).collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names, expected, "synth wrote the wrong files");
+
+    let camera = read_json(&fx.scene.join("scene.json"));
+    let keys: BTreeSet<&str> = camera
+        .as_object()
+        .expect("scene.json is an object")
+        .keys()
+        .map(String::as_str)
+        .collect();
+    let expected_keys: BTreeSet<&str> = [
+        "name",
+        "width",
+        "height",
+        "focal",
+        "cx",
+        "cy",
+        "intensity_scale",
+        "intensity_scale_measured",
+    ]
+    .into();
+    assert_eq!(keys, expected_keys);
+    assert_eq!(camera["intensity_scale_measured"], true);
+    assert_eq!(camera["width"], 40);
+    assert_eq!(camera["height"], 40);
+    assert!(camera["focal"].as_f64().unwrap() > 0.0);
+
+    // Solve against the ground truth, through the paper's whole pyramid.
+    let r = fx.path("result");
+    let mut args = fx.solve_args(&r, &["--init-depth", "from-image"]);
+    args.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args), "solve");
+    let mut expected: Vec<String> = SOLVE_FILES.iter().map(|f| f.to_string()).collect();
+    expected.sort();
+    assert_eq!(entries(&r), expected, "solve wrote the wrong files");
+    // `--albedo auto` (the default) on a uniform render: the estimate is
+    // reported and not used; albedo.npy holds 1 on the surface.
+    let albedo_report = read_json(&r.join("report.json"));
+    assert_eq!(
+        albedo_report["albedo_fit"]["used"], false,
+        "{albedo_report}"
+    );
+    let used = sfs_core::io::read_npy(&r.join("albedo.npy")).expect("albedo.npy");
+    assert!(used.as_slice().iter().all(|a| a.is_nan() || *a == 1.0));
+    // `--albedo 1`: no estimate, no albedo files, the same depth.
+    let plain = fx.path("albedo_one");
+    let mut args_one = fx.solve_args(&plain, &["--init-depth", "from-image", "--albedo", "1"]);
+    args_one.extend(["--gt".into(), s(&fx.scene)]);
+    assert_success(&sfs(&args_one), "solve --albedo 1");
+    assert!(!plain.join("albedo.npy").exists() && !plain.join("albedo.png").exists());
+    assert!(read_json(&plain.join("report.json"))["albedo_fit"].is_null());
+    assert_eq!(
+        std::fs::read(plain.join("depth.npy")).expect("depth.npy"),
+        std::fs::read(r.join("depth.npy")).expect("depth.npy"),
+        "albedo auto unused must solve exactly as albedo 1"
+    );
+
+    let report = read_json(&r.join("report.json"));
+    let rse = report["rse"].as_f64().expect("report.rse is a number");
+    assert!(rse.is_finite() && (0.0..0.1).contains(&rse), "rse {rse}");
+    assert!(
+        report["rie"]
+            .as_f64()
+            .expect("report.rie is a number")
+            .is_finite()
+    );
+    assert!(
+        report["seconds"]
+            .as_f64()
+            .expect("report.seconds is a number")
+            >= 0.0
+    );
+    let levels = report["levels"]
+        .as_array()
+        .expect("report.levels is an array");
+    assert!(!levels.is_empty());
+    let widths: Vec<u64> = levels
+        .iter()
+        .map(|l| l["width"].as_u64().expect("level width"))
+        .collect();
+    assert!(
+        widths.windows(2).all(|w| w[0] < w[1]),
+        "level widths do not grow: {widths:?}"
+    );
+    assert_eq!(*widths.last().unwrap(), 40);
+    assert_eq!(report["parameters"]["alpha"], "auto");
+    assert_eq!(report["parameters"]["units"], "relative");
+    let chosen = report["alpha_used"].as_f64().expect("alpha_used");
+    assert!(chosen > 0.0 && chosen < 1e-3, "auto alpha {chosen}");
+    assert_eq!(
+        report["parameters"]["lambda"].as_f64(),
+        Some(SolverParams::default().lambda)
+    );
+
+    // The depth map has the image's size and positive depth on the object.
+    let depth = sfs_core::io::read_npy(&r.join("depth.npy")).unwrap();
+    assert_eq!(depth.size(), (40, 40));
+    assert!(depth.as_slice().iter().any(|z| z.is_finite() && *z > 0.0));
+
+    // eval agrees with the report.
+    let out = sfs([
+        "eval",
+        "--depth",
+        &s(&r.join("depth.npy")),
+        "--gt",
+        &s(&fx.scene),
+    ]);
+    assert_success(&out, "eval");
+    let printed: Value = serde_json::from_str(stdout(&out).trim())
+        .unwrap_or_else(|e| panic!("eval printed no JSON ({e}): {}", stdout(&out)));
+    let eval_rse = printed["rse"].as_f64().expect("eval rse");
+    assert!(
+        (eval_rse - rse).abs() <= 1e-6,
+        "eval rse {eval_rse} != report rse {rse}"
+    );
+    assert!(printed["rie"].as_f64().is_some());
+
+    // Warm start from the result: one level at full resolution.
+    let warm = fx.path("warm");
+    let depth_path = s(&r.join("depth.npy"));
+    let args = fx.solve_args(&warm, &["--init-depth", &depth_path, "--kappa", "2"]);
+    assert_success(&sfs(&args), "solve --init-depth depth.npy");
+    let report = read_json(&warm.join("report.json"));
+    let levels = report["levels"].as_array().unwrap();
+    assert_eq!(levels.len(), 1, "a warm start skips the coarse levels");
+    assert_eq!(levels[0]["width"], 40);
+    assert_eq!(report["parameters"]["init_depth"], depth_path.as_str());
+    assert!(report["rse"].is_null(), "no --gt, no rse");
+}
+
+#[test]
+fn synth_renders_a_mesh() {
+    let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes/suzanne.obj");
+    if !mesh.is_file() {
+        eprintln!("skipped: {} does not exist", mesh.display());
+        return;
+    }
+    let tmp = tempdir().unwrap();
+    let d = tmp.path().join("suzanne");
+    let out = sfs(["synth", &s(&mesh), "--size", "64x32", "--out", &s(&d)]);
+    assert_success(&out, "synth suzanne.obj");
+    let mask = image::open(d.join("mask.png")).unwrap().to_luma8();
+    assert_eq!(mask.dimensions(), (64, 32));
+    let values: BTreeSet<u8> = mask.pixels().map(|p| p.0[0]).collect();
+    assert!(
+        values.contains(&0) && values.len() >= 2,
+        "the mask should show object and background: {values:?}"
+    );
+    let camera = read_json(&d.join("scene.json"));
+    assert_eq!(camera["name"], "suzanne");
+    assert_eq!(
+        (camera["width"].clone(), camera["height"].clone()),
+        (64.into(), 32.into())
+    );
+}
+
+#[test]
+fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
+    let dir = tempdir().expect("temp dir");
+    let scene = dir.path().join("scene");
+    let run = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "96x96",
+        "--light",
+        "1.29,0,0.47",
+        "--shadows",
+        "--out",
+        &s(&scene),
+    ]);
+    assert_success(&run, "synth --shadows");
+    let truth = image::open(scene.join("shadow.png"))
+        .expect("shadow.png")
+        .to_luma8();
+    let in_shadow = truth.pixels().filter(|p| p.0[0] > 127).count();
+    assert!(
+        in_shadow > 100,
+        "the light 40 degrees off casts a shadow: {in_shadow}"
+    );
+    let out = dir.path().join("solved");
+    let run = sfs([
+        "solve",
+        &s(&scene.join("image16.png")),
+        "--camera",
+        &s(&scene.join("scene.json")),
+        "--out",
+        &s(&out),
+    ]);
+    assert_success(&run, "solve of the shadowed render");
+    assert!(
+        stderr(&run).contains("taken out of the data term"),
+        "{}",
+        stderr(&run)
+    );
+    let found = image::open(out.join("shadow.png"))
+        .expect("solve writes shadow.png")
+        .to_luma8();
+    let agree = found
+        .pixels()
+        .zip(truth.pixels())
+        .filter(|(a, b)| (a.0[0] > 127) == (b.0[0] > 127))
+        .count();
+    assert!(
+        agree as f64 >= 0.99 * (96.0 * 96.0),
+        "the solve's shadow is the render's: {agree} of 9216 agree"
+    );
+    let report = read_json(&out.join("report.json"));
+    let share = report["shadow_share"].as_f64().expect("shadow_share");
+    assert!((share - in_shadow as f64 / 9216.0).abs() < 0.01, "{share}");
+}
