@@ -176,6 +176,27 @@ impl<T> Grid<T> {
     }
 }
 
+impl Grid<f64> {
+    /// The finite values, in pixel order (NaN and infinities left out).
+    pub fn finite_values(&self) -> Vec<f64> {
+        self.data
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .collect()
+    }
+
+    /// The finite positive values, in pixel order: what a depth or an
+    /// albedo holds where it is known.
+    pub fn finite_positive_values(&self) -> Vec<f64> {
+        self.data
+            .iter()
+            .copied()
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .collect()
+    }
+}
+
 /// Per-pixel weights in [0, 1] read by index (`row * width + column`): a
 /// confidence map, as a plain `Grid<f64>` or as a compact [`Confidence`].
 pub trait Weights: Sync {

@@ -25,15 +25,9 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{Scene, add_noise, sombrero::sombrero};
 use sfs_core::solver::{Problem, Solution, solve};
 
+/// [`common::problem`] with the light at the optical centre.
 fn problem(scene: &Scene, image: Grid<f64>, intensity_scale: f64) -> Problem {
-    Problem {
-        image,
-        camera: scene.camera,
-        intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
-        lights: Vec::new(),
-    }
+    common::problem(scene, image, intensity_scale, &[])
 }
 
 /// [`problem`] with a horizontal band of confidence 0 where `hole`.

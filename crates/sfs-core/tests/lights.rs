@@ -11,15 +11,9 @@ use sfs_core::scene::sombrero::sombrero_lit;
 use sfs_core::solver::calibrate::{KnownDepth, depth_near, solve_with_known_depths};
 use sfs_core::solver::{Method, Problem, solve};
 
+/// [`common::problem`] of the scene's own image and intensity scale.
 fn problem(scene: &Scene, lights: &[PointLight]) -> Problem {
-    Problem {
-        image: scene.image.clone(),
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
-        lights: lights.to_vec(),
-    }
+    common::problem(scene, scene.image.clone(), scene.intensity_scale, lights)
 }
 
 fn flash_beside_the_lens() -> PointLight {
@@ -299,13 +293,7 @@ fn an_led_in_front_of_the_camera_starts_the_surface_beyond_it() {
         .zip_map(&scene.object_mask, |z, on| if *on { *z } else { f64::NAN });
     let lit = problem(&scene, &lights);
     let solution = solve(&lit, &SolverParams::default(), &mut ()).expect("solves");
-    let mut depths: Vec<f64> = solution
-        .depth
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
+    let mut depths = solution.depth.finite_values();
     depths.sort_by(f64::total_cmp);
     let median = depths[depths.len() / 2];
     assert!(

@@ -5,13 +5,12 @@
 //! `--reflectance auto` reports without deciding.
 
 mod common;
-use common::{ROUND_OFF, largest_relative_difference};
-use sfs_core::grid::Grid;
+use common::{ROUND_OFF, largest_relative_difference, problem};
 use sfs_core::light::PointLight;
 use sfs_core::material::Material;
 use sfs_core::metrics;
 use sfs_core::params::{ReflectanceChoice, SolverParams};
-use sfs_core::scene::{Scene, sombrero::sombrero_shaded};
+use sfs_core::scene::sombrero::sombrero_shaded;
 use sfs_core::solver::{FastMarchingParams, Method, Problem, Solution, solve, solve_method};
 
 const ROUGH: Material = Material::OrenNayar { roughness_rad: 0.4 };
@@ -19,22 +18,6 @@ const GLOSSY: Material = Material::BlinnPhong {
     specular: 0.3,
     shininess: 30.0,
 };
-
-fn problem(
-    scene: &Scene,
-    image: Grid<f64>,
-    intensity_scale: f64,
-    lights: &[PointLight],
-) -> Problem {
-    Problem {
-        image,
-        camera: scene.camera,
-        intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
-        lights: lights.to_vec(),
-    }
-}
 
 fn solved(problem: &Problem, material: Material) -> Solution {
     solve(

@@ -41,9 +41,19 @@ fn upwind_residual(size: usize) -> f64 {
     let model = Lambertian {
         intensity_scale: scene.intensity_scale,
     };
-    let geometry = LevelGeometry::new(size, size, size, size, scene.camera);
+    reprojection_residual(&scene, &model)
+}
+
+/// Mean |D| / mean I of a scene's exact depth reprojected by `model` with
+/// the solver's upwind differences.
+fn reprojection_residual<M: Reflectance + ?Sized>(
+    scene: &sfs_core::scene::Scene,
+    model: &M,
+) -> f64 {
+    let (w, h) = scene.image.size();
+    let geometry = LevelGeometry::new(w, h, w, h, scene.camera);
     let reprojection = model::reproject(
-        &model,
+        model,
         &geometry,
         &scene.object_mask,
         &scene.depth_gt,
@@ -491,22 +501,7 @@ fn upwind_differences_keep_their_sign_with_lights_off_centre() {
     let residual = |lights: &[PointLight]| {
         let scene = sombrero_lit(size, size, lights);
         let model = LightModel::new(scene.intensity_scale, lights);
-        let geometry = LevelGeometry::new(size, size, size, size, scene.camera);
-        let reprojection = model::reproject(
-            &model,
-            &geometry,
-            &scene.object_mask,
-            &scene.depth_gt,
-            Cancel::NEVER,
-        )
-        .uncancelled();
-        let diff: f64 = reprojection
-            .as_slice()
-            .iter()
-            .zip(scene.image.as_slice())
-            .map(|(r, i)| (r - i).abs())
-            .sum();
-        diff / scene.image.as_slice().iter().sum::<f64>()
+        reprojection_residual(&scene, &model)
     };
     let (centred, beside) = (residual(&[]), residual(&[light]));
     eprintln!("upwind residual at the truth: centred {centred:.5}, beside {beside:.5}");

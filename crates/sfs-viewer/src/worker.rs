@@ -351,6 +351,19 @@ struct ChannelObserver<'a> {
     last_level: Option<LevelResult>,
 }
 
+impl<'a> ChannelObserver<'a> {
+    /// A fresh observer of `job` forwarding to `outbox`: not stopped, no
+    /// level forwarded yet.
+    fn new(job: JobId, outbox: &'a Outbox) -> Self {
+        Self {
+            job,
+            outbox,
+            stopped: false,
+            last_level: None,
+        }
+    }
+}
+
 impl SolveObserver for ChannelObserver<'_> {
     fn on_iteration(&mut self, report: &IterationReport) {
         let event = Event::Progress {
@@ -426,12 +439,7 @@ impl Runner {
         if !self.begin(job, planned_set_sizes(&request.problem, &request.params))? {
             return Ok(());
         }
-        let mut observer = ChannelObserver {
-            job,
-            outbox: &self.outbox,
-            stopped: false,
-            last_level: None,
-        };
+        let mut observer = ChannelObserver::new(job, &self.outbox);
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
             (self.set_fn)(&request.problem, &request.params, &mut observer)
         }));
@@ -451,12 +459,7 @@ impl Runner {
         if !self.begin(job, planned_level_sizes(&request.problem, &request.params))? {
             return Ok(());
         }
-        let mut observer = ChannelObserver {
-            job,
-            outbox: &self.outbox,
-            stopped: false,
-            last_level: None,
-        };
+        let mut observer = ChannelObserver::new(job, &self.outbox);
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
             if request.decides_depth_unit() {
                 let mut problem = request.problem.clone();

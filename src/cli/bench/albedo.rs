@@ -18,7 +18,7 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde::Serialize;
 
 use sfs_core::grid::Grid;
@@ -245,11 +245,12 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         seconds,
                     };
                     eprintln!(
-                        "  {name} {light} {pattern} sigma {noise}: RSE albedo 1 {:.4}, auto {:.4}{}, true {:.4}",
+                        "  {name} {light} {pattern} sigma {noise}: RSE albedo 1 {:.4}, auto {:.4}{}, true {:.4}, misfit x{:.2}",
                         row.rse_one,
                         row.rse_auto,
                         if row.auto_used { " (used)" } else { "" },
-                        row.rse_true
+                        row.rse_true,
+                        row.misfit_ratio
                     );
                     rows.push(row);
                 }
@@ -267,9 +268,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         face,
         skipped,
     };
-    io::write_json(&args.out.join("albedo.json"), &report)?;
-    std::fs::write(args.out.join("albedo.md"), markdown(&report))
-        .with_context(|| format!("cannot write {}", args.out.join("albedo.md").display()))?;
+    super::report::write_part(&args.out, "albedo", &report, &markdown(&report))?;
     Ok(())
 }
 
@@ -381,19 +380,15 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
 
 /// The report as markdown.
 fn markdown(report: &AlbedoReport) -> String {
-    let mut md = String::new();
-    let _ = writeln!(md, "# Albedo from one photograph\n");
-    let _ = writeln!(md, "Command: `{}`\n", report.command);
-    let _ = writeln!(
-        md,
-        "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
-         RSE true albedo, 3 % off per cell | auto used (misfit ratio; close: within {} of the \
-         bar) | albedo error auto / 1 | auto s |",
-        sfs_core::solver::albedo_fit::CLOSE_MARGIN
-    );
-    let _ = writeln!(
-        md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    let mut md = super::report::markdown_head("Albedo from one photograph", &report.command);
+    super::report::table_head(
+        &mut md,
+        &format!(
+            "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
+             RSE true albedo, 3 % off per cell | auto used (misfit ratio; close: within {} of the \
+             bar) | albedo error auto / 1 | auto s |",
+            sfs_core::solver::albedo_fit::CLOSE_MARGIN
+        ),
     );
     for r in &report.rows {
         let _ = writeln!(

@@ -16,7 +16,6 @@
 //! `edges.md` and `edges.json`.
 
 use std::fmt::Write as _;
-use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -31,6 +30,7 @@ use sfs_core::params::{InitialDepth, SolverParams};
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
+use super::report::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::robustness::{problem, render_or_skip};
 use super::{BenchArgs, wanted};
 
@@ -104,15 +104,7 @@ pub struct EdgeRow {
 }
 
 /// The part's report.
-#[derive(Clone, Debug, Serialize)]
-pub struct EdgesReport {
-    /// The command line.
-    pub command: String,
-    /// The rows.
-    pub rows: Vec<EdgeRow>,
-    /// Mesh scenes whose file was missing.
-    pub skipped: Vec<String>,
-}
+pub type EdgesReport = SceneReport<EdgeRow>;
 
 /// The object pixels of `depth` (finite) beside a neighbour more than
 /// [`JUMP_TANGENT`] away in relative depth (both pixels of the pair).
@@ -387,21 +379,12 @@ pub fn run(args: &BenchArgs) -> Result<EdgesReport> {
             }
         }
     }
-    let report = EdgesReport {
-        command: super::command_line(),
-        rows,
-        skipped,
-    };
-    write(&args.out, &report)?;
-    Ok(report)
+    SceneReport::write(&args.out, "edges", rows, skipped, markdown)
 }
 
-/// Writes the report as JSON and as a markdown table.
-fn write(out: &Path, report: &EdgesReport) -> Result<()> {
-    sfs_core::io::write_json(&out.join("edges.json"), report)?;
-    let mut md = String::new();
-    let _ = writeln!(md, "# Occlusion edges: what the energy prefers\n");
-    let _ = writeln!(md, "Command: `{}`\n", report.command);
+/// The report as markdown: a table.
+fn markdown(report: &EdgesReport) -> String {
+    let mut md = markdown_head("Occlusion edges: what the energy prefers", &report.command);
     let _ = writeln!(
         md,
         "Data energy: `sum (I - R)^2` per object pixel with the solver's upwind differences, \
@@ -413,13 +396,9 @@ fn write(out: &Path, report: &EdgesReport) -> Result<()> {
          in the default answer (`model_fit::occlusion_edges`); precision and recall within one \
          pixel.\n"
     );
-    let _ = writeln!(
-        md,
-        "| scene | size | noise | default RSE | truth start | fast marching | paper | data energy truth / default | non-crossing / best pair | truth's energy at jumps | truth's median residual | jump pixels | detected | precision / recall | seconds |"
-    );
-    let _ = writeln!(
-        md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    table_head(
+        &mut md,
+        "| scene | size | noise | default RSE | truth start | fast marching | paper | data energy truth / default | non-crossing / best pair | truth's energy at jumps | truth's median residual | jump pixels | detected | precision / recall | seconds |",
     );
     for r in &report.rows {
         let _ = writeln!(
@@ -446,15 +425,8 @@ fn write(out: &Path, report: &EdgesReport) -> Result<()> {
             r.seconds
         );
     }
-    if !report.skipped.is_empty() {
-        let _ = writeln!(
-            md,
-            "\nSkipped (mesh missing): {}",
-            report.skipped.join(", ")
-        );
-    }
-    std::fs::write(out.join("edges.md"), md)
-        .with_context(|| format!("cannot write {}", out.join("edges.md").display()))
+    skipped_meshes(&mut md, &report.skipped);
+    md
 }
 
 /// A share as a whole percentage, `-` when undefined.

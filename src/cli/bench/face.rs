@@ -31,28 +31,10 @@ pub(super) struct FaceSet {
 /// `max_side` (the photographs' own without), solved at the set's defaults;
 /// `None` when its calibration is missing.
 pub(super) fn face_set(real: &Path, max_side: Option<usize>) -> Result<Option<FaceSet>> {
-    let dir = real.join("near_ps_human1");
-    let camera = dir.join("calibration.json");
-    if !camera.is_file() {
-        return Ok(None);
-    }
-    let images: Vec<PathBuf> = (1..=8)
-        .map(|k| dir.join(format!("led{k}.png")))
-        .filter(|p| p.is_file())
-        .collect();
-    let Some(first) = images.first() else {
+    let Some(input) = face_input(real, max_side) else {
         return Ok(None);
     };
-    let input = PhotoInput {
-        images: images.clone(),
-        camera: CameraSpec::File(camera),
-        lights: LightSpec::CameraFile { picks: Vec::new() },
-        object_mask: Some(dir.join("mask.png")),
-        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
-        photometric_stereo: true,
-        max_side,
-        ..PhotoInput::new(first)
-    };
+    let images = input.images.clone();
     let prepared = photo::prepare(&input)?;
     let problem = photo::photometric_problem(&prepared, &input)?;
     let solution = solve_photometric(&problem, &PhotometricParams::default(), &mut ())?;
@@ -63,6 +45,33 @@ pub(super) fn face_set(real: &Path, max_side: Option<usize>) -> Result<Option<Fa
         problem,
         solution,
     }))
+}
+
+/// The shared face's photographs (`near_ps_human1/` in `real`, its LEDs
+/// in order) as one photometric-stereo input with the set's calibration,
+/// mask and ambient photograph, at a working size of `max_side`; `None`
+/// when its calibration or every photograph is missing.
+pub(super) fn face_input(real: &Path, max_side: Option<usize>) -> Option<PhotoInput> {
+    let dir = real.join("near_ps_human1");
+    let camera = dir.join("calibration.json");
+    if !camera.is_file() {
+        return None;
+    }
+    let images: Vec<PathBuf> = (1..=8)
+        .map(|k| dir.join(format!("led{k}.png")))
+        .filter(|p| p.is_file())
+        .collect();
+    let first = images.first()?.clone();
+    Some(PhotoInput {
+        images,
+        camera: CameraSpec::File(camera),
+        lights: LightSpec::CameraFile { picks: Vec::new() },
+        object_mask: Some(dir.join("mask.png")),
+        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
+        photometric_stereo: true,
+        max_side,
+        ..PhotoInput::new(&first)
+    })
 }
 
 /// The set's albedo made relative (its brightest 1; at least 0.02, 1 off

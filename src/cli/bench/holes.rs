@@ -8,7 +8,6 @@
 //! Writes `holes.md` and `holes.json`.
 
 use std::fmt::Write as _;
-use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -20,6 +19,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::{Problem, solve};
 
+use super::report::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::robustness::{problem, render_or_skip};
 use super::{BenchArgs, wanted};
 
@@ -56,15 +56,7 @@ pub struct HoleRow {
 }
 
 /// The part's report.
-#[derive(Clone, Debug, Serialize)]
-pub struct HolesReport {
-    /// The command line.
-    pub command: String,
-    /// The rows.
-    pub rows: Vec<HoleRow>,
-    /// Mesh scenes whose file was missing.
-    pub skipped: Vec<String>,
-}
+pub type HolesReport = SceneReport<HoleRow>;
 
 /// The four holes of a scene: name and confidence (0 in the hole).
 fn holes(scene: &Scene) -> Vec<(&'static str, Grid<f64>)> {
@@ -158,32 +150,19 @@ pub fn run(args: &BenchArgs) -> Result<HolesReport> {
         };
         rows.extend(scene_rows(name, &scene)?);
     }
-    let report = HolesReport {
-        command: super::command_line(),
-        rows,
-        skipped,
-    };
-    write(&args.out, &report)?;
-    Ok(report)
+    SceneReport::write(&args.out, "holes", rows, skipped, markdown)
 }
 
-/// Writes the report as JSON and as a markdown table.
-fn write(out: &Path, report: &HolesReport) -> Result<()> {
-    sfs_core::io::write_json(&out.join("holes.json"), report)?;
-    let mut md = String::new();
-    let _ = writeln!(md, "# Holes: what the image cannot tell\n");
-    let _ = writeln!(md, "Command: `{}`\n", report.command);
+/// The report as markdown: a table.
+fn markdown(report: &HolesReport) -> String {
+    let mut md = markdown_head("Holes: what the image cannot tell", &report.command);
     let _ = writeln!(
         md,
         "Target: RSE with the hole <= {TARGET_FACTOR} x sqrt(RSE without^2 + RSE of the harmonic fill of the true depth^2).\n"
     );
-    let _ = writeln!(
-        md,
-        "| scene | size | noise | hole | share | RSE no hole | RSE hole | harmonic fill | target | ratio | seconds |"
-    );
-    let _ = writeln!(
-        md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    table_head(
+        &mut md,
+        "| scene | size | noise | hole | share | RSE no hole | RSE hole | harmonic fill | target | ratio | seconds |",
     );
     for r in &report.rows {
         let _ = writeln!(
@@ -207,13 +186,6 @@ fn write(out: &Path, report: &HolesReport) -> Result<()> {
             r.seconds
         );
     }
-    if !report.skipped.is_empty() {
-        let _ = writeln!(
-            md,
-            "\nSkipped (mesh missing): {}",
-            report.skipped.join(", ")
-        );
-    }
-    std::fs::write(out.join("holes.md"), md)
-        .with_context(|| format!("cannot write {}", out.join("holes.md").display()))
+    skipped_meshes(&mut md, &report.skipped);
+    md
 }

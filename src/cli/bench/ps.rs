@@ -8,7 +8,7 @@
 //! Writes ps.md, ps.json and face-*.png.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -17,7 +17,7 @@ use serde::Serialize;
 use sfs_core::io;
 use sfs_core::light::PointLight;
 use sfs_core::metrics;
-use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput};
+use sfs_core::photo::{self, PhotoInput};
 use sfs_core::scene::photometric::{
     PhotometricSet, albedo_error, albedo_pattern, mean_angle_deg, render_set, standard_leds,
 };
@@ -248,9 +248,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             )),
         }
     }
-    io::write_json(&args.out.join("ps.json"), &report)?;
-    std::fs::write(args.out.join("ps.md"), markdown(&report))
-        .with_context(|| format!("cannot write {}", args.out.join("ps.md").display()))?;
+    super::report::write_part(&args.out, "ps", &report, &markdown(&report))?;
     Ok(())
 }
 
@@ -303,24 +301,10 @@ fn invariances(set: &PhotometricSet) -> Result<Vec<InvarianceRow>> {
 
 /// The shared face: the seven photographs through the photo pipeline.
 fn face(args: &BenchArgs) -> Result<Option<FaceRow>> {
-    let dir = args.real.join("near_ps_human1");
-    let camera = dir.join("calibration.json");
-    if !camera.is_file() {
+    let Some(input) = super::face::face_input(&args.real, None) else {
         return Ok(None);
-    }
-    let images: Vec<PathBuf> = (1..=8)
-        .map(|k| dir.join(format!("led{k}.png")))
-        .filter(|p| p.is_file())
-        .collect();
-    let input = PhotoInput {
-        images: images.clone(),
-        camera: CameraSpec::File(camera.clone()),
-        lights: LightSpec::CameraFile { picks: Vec::new() },
-        object_mask: Some(dir.join("mask.png")),
-        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
-        photometric_stereo: true,
-        ..PhotoInput::new(&images[0])
     };
+    let images = input.images.clone();
     let prepared = photo::prepare(&input)?;
     let problem = photo::photometric_problem(&prepared, &input)?;
     let started = Instant::now();

@@ -124,18 +124,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         ];
         for (setting, cues) in settings {
             let mut problem = one.problem.clone();
-            let started = Instant::now();
-            let (solution, unit) =
-                solve_photograph(&mut problem, &params, &Method::Linearised, &cues, &mut ())?;
-            let row = row_of(
-                &name,
-                setting,
-                &truth,
-                &solution,
-                &unit,
-                camera,
-                started.elapsed().as_secs_f64(),
-            );
+            let (row, unit) =
+                solved_row(&name, setting, &mut problem, &cues, &params, &truth, camera)?;
             eprintln!(
                 "  {name} {setting}: {:.1} deg, distance {:+.0} % ({:?}), {:.1} s",
                 row.mean_normal_error_deg,
@@ -191,19 +181,16 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 rig_lights: rig.clone(),
                 ..DistanceCues::default()
             };
-            let started = Instant::now();
-            let (solution, unit) =
-                solve_photograph(&mut problem, &params, &Method::Linearised, &cues, &mut ())?;
             let image = format!("render {name} {albedo_name}");
-            let row = row_of(
+            let (row, _) = solved_row(
                 &image,
                 "defaults",
+                &mut problem,
+                &cues,
+                &params,
                 &truth,
-                &solution,
-                &unit,
                 camera,
-                started.elapsed().as_secs_f64(),
-            );
+            )?;
             eprintln!(
                 "  {image}: {:.1} deg, distance {:+.0} %, albedo used {}",
                 row.mean_normal_error_deg,
@@ -218,9 +205,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         truth_distance_mm: truth_distance,
         rows,
     };
-    sfs_core::io::write_json(&args.out.join("real.json"), &report)?;
-    std::fs::write(args.out.join("real.md"), markdown(&report))
-        .with_context(|| format!("cannot write {}", args.out.join("real.md").display()))?;
+    super::report::write_part(&args.out, "real", &report, &markdown(&report))?;
     Ok(())
 }
 
@@ -228,6 +213,25 @@ pub fn run(args: &BenchArgs) -> Result<()> {
 fn stem(path: &std::path::Path) -> String {
     path.file_stem()
         .map_or_else(String::new, |s| s.to_string_lossy().into_owned())
+}
+
+/// Solves `problem` with `cues` (single-image method, linearised) and
+/// measures the solve against the set's `truth` as the row of `image` at
+/// `setting`, its seconds the solve's; the depth unit it decided beside.
+fn solved_row(
+    image: &str,
+    setting: &str,
+    problem: &mut Problem,
+    cues: &DistanceCues,
+    params: &SolverParams,
+    truth: &Grid<f64>,
+    camera: sfs_core::camera::Intrinsics,
+) -> Result<(RealRow, DepthUnit)> {
+    let started = Instant::now();
+    let (solution, unit) = solve_photograph(problem, params, &Method::Linearised, cues, &mut ())?;
+    let seconds = started.elapsed().as_secs_f64();
+    let row = row_of(image, setting, truth, &solution, &unit, camera, seconds);
+    Ok((row, unit))
 }
 
 /// The row of one solve against `truth`.

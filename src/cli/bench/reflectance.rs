@@ -222,10 +222,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         face,
         skipped,
     };
-    sfs_core::io::write_json(&args.out.join("reflectance.json"), &report)?;
-    let md = markdown(&report);
-    std::fs::write(args.out.join("reflectance.md"), md)
-        .with_context(|| format!("cannot write {}", args.out.join("reflectance.md").display()))?;
+    super::report::write_part(&args.out, "reflectance", &report, &markdown(&report))?;
     Ok(())
 }
 

@@ -291,13 +291,9 @@ pub fn markdown(robustness: &Robustness) -> String {
          unchanged (the same shape at depth / sqrt(k)). Truth start: the default solve started \
          from the true depth.\n"
     );
-    let _ = writeln!(
-        md,
-        "| scene | size | noise | exposure | default RSE | chosen alpha | best RSE (alpha) | default / best | truth start | fast marching | seconds |"
-    );
-    let _ = writeln!(
-        md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    super::report::table_head(
+        &mut md,
+        "| scene | size | noise | exposure | default RSE | chosen alpha | best RSE (alpha) | default / best | truth start | fast marching | seconds |",
     );
     for r in &robustness.rows {
         let _ = writeln!(

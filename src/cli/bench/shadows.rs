@@ -24,6 +24,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene, mesh, shadow, sombrero};
 use sfs_core::solver::{Problem, Solution, solve};
 
+use super::report::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::{BenchArgs, wanted};
 
 /// Seed of the noise.
@@ -70,15 +71,7 @@ pub struct ShadowRow {
 }
 
 /// The part's report.
-#[derive(Clone, Debug, Serialize)]
-pub struct ShadowsReport {
-    /// The command line.
-    pub command: String,
-    /// The rows.
-    pub rows: Vec<ShadowRow>,
-    /// Mesh scenes whose file was missing.
-    pub skipped: Vec<String>,
-}
+pub type ShadowsReport = SceneReport<ShadowRow>;
 
 /// The light `angle_deg` off the axis, seen from a centre at depth
 /// `centre_depth` on the axis, at that distance from it (to the right).
@@ -158,13 +151,7 @@ fn solved_with(problem: &Problem, params: &SolverParams, what: &str) -> Result<(
 /// Share of object pixels whose depth leaves the truth's range widened by
 /// [`RANGE_MARGIN`] of it.
 fn out_of_range_share(depth: &Grid<f64>, scene: &Scene) -> f64 {
-    let truth: Vec<f64> = scene
-        .depth_gt
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
+    let truth = scene.depth_gt.finite_values();
     let low = truth.iter().copied().fold(f64::INFINITY, f64::min);
     let high = truth.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let margin = RANGE_MARGIN * (high - low);
@@ -241,33 +228,20 @@ pub fn run(args: &BenchArgs) -> Result<ShadowsReport> {
             }
         }
     }
-    let report = ShadowsReport {
-        command: super::command_line(),
-        rows,
-        skipped,
-    };
-    write(&args.out, &report)?;
-    Ok(report)
+    SceneReport::write(&args.out, "shadows", rows, skipped, markdown)
 }
 
-/// Writes the report as JSON and as a markdown table.
-fn write(out: &Path, report: &ShadowsReport) -> Result<()> {
-    sfs_core::io::write_json(&out.join("shadows.json"), report)?;
-    let mut md = String::new();
-    let _ = writeln!(md, "# Shadows: what the light never reaches\n");
-    let _ = writeln!(md, "Command: `{}`\n", report.command);
+/// The report as markdown: a table.
+fn markdown(report: &ShadowsReport) -> String {
+    let mut md = markdown_head("Shadows: what the light never reaches", &report.command);
     let _ = writeln!(
         md,
         "Targets: RSE with shadows <= {HAND_MASK_FACTOR} x RSE with the exact hand mask, and <= {NO_SHADOW_FACTOR} x RSE of the same light without cast shadows. Out of range: object pixels whose depth leaves the truth's range widened by {:.0} % of it. The last RSE is with shadows and `--shadow-bound on` (not the default).\n",
         100.0 * RANGE_MARGIN
     );
-    let _ = writeln!(
-        md,
-        "| scene | size | light | noise | in shadow | RSE shadows | RSE hand mask | RSE no shadows | / hand mask | / no shadows | out of range | seconds | RSE shadow bound |"
-    );
-    let _ = writeln!(
-        md,
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+    table_head(
+        &mut md,
+        "| scene | size | light | noise | in shadow | RSE shadows | RSE hand mask | RSE no shadows | / hand mask | / no shadows | out of range | seconds | RSE shadow bound |",
     );
     let flag = |ratio: f64, target: f64| if ratio <= target { "" } else { " **missed**" };
     for r in &report.rows {
@@ -291,13 +265,6 @@ fn write(out: &Path, report: &ShadowsReport) -> Result<()> {
             r.rse_shadow_bound
         );
     }
-    if !report.skipped.is_empty() {
-        let _ = writeln!(
-            md,
-            "\nSkipped (mesh missing): {}",
-            report.skipped.join(", ")
-        );
-    }
-    std::fs::write(out.join("shadows.md"), md)
-        .with_context(|| format!("cannot write {}", out.join("shadows.md").display()))
+    skipped_meshes(&mut md, &report.skipped);
+    md
 }

@@ -401,9 +401,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         convergence: convergence_rows,
         skipped,
     };
-    sfs_core::io::write_json(&args.out.join("speed.json"), &report)?;
-    std::fs::write(args.out.join("speed.md"), markdown(&report))
-        .with_context(|| format!("cannot write {}", args.out.join("speed.md").display()))?;
+    super::report::write_part(&args.out, "speed", &report, &markdown(&report))?;
     Ok(report)
 }
 

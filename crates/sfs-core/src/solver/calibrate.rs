@@ -85,13 +85,7 @@ fn trial(
     observer: &mut dyn SolveObserver,
 ) -> Result<(f64, f64), SolveError> {
     let solution = super::solve(problem, params, &mut Forward(observer))?;
-    let mut depths: Vec<f64> = solution
-        .depth
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite())
-        .collect();
+    let mut depths = solution.depth.finite_values();
     let middle = depths.len() / 2;
     let depth = if depths.is_empty() {
         f64::NAN
@@ -491,12 +485,7 @@ pub fn depth_near(depth: &Grid<f64>, column: f64, row: f64) -> Option<f64> {
 
 /// The median of a depth map's finite positive values (NaN when none).
 pub fn median_depth(depth: &Grid<f64>) -> f64 {
-    let mut depths: Vec<f64> = depth
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|z| z.is_finite() && *z > 0.0)
-        .collect();
+    let mut depths = depth.finite_positive_values();
     if depths.is_empty() {
         return f64::NAN;
     }

@@ -51,12 +51,7 @@ pub struct SetView {
 /// The 99th percentile of the finite, positive values (white of a grey
 /// image), 1 when there are none.
 fn white_point(values: &Grid<f64>) -> f64 {
-    let mut finite: Vec<f64> = values
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
+    let mut finite = values.finite_positive_values();
     if finite.is_empty() {
         return 1.0;
     }

@@ -187,10 +187,8 @@ mod tests {
     use crate::mask_edit::test_support::*;
     use tempfile::tempdir;
 
-    #[test]
-    fn png_round_trip_and_wrong_size_load() {
-        let dir = tempdir().unwrap();
-        let (cp, op) = (dir.path().join("conf.png"), dir.path().join("obj.png"));
+    /// 20x12 masks with one confidence stroke across them.
+    fn confidence_stroked() -> Masks {
         let mut m = Masks::new(20, 12);
         stroke(
             &mut m,
@@ -198,6 +196,27 @@ mod tests {
             brush(5.0, 0.3, Mode::Paint),
             &[[4.0, 4.0], [15.0, 8.0]],
         );
+        m
+    }
+
+    /// Asserts that the confidence of `a` and of `b` differ by at most
+    /// `tolerance` at every pixel (what a file's quantisation allows).
+    fn assert_confidence_within(a: &Masks, b: &Masks, tolerance: f32) {
+        for (a, b) in a
+            .confidence()
+            .as_slice()
+            .iter()
+            .zip(b.confidence().as_slice())
+        {
+            assert!((a - b).abs() <= tolerance, "{a} {b}");
+        }
+    }
+
+    #[test]
+    fn png_round_trip_and_wrong_size_load() {
+        let dir = tempdir().unwrap();
+        let (cp, op) = (dir.path().join("conf.png"), dir.path().join("obj.png"));
+        let mut m = confidence_stroked();
         stroke(
             &mut m,
             Layer::Object,
@@ -212,14 +231,7 @@ mod tests {
         assert!(n.load_png(Layer::Confidence, &cp, n.size()).unwrap());
         assert!(n.load_png(Layer::Object, &op, n.size()).unwrap());
         assert_eq!(n.object(), m.object());
-        for (a, b) in n
-            .confidence()
-            .as_slice()
-            .iter()
-            .zip(m.confidence().as_slice())
-        {
-            assert!((a - b).abs() <= 0.5 / 255.0 + 1e-6, "{a} {b}");
-        }
+        assert_confidence_within(&n, &m, 0.5 / 255.0 + 1e-6);
         assert!(n.undo() && n.undo());
         assert_eq!(state(&n), state(&Masks::new(20, 12)));
 
@@ -251,13 +263,7 @@ mod tests {
         let dir = autosave_dir(&image, data.path());
         assert!(Masks::restore(&dir, (20, 12)).unwrap().is_none());
 
-        let mut m = Masks::new(20, 12);
-        stroke(
-            &mut m,
-            Layer::Confidence,
-            brush(5.0, 0.3, Mode::Paint),
-            &[[4.0, 4.0], [15.0, 8.0]],
-        );
+        let mut m = confidence_stroked();
         m.fill_rect(Layer::Object, Mode::Paint, [0.0, 0.0], [6.0, 12.0]);
         m.autosave(&dir, &image).unwrap();
         m.autosave(&dir, &image).unwrap();
@@ -270,14 +276,7 @@ mod tests {
 
         let r = Masks::restore(&dir, (20, 12)).unwrap().unwrap();
         assert_eq!(r.object(), m.object());
-        for (a, b) in r
-            .confidence()
-            .as_slice()
-            .iter()
-            .zip(m.confidence().as_slice())
-        {
-            assert!((a - b).abs() <= 1.0 / 65535.0, "{a} {b}");
-        }
+        assert_confidence_within(&r, &m, 1.0 / 65535.0);
         assert!(!r.can_undo());
 
         let e = Masks::restore(&dir, (21, 12)).unwrap_err().to_string();

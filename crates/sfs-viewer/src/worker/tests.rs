@@ -27,16 +27,21 @@ use super::*;
 /// Generous: a wait that fails means a lost event, not a slow machine.
 const PATIENCE: Duration = Duration::from_secs(60);
 
-fn sombrero_request(side: usize) -> SolveRequest {
-    let scene = sombrero(side, side);
-    let problem = Problem {
+/// The problem of a rendered scene as it stands: its image, camera, scale
+/// and object mask, the light at the optical centre, no confidence map.
+fn scene_problem(scene: sfs_core::scene::Scene) -> Problem {
+    Problem {
         image: scene.image,
         camera: scene.camera,
         intensity_scale: scene.intensity_scale,
         object_mask: Some(scene.object_mask),
         confidence: None,
         lights: Vec::new(),
-    };
+    }
+}
+
+fn sombrero_request(side: usize) -> SolveRequest {
+    let problem = scene_problem(sombrero(side, side));
     // The paper's constant start: the whole pyramid, many levels.
     let params = SolverParams {
         initial_depth: InitialDepth::FromImage,
@@ -64,14 +69,7 @@ fn known_depth_request(distance_factor: f64) -> (SolveRequest, KnownDepth) {
         depth: distance_factor * scene.depth_gt.at(column, row),
     };
     let request = SolveRequest {
-        problem: Problem {
-            image: scene.image,
-            camera: scene.camera,
-            intensity_scale: scene.intensity_scale,
-            object_mask: Some(scene.object_mask),
-            confidence: None,
-            lights: Vec::new(),
-        },
+        problem: scene_problem(scene),
         params: SolverParams::default(),
         estimate_scale: true,
         known_depths: vec![point],
@@ -132,6 +130,17 @@ fn wait_for_progress(worker: &mut Worker, job: JobId) {
     }
 }
 
+/// The levels streamed among `events`, in order.
+fn streamed_levels(events: &[Event]) -> Vec<&LevelResult> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            Event::Level { result, .. } => Some(result),
+            _ => None,
+        })
+        .collect()
+}
+
 /// The variant and job, for messages (events hold whole depth maps).
 fn kind(event: Option<&Event>) -> String {
     let Some(event) = event else {
@@ -183,13 +192,7 @@ fn small_solve_reports_levels_coarse_to_fine_and_finishes() {
             .windows(2)
             .all(|p| p[0].0 < p[1].0 && p[0].1 < p[1].1)
     );
-    let levels: Vec<&LevelResult> = events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Level { result, .. } => Some(result),
-            _ => None,
-        })
-        .collect();
+    let levels = streamed_levels(&events);
     assert_eq!(levels.len(), level_sizes.len());
     for (index, (result, size)) in levels.iter().zip(level_sizes).enumerate() {
         assert_eq!((result.level, result.levels), (index, level_sizes.len()));
@@ -558,13 +561,7 @@ fn a_set_streams_its_levels_and_finishes_with_depth_normals_and_albedo() {
     };
     let side = crate::test_sets::SIDE;
     assert_eq!(level_sizes.last(), Some(&(side, side)));
-    let levels: Vec<&LevelResult> = events
-        .iter()
-        .filter_map(|e| match e {
-            Event::Level { result, .. } => Some(result),
-            _ => None,
-        })
-        .collect();
+    let levels = streamed_levels(&events);
     assert!(!levels.is_empty(), "no level streamed");
     assert!(levels.windows(2).all(|p| p[0].level < p[1].level));
     assert_eq!(levels.last().map(|l| l.depth.size()), Some((side, side)));

@@ -106,12 +106,7 @@ pub fn compare_single(
 /// The `q` quantile (0..1, nearest rank) of the finite positive values of
 /// `grid` (a depth, an albedo); `None` when there is none.
 pub fn positive_quantile(grid: &Grid<f64>, q: f64) -> Option<f64> {
-    let mut values: Vec<f64> = grid
-        .as_slice()
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite() && *v > 0.0)
-        .collect();
+    let mut values = grid.finite_positive_values();
     if values.is_empty() {
         return None;
     }
