@@ -309,3 +309,27 @@ fn bench_rejects_a_bad_budget_and_writes_nothing() {
     );
     assert!(!out.exists());
 }
+
+/// `--seed` draws the corpus and `--large` adds a size to the speed part;
+/// with any other part either is refused by name, before anything is run or
+/// written (an option is used or refused, never ignored).
+#[test]
+fn bench_refuses_an_option_its_part_does_not_use() {
+    let dir = tempdir().expect("temp dir");
+    let out = dir.path().join("bench");
+    for (part, option, value) in [
+        ("speed", "--seed", Some("1")),
+        ("robustness", "--seed", Some("0")),
+        ("corpus", "--large", None),
+        ("albedo", "--large", None),
+    ] {
+        let mut args = vec!["bench", "--part", part, option];
+        args.extend(value);
+        let out_arg = s(&out);
+        args.extend(["--out", out_arg.as_str()]);
+        let run = sfs(args);
+        assert!(!run.status.success(), "{part} {option} was accepted");
+        assert!(stderr(&run).contains(option), "{}", stderr(&run));
+        assert!(!out.exists(), "{part} {option} wrote {}", out.display());
+    }
+}

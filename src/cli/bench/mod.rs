@@ -82,6 +82,11 @@ pub struct BenchArgs {
     /// With `--part speed`: also an 18-megapixel (5184x3456) scene.
     #[arg(long)]
     pub large: bool,
+    /// With `--part corpus`: which draw of the randomized corpus (0, the
+    /// default, is the one the decisions' bars were chosen on; any other
+    /// is a fresh corpus to check them on).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Output folder (created if needed).
     #[arg(long, value_parser = super::parse_path)]
     pub out: PathBuf,
@@ -216,8 +221,15 @@ fn reset_peak_memory() -> bool {
 }
 
 /// Refuses an `--explicit-seconds` that is not a positive number and a
-/// `--scenes` list that is empty or names an unknown scene.
+/// `--scenes` list that is empty or names an unknown scene, and a `--seed`
+/// or `--large` for a part that does not use it.
 fn check(args: &BenchArgs) -> Result<()> {
+    if args.seed.is_some() && args.part != Part::Corpus {
+        anyhow::bail!("--seed is used by --part corpus only");
+    }
+    if args.large && args.part != Part::Speed {
+        anyhow::bail!("--large is used by --part speed only");
+    }
     if let Some(s) = args.explicit_seconds
         && !(s.is_finite() && s > 0.0)
     {

@@ -28,8 +28,7 @@
 //! for albedo bends the whole region behind it (measured on uniform mesh
 //! renders, the estimate alone made RSE 2-10x worse); there the shape
 //! with albedo 1 reproduces the photograph better, and on the Sombrero with
-//! patches or lines and on the shared face the estimate does (README,
-//! "Albedo").
+//! patches or lines and on the shared face the estimate does (docs/albedo.md).
 //!
 //! Fine texture (hair: a beard, stubble) darkens without a step; where the
 //! image says so (`crate::albedo_texture`: its own test is the correlation
@@ -82,6 +81,23 @@ pub const MIN_GAIN: f64 = 0.2;
 /// 0.019 to its estimate at 0.117), so the photograph hardly tells the
 /// estimate from shading.
 pub const CLOSE_MARGIN: f64 = 0.05;
+
+/// The raw numbers of the decided estimate's test on the working copy.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Evidence {
+    /// `sum c (I - R)^2` with albedo 1.
+    pub misfit_one: f64,
+    /// `sum c (I - rho R)^2` with the estimate.
+    pub misfit_with: f64,
+    /// Pixels in the sums.
+    pub pixels: usize,
+    /// The estimate's edge and cut pairs as the working copy counts them.
+    pub working_pairs: f64,
+    /// The median of albedo 1's squared residuals.
+    pub one_median_sq: f64,
+    /// The working copy's noise sigma (image units).
+    pub noise_sigma: f64,
+}
 
 /// What `--albedo auto` found and decided.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -139,6 +155,8 @@ pub struct AlbedoFit {
     /// working copy, or the photograph's full size where a known-depth
     /// search gave each explanation its own scale.
     pub working_side: usize,
+    /// The raw sums the decision was made from (on the working copy).
+    pub evidence: Evidence,
     /// Seconds spent estimating and comparing.
     pub seconds: f64,
     /// The decision in plain words.
@@ -341,7 +359,8 @@ pub fn apply(
         noise_sigma,
         noise_share: 0.0,
         divisor: 1.0,
-        working_side: GATE_SIDE,
+        working_side: plain.image.width().max(plain.image.height()),
+        evidence: Evidence::default(),
         seconds: 0.0,
         summary: String::new(),
     };
@@ -361,7 +380,7 @@ pub fn apply(
     // Each candidate with edges is solved and scored; the one that clears
     // its own bar (its misfit ratio below 1 - max(MIN_GAIN, noise share))
     // by the most is decided on, the plain steps on a tie.
-    let mut best: Option<(f64, f64, f64, usize)> = None;
+    let mut best: Option<(f64, f64, f64, usize, Evidence)> = None;
     for (k, c) in candidates.iter().enumerate() {
         if c.edge_pairs == 0 {
             continue;
@@ -381,14 +400,23 @@ pub fn apply(
             (f64::NAN, 0.0)
         };
         let score = ratio + MIN_GAIN.max(noise_share);
-        if best.is_none_or(|(s, _, _, _)| score < s || s.is_nan()) {
-            best = Some((score, ratio, noise_share, k));
+        let evidence = Evidence {
+            misfit_one: misfits.one,
+            misfit_with: misfits.with,
+            pixels: misfits.pixels,
+            working_pairs: c.working_pairs,
+            one_median_sq: misfits.one_median_sq,
+            noise_sigma: c.working_sigma,
+        };
+        if best.is_none_or(|(s, _, _, _, _)| score < s || s.is_nan()) {
+            best = Some((score, ratio, noise_share, k, evidence));
         }
     }
-    let Some((_, ratio, noise_share, k)) = best else {
+    let Some((_, ratio, noise_share, k, evidence)) = best else {
         return Ok((None, Some(fit)));
     };
     let chosen = candidates.swap_remove(k);
+    fit.evidence = evidence;
     // Fine texture (hair) darkens gradually, without a step: measured in
     // the image against what the edges leave, it rides on the decided
     // edges; the shape test above judged the edges alone (the texture's
@@ -478,6 +506,10 @@ struct Candidate {
     /// What the edges and cuts could remove of the misfit by fitting noise
     /// alone: 2 sigma^2 per free difference on the working copy.
     noise_misfit: f64,
+    /// Edge and cut pairs as the working copy counts them.
+    working_pairs: f64,
+    /// The working copy's noise sigma.
+    working_sigma: f64,
 }
 
 /// The estimate under `rule`: edges found on the working copy first, where
@@ -539,6 +571,13 @@ fn candidate(
         * ((estimate.edge_pairs + estimate.cut_pairs) as f64 / f
             * (ground.noise_sigma / f).powi(2)
             + (coarse_pairs + coarse_cuts) as f64 * coarse_sigma.powi(2));
+    let working_pairs =
+        (estimate.edge_pairs + estimate.cut_pairs) as f64 / f + (coarse_pairs + coarse_cuts) as f64;
+    let working_sigma = if ground.coarse.is_some() {
+        coarse_sigma
+    } else {
+        ground.noise_sigma
+    };
     let (divided, divisor) = divide_out(problem, &estimate.albedo);
     Ok(Candidate {
         rule,
@@ -549,6 +588,8 @@ fn candidate(
         divisor,
         edge_pairs,
         noise_misfit,
+        working_pairs,
+        working_sigma,
     })
 }
 
@@ -683,7 +724,10 @@ fn misfits(
     let mut misfits = Misfits {
         one: 0.0,
         with: 0.0,
+        pixels: 0,
+        one_median_sq: f64::NAN,
     };
+    let mut squares = Vec::new();
     for q in 0..plain.image.len() {
         if !(one.depth.as_slice()[q].is_finite() && with.depth.as_slice()[q].is_finite()) {
             continue;
@@ -700,6 +744,14 @@ fn misfits(
             * (work.image.as_slice()[q] - with.reprojection.as_slice()[q]);
         misfits.one += c * (i - r_one) * (i - r_one);
         misfits.with += c * e_with * e_with;
+        if c > 0.0 {
+            squares.push((i - r_one) * (i - r_one));
+        }
+    }
+    misfits.pixels = squares.len();
+    if !squares.is_empty() {
+        let k = squares.len() / 2;
+        misfits.one_median_sq = *squares.select_nth_unstable_by(k, f64::total_cmp).1;
     }
     Ok(misfits)
 }
@@ -708,6 +760,10 @@ fn misfits(
 struct Misfits {
     one: f64,
     with: f64,
+    /// Pixels summed.
+    pixels: usize,
+    /// The median of albedo 1's squared residuals over them.
+    one_median_sq: f64,
 }
 
 #[cfg(test)]
@@ -766,6 +822,9 @@ mod tests {
         let estimated = super::super::solve(&textured, &auto, &mut ()).expect("auto solves");
         let fit = estimated.albedo_fit.as_ref().expect("auto reports its fit");
         assert!(fit.used, "{}", fit.summary);
+        // Decided on the photograph itself: it is smaller than the working
+        // copy's side (issue 48: "decided at 256 px" for a 64 px image).
+        assert_eq!(fit.working_side, 64);
         assert!(fit.misfit_ratio < 1.0 - MIN_GAIN, "{}", fit.misfit_ratio);
         // 64 px is too small to judge a chain (1/64 of the side is below
         // 4 px): the steps alone, nothing cut.
