@@ -61,7 +61,38 @@ impl ParamArgs {
         }
         let params = sfs_core::params::table::params_from(values);
         refuse_unused(&params, &self.given)?;
+        self.refuse_kappa_above_kappa_max(&params)?;
         Ok(params)
+    }
+
+    /// `kappa > kappa-max`, named by the option the user gave: `--kappa 10`
+    /// alone exceeds kappa-max's default (5), which the user never set.
+    fn refuse_kappa_above_kappa_max(&self, params: &SolverParams) -> Result<(), ParamError> {
+        if params.kappa <= params.kappa_max {
+            return Ok(());
+        }
+        let given = |name: &str| self.given.iter().find(|(spec, _)| spec.name == name);
+        let (kappa, kappa_max) = (params.kappa, params.kappa_max);
+        match (given("kappa"), given("kappa-max")) {
+            (Some((_, text)), None) => Err(ParamError {
+                name: "kappa",
+                value: text.clone(),
+                reason: format!(
+                    "exceeds kappa-max's value {kappa_max} (the default; kappa-max is the most \
+                     outer iterations per level and must be at least kappa): raise it with \
+                     --kappa-max {kappa} or more"
+                ),
+            }),
+            (None, Some((_, text))) => Err(ParamError {
+                name: "kappa-max",
+                value: text.clone(),
+                reason: format!(
+                    "is below kappa's value {kappa} (the default; kappa-max must be at least \
+                     kappa): give --kappa-max {kappa} or more, or lower --kappa with it"
+                ),
+            }),
+            _ => Ok(()), // both given, or neither: validate names kappa-max
+        }
     }
 }
 
@@ -127,6 +158,33 @@ mod tests {
                 shininess: 40.0
             })
         );
+    }
+
+    /// `--kappa 10` alone blamed kappa-max's default ("kappa-max = 5: must
+    /// be at least kappa"): the option given is named, with kappa-max's
+    /// default and how to raise it.
+    #[test]
+    fn kappa_above_kappa_max_names_the_option_given() {
+        let err = |args: &[&str]| {
+            let probe = Probe::try_parse_from(args).expect("parse");
+            probe.params.to_params().expect_err("refused").to_string()
+        };
+        let kappa = err(&["x", "--kappa", "10"]);
+        assert!(kappa.contains("kappa = 10"), "{kappa}");
+        assert!(
+            kappa.contains("kappa-max's value 5 (the default"),
+            "{kappa}"
+        );
+        assert!(kappa.contains("--kappa-max 10"), "{kappa}");
+        let kappa_max = err(&["x", "--kappa-max", "3"]);
+        assert!(kappa_max.contains("kappa-max = 3"), "{kappa_max}");
+        assert!(
+            kappa_max.contains("kappa's value 5 (the default"),
+            "{kappa_max}"
+        );
+        let both =
+            Probe::try_parse_from(["x", "--kappa", "10", "--kappa-max", "12"]).expect("parse");
+        assert!(both.params.to_params().is_ok());
     }
 
     #[test]

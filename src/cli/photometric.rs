@@ -45,27 +45,31 @@ fn outputs() -> Vec<String> {
         .collect()
 }
 
+/// `--NAME TEXT`: `auto` (`None`) or a number; `positive`: above 0, else
+/// at least 0. One rule and one message per option (`--ps-robust-scale -1`
+/// said "non-negative", then 0 "positive").
+fn auto_or_number(text: &str, name: &str, positive: bool) -> Result<Option<f64>> {
+    if text.trim().eq_ignore_ascii_case("auto") {
+        return Ok(None);
+    }
+    let rule = if positive {
+        "a positive number (above 0)"
+    } else {
+        "a non-negative number"
+    };
+    let fits = |v: f64| v.is_finite() && if positive { v > 0.0 } else { v >= 0.0 };
+    match text.trim().parse::<f64>() {
+        Ok(v) if fits(v) => Ok(Some(v)),
+        _ => bail!("--{name} {text}: must be `auto` or {rule}"),
+    }
+}
+
 /// The set's settings from the options.
 fn params(args: &SolveArgs) -> Result<PhotometricParams> {
-    let value = |text: &str, name: &str| -> Result<Option<f64>> {
-        if text.eq_ignore_ascii_case("auto") {
-            return Ok(None);
-        }
-        let v: f64 = text
-            .parse()
-            .map_err(|_| anyhow::anyhow!("--{name} {text}: not a number or `auto`"))?;
-        if !(v.is_finite() && v >= 0.0) {
-            bail!("--{name} {text}: must be a non-negative number or `auto`");
-        }
-        Ok(Some(v))
-    };
-    let robust_scale = value(&args.ps_robust_scale, "ps-robust-scale")?;
-    if robust_scale == Some(0.0) {
-        bail!("--ps-robust-scale 0: the Cauchy scale must be positive (or `auto`)");
-    }
     Ok(PhotometricParams {
-        alpha: value(&args.ps_smoothness, "ps-smoothness")?,
-        robust_scale,
+        alpha: auto_or_number(&args.ps_smoothness, "ps-smoothness", false)?,
+        // The Cauchy scale divides the residuals: it must be above 0.
+        robust_scale: auto_or_number(&args.ps_robust_scale, "ps-robust-scale", true)?,
         cast_shadows: !args.ps_no_cast_shadows,
         ..PhotometricParams::default()
     })
@@ -521,6 +525,40 @@ fn print_summary(
                     ", albedo median error {:.2} %",
                     100.0 * v
                 ))
+        );
+    }
+}
+
+#[cfg(test)]
+mod option_tests {
+    use super::auto_or_number;
+
+    /// `--ps-robust-scale -1` said "must be non-negative", then 0 "must be
+    /// positive": one rule, one message, for every bad value.
+    #[test]
+    fn the_robust_scale_has_one_rule_and_one_message() {
+        let message = |text: &str| {
+            auto_or_number(text, "ps-robust-scale", true)
+                .expect_err(text)
+                .to_string()
+        };
+        for text in ["-1", "0", "abc", "inf"] {
+            assert_eq!(
+                message(text),
+                format!("--ps-robust-scale {text}: must be `auto` or a positive number (above 0)")
+            );
+        }
+        assert_eq!(
+            auto_or_number("0.5", "ps-robust-scale", true).unwrap(),
+            Some(0.5)
+        );
+        assert_eq!(
+            auto_or_number("AUTO", "ps-robust-scale", true).unwrap(),
+            None
+        );
+        assert_eq!(
+            auto_or_number("0", "ps-smoothness", false).unwrap(),
+            Some(0.0)
         );
     }
 }

@@ -232,21 +232,62 @@ impl SolveArgs {
     /// `--albedo FILE`: the map the pipeline divides out (`None` for `auto`
     /// and `1`).
     pub fn albedo_file(&self) -> Option<PathBuf> {
-        match self.albedo.as_str() {
-            "auto" | "1" => None,
-            file => Some(PathBuf::from(file)),
+        let text = self.albedo.trim();
+        if text.eq_ignore_ascii_case("auto") || text == "1" {
+            None
+        } else {
+            Some(PathBuf::from(text))
         }
     }
 
     /// How the solver takes the albedo: estimated for `auto`, else 1 (a
     /// given map is already divided out).
     pub fn albedo_choice(&self) -> AlbedoChoice {
-        if self.albedo == "auto" {
+        if self.albedo.trim().eq_ignore_ascii_case("auto") {
             AlbedoChoice::Auto
         } else {
             AlbedoChoice::One
         }
     }
+
+    /// Refuses `--albedo` and `--vignetting` values that are neither one of
+    /// their words nor an existing file, naming the value and what is
+    /// accepted (`--albedo 0` said "cannot read image 0").
+    pub fn check_word_or_file_options(&self) -> Result<()> {
+        if let Some(file) = self.albedo_file() {
+            check_word_or_file(
+                "albedo",
+                &self.albedo,
+                &file,
+                "`auto`, `1` or FILE (an image, or a .npy such as the albedo.npy a solve writes)",
+            )?;
+        }
+        if let Some(text) = &self.vignetting
+            && !matches!(text.as_str(), "none" | "cos4")
+        {
+            check_word_or_file(
+                "vignetting",
+                text,
+                Path::new(text),
+                "`cos4`, `none` or FILE (a flat-field image)",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// `--NAME TEXT`: `file` must exist, else the error lists what is
+/// `accepted`.
+fn check_word_or_file(name: &str, text: &str, file: &Path, accepted: &str) -> Result<()> {
+    if file.is_file() {
+        return Ok(());
+    }
+    let what = if file.exists() {
+        "is not a file"
+    } else {
+        "is neither one of its words nor an existing file"
+    };
+    bail!("--{name} {text}: {what}; accepted: {accepted}")
 }
 
 /// `--init-depth`: a method, a number or a `.npy` file of the image's size.
@@ -276,6 +317,17 @@ pub fn parse_initial_depth(text: Option<&str>, image_size: (usize, usize)) -> Re
         );
     }
     Ok(InitialDepth::Map(map))
+}
+
+/// A depth or distance as the user reads it: four decimals for moderate
+/// values, scientific notation for very small or large ones (`1e-6` was
+/// printed as "0.0000").
+pub fn shown(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-2..1e6).contains(&v.abs()) {
+        format!("{v:.4e}")
+    } else {
+        format!("{v:.4}")
+    }
 }
 
 /// Ground truth of a synth folder.
@@ -385,6 +437,7 @@ impl SolveArgs {
                 anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`")
             })?),
         };
+        self.check_word_or_file_options()?;
         let vignetting = Vignetting::from_option(self.vignetting.as_deref());
         // The table's parameters (eta, min-level-side) size the pyramid.
         let table_params = self.params.to_params()?;
@@ -612,7 +665,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             }
         })
         .collect();
+    let (z_min, z_max) = parameters::DEPTH_RANGE;
     for (given, p) in args.known_depth.iter().zip(&known_points) {
+        let [x, y, z] = [given[0].to_string(), given[1].to_string(), shown(given[2])];
         if !(p.column_px >= 0.0
             && p.row_px >= 0.0
             && (p.column_px as usize) < size.0
@@ -621,13 +676,16 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             && p.depth.is_finite())
         {
             bail!(
-                "--known-depth {},{},{}: the pixel must lie in the {}x{} image and the distance \
-                 be positive",
-                given[0],
-                given[1],
-                given[2],
+                "--known-depth {x},{y},{z}: the pixel must lie in the {}x{} image and the \
+                 distance be positive",
                 full_size.0,
                 full_size.1
+            );
+        }
+        if !(z_min..=z_max).contains(&p.depth) {
+            bail!(
+                "--known-depth {x},{y},{z}: the distance must lie in [{z_min:e}, {z_max:e}] depth \
+                 units (check its unit)"
             );
         }
     }
@@ -673,11 +731,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                 fit.points
                     .iter()
                     .map(|p| format!(
-                        "pixel {},{} given {:.4} solved {:.4} ({:+.2} %)",
+                        "pixel {},{} given {} solved {} ({:+.2} %)",
                         p.column_px,
                         p.row_px,
-                        p.given,
-                        p.solved,
+                        shown(p.given),
+                        shown(p.solved),
                         100.0 * p.relative_residual
                     ))
                     .collect::<Vec<_>>()
@@ -701,12 +759,12 @@ pub fn run(args: &SolveArgs) -> Result<()> {
                 .filter(|p| p.relative_residual.abs() > KNOWN_DEPTH_MET)
             {
                 known_depth_warning = Some(format!(
-                    "--known-depth is not met: pixel {},{} (working size) is at {:.4} for the \
-                     given {:.4} ({:+.2} %){}; the depth unit is off by about that much",
+                    "--known-depth is not met: pixel {},{} (working size) is at {} for the \
+                     given {} ({:+.2} %){}; the depth unit is off by about that much",
                     worst.column_px,
                     worst.row_px,
-                    worst.solved,
-                    worst.given,
+                    shown(worst.solved),
+                    shown(worst.given),
                     100.0 * worst.relative_residual,
                     if fit.points.len() > 1 {
                         " (several points: they may disagree with each other)"
@@ -723,10 +781,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             && unit.source == solver::depth_unit::UnitSource::Distance
         {
             known_depth_warning = Some(format!(
-                "--distance is not met: the surface's median depth is {:.4} for the given {:.4} \
+                "--distance is not met: the surface's median depth is {} for the given {} \
                  ({:+.2} %); the depth unit is off by about that much",
-                median.solved,
-                median.given,
+                shown(median.solved),
+                shown(median.given),
                 100.0 * median.relative_residual
             ));
         }
@@ -999,4 +1057,18 @@ fn params_json(params: &SolverParams, args: &SolveArgs) -> serde_json::Value {
         );
     }
     json
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A known depth of 1e-6 was printed as "given 0.0000".
+    #[test]
+    fn tiny_and_huge_depths_are_shown_with_their_digits() {
+        assert_eq!(shown(1e-6), "1.0000e-6");
+        assert_eq!(shown(1e14), "1.0000e14");
+        assert_eq!(shown(2.5), "2.5000");
+        assert_eq!(shown(0.0), "0.0000");
+    }
 }

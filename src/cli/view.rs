@@ -69,8 +69,8 @@ pub struct ViewArgs {
     #[arg(long, default_value_t = 0)]
     pub latency_trials: usize,
     /// The 2-D panel shown first: input, reprojection, residual, depth,
-    /// albedo (a set's, or the albedo a photograph was solved with), normals
-    /// or photo-residual (a set's).
+    /// depth-error (against a ground truth), albedo (a set's, or the albedo
+    /// a photograph was solved with), normals or photo-residual (a set's).
     #[arg(long, value_name = "PANEL", value_parser = parse_panel)]
     pub panel: Option<Panel2d>,
     /// Show the albedo (a set's, or the one a photograph was solved with) on
@@ -127,6 +127,18 @@ pub fn run(args: &ViewArgs) -> Result<()> {
     launch(options, args.window)
 }
 
+/// Every `--panel` name, in the order `--help` and the error list them.
+const PANEL_NAMES: [&str; 8] = [
+    "input",
+    "reprojection",
+    "residual",
+    "depth",
+    "depth-error",
+    "albedo",
+    "normals",
+    "photo-residual",
+];
+
 /// A `--panel` name.
 fn parse_panel(text: &str) -> Result<Panel2d, String> {
     Ok(match text {
@@ -140,8 +152,9 @@ fn parse_panel(text: &str) -> Result<Panel2d, String> {
         "photo-residual" => Panel2d::PhotoResidual,
         _ => {
             return Err(format!(
-                "unknown panel {text:?}: input, reprojection, residual, depth, depth-error, \
-                 albedo, normals or photo-residual"
+                "unknown panel {text:?}: {} or {}",
+                PANEL_NAMES[..PANEL_NAMES.len() - 1].join(", "),
+                PANEL_NAMES[PANEL_NAMES.len() - 1]
             ));
         }
     })
@@ -211,6 +224,26 @@ mod tests {
     fn text(path: &Path) -> &str {
         path.to_str()
             .unwrap_or_else(|| panic!("{} is not UTF-8", path.display()))
+    }
+
+    /// `view --panel` accepted (and its error listed) `depth-error`, which
+    /// `--help` did not: every name is in both.
+    #[test]
+    fn the_panel_help_lists_every_panel_the_option_takes() {
+        use clap::CommandFactory;
+        let command = Cli::command();
+        let view = command.find_subcommand("view").expect("view");
+        let panel = view
+            .get_arguments()
+            .find(|a| a.get_id() == "panel")
+            .expect("--panel");
+        let help = panel.get_help().expect("help").to_string();
+        let error = super::parse_panel("bogus").expect_err("unknown");
+        for name in super::PANEL_NAMES {
+            assert!(super::parse_panel(name).is_ok(), "{name}");
+            assert!(help.contains(name), "--help lacks {name}: {help}");
+            assert!(error.contains(name), "the error lacks {name}: {error}");
+        }
     }
 
     #[test]

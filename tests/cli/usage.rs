@@ -521,3 +521,98 @@ fn the_probes_cases_are_refused_or_said() {
         stderr(&run)
     );
 }
+
+/// Issue 48's misleading messages: each names the option the user gave,
+/// the value and what is accepted.
+#[test]
+fn messages_name_the_option_given_and_what_is_accepted() {
+    let fx = Fixture::new();
+    let run = |k: &str, extra: &[&str], says: &[&str]| {
+        let out = fx.path(k);
+        expect_failure(&fx.solve_args(&out, extra), &out, says);
+    };
+    // --kappa alone above kappa-max's default.
+    run(
+        "kappa",
+        &["--kappa", "10"],
+        &["kappa = 10", "(the default", "--kappa-max 10"],
+    );
+    // An init depth far from the image's depth, both ways.
+    run(
+        "init-small",
+        &["--init-depth", "1e-15"],
+        &["init-depth = 1e-15"],
+    );
+    run(
+        "init-large",
+        &["--init-depth", "1e25"],
+        &["init-depth = 1e25"],
+    );
+    // An absurd known depth names --known-depth, not the intensity scale.
+    let out = fx.path("known");
+    let err = expect_failure(
+        &fx.solve_args(&out, &["--known-depth", "20,20,1e30"]),
+        &out,
+        &["--known-depth", "1e25"],
+    );
+    assert!(!err.contains("intensity scale must"), "{err}");
+    // Neither a word nor a file: the value and what is accepted.
+    for (k, (option, value)) in [
+        ("--albedo", "0"),
+        ("--albedo", "2"),
+        ("--vignetting", "bogus"),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        run(
+            &format!("word{k}"),
+            &[option, value],
+            &[&format!("{option} {value}"), "accepted", "FILE"],
+        );
+    }
+    // A camera file holding both spellings of the width, and an array.
+    let camera: Value =
+        serde_json::from_str(&fs::read_to_string(fx.scene.join("scene.json")).unwrap()).unwrap();
+    let mut both = camera.clone();
+    both["calibration_width"] = camera["width"].clone();
+    for (name, text, says) in [
+        (
+            "both.json",
+            both.to_string(),
+            "`width` and `calibration_width` are the same key",
+        ),
+        (
+            "array.json",
+            format!("[{camera}]"),
+            "a camera file is a JSON object",
+        ),
+    ] {
+        let file = fx.write(name, &text);
+        let out = fx.path(&format!("r-{name}"));
+        let args: Vec<String> = vec![
+            "solve".into(),
+            fx.scene_file("image16.png"),
+            "--camera".into(),
+            s(&file),
+            "-q".into(),
+            "--out".into(),
+            s(&out),
+        ];
+        expect_failure(&args, &out, &[says]);
+    }
+}
+
+/// `--albedo` takes the albedo.npy a solve writes.
+#[test]
+fn a_solves_albedo_npy_is_taken_back_as_albedo() {
+    let fx = Fixture::new();
+    let first = fx.path("first");
+    assert_success(&sfs(fx.solve_args(&first, &[])), "solve");
+    let albedo = s(&first.join("albedo.npy"));
+    let again = fx.path("again");
+    assert_success(
+        &sfs(fx.solve_args(&again, &["--albedo", &albedo])),
+        "solve --albedo albedo.npy",
+    );
+}

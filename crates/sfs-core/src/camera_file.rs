@@ -464,10 +464,68 @@ pub fn read_camera(path: &Path) -> Result<CameraFile, IoError> {
     })?;
     let camera: CameraFile = serde_json::from_str(&text).map_err(|e| IoError::Camera {
         path: path.to_path_buf(),
-        reason: e.to_string(),
+        reason: json_error_words(&text, &e),
     })?;
     camera.validate(path)?;
     Ok(camera)
+}
+
+/// Keys that are one key spelt two ways (serde aliases): serde calls both
+/// given "duplicate field `width`", a field the file holds once.
+const ALIASES: [(&str, &str); 3] = [
+    ("width", "calibration_width"),
+    ("height", "calibration_height"),
+    ("position", "position_mm"),
+];
+
+/// A camera file's parse error in the user's terms: a file that is not a
+/// JSON object ("expected a string" for a top-level array), and a key
+/// given under both its spellings, are said as such; other errors are
+/// serde's (which name the key).
+fn json_error_words(text: &str, error: &serde_json::Error) -> String {
+    let Ok(value) = serde_json::from_str::<serde_json::Value>(text) else {
+        return error.to_string();
+    };
+    let kind = match &value {
+        serde_json::Value::Object(_) => None,
+        serde_json::Value::Array(_) => Some("an array"),
+        serde_json::Value::String(_) => Some("a string"),
+        serde_json::Value::Number(_) => Some("a number"),
+        serde_json::Value::Bool(_) => Some("a boolean"),
+        serde_json::Value::Null => Some("null"),
+    };
+    if let Some(kind) = kind {
+        return format!(
+            "a camera file is a JSON object ({{\"width\": ..., \"height\": ..., \"focal\": \
+             ...}}), this one holds {kind}"
+        );
+    }
+    let both = |object: &serde_json::Map<String, serde_json::Value>| {
+        ALIASES
+            .iter()
+            .find(|(a, b)| object.contains_key(*a) && object.contains_key(*b))
+    };
+    let lights = value
+        .get("lights")
+        .and_then(serde_json::Value::as_array)
+        .into_iter()
+        .flatten()
+        .filter_map(serde_json::Value::as_object);
+    let found = value
+        .as_object()
+        .and_then(both)
+        .map(|pair| (pair, String::new()))
+        .or_else(|| {
+            lights
+                .enumerate()
+                .find_map(|(k, light)| both(light).map(|pair| (pair, format!("light {}: ", k + 1))))
+        });
+    match found {
+        Some(((a, b), light)) => format!(
+            "{light}`{a}` and `{b}` are the same key (two spellings of one value): give one"
+        ),
+        None => error.to_string(),
+    }
 }
 
 /// Writes a camera/scene file as pretty JSON.
@@ -641,6 +699,46 @@ mod tests {
         );
         let missing = c.lights_for(p, &[5], None).unwrap_err().to_string();
         assert!(missing.contains("no light numbered 5"), "{missing}");
+    }
+
+    /// Both spellings of one key said "duplicate field `width`"; a
+    /// top-level array said "expected a string".
+    #[test]
+    fn aliases_given_twice_and_non_objects_are_said_plainly() {
+        let dir = tempdir().unwrap();
+        let read = |name: &str, text: &str| {
+            let path = dir.path().join(name);
+            fs::write(&path, text).unwrap();
+            read_camera(&path).unwrap_err().to_string()
+        };
+        let both = read(
+            "both.json",
+            r#"{"width": 64, "calibration_width": 64, "height": 48, "focal": 80}"#,
+        );
+        assert!(
+            both.contains("`width` and `calibration_width` are the same key")
+                && both.contains("give one"),
+            "{both}"
+        );
+        let light = read(
+            "light.json",
+            r#"{"width": 64, "height": 48, "focal": 80,
+                "lights": [{"position": [0, 0, 0], "position_mm": [0, 0, 0]}]}"#,
+        );
+        assert!(
+            light.contains("light 1: `position` and `position_mm`"),
+            "{light}"
+        );
+        let array = read("array.json", r#"[{"width": 64}]"#);
+        assert!(
+            array.contains("a camera file is a JSON object") && array.contains("an array"),
+            "{array}"
+        );
+        let typo = read(
+            "typo.json",
+            r#"{"width": 1, "height": 1, "focal": 1, "foacl": 2}"#,
+        );
+        assert!(typo.contains("foacl"), "{typo}");
     }
 
     #[test]

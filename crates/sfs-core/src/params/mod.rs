@@ -19,6 +19,34 @@ pub const INTENSITY_SCALE_RANGE: (f64, f64) = (1e-30, 1e30);
 /// any unit from nanometres to light years fits.
 pub const DEPTH_RANGE: (f64, f64) = (1e-15, 1e25);
 
+/// Accepted constant initial depths (`init-depth Z`), relative to the depth
+/// the image's brightness implies (the problem's depth scale): each outer
+/// iteration moves a pixel by a small fraction of its depth at most, so a
+/// start a thousand times too near or too far is never walked back (a
+/// start of 1e-15 ended as a constant depth with an RIE of 4.6e30).
+pub const INIT_DEPTH_RELATIVE_RANGE: (f64, f64) = (1e-3, 1e3);
+
+/// Refuses a constant initial depth `z0` outside
+/// [`INIT_DEPTH_RELATIVE_RANGE`] times the problem's depth scale
+/// `depth_scale`, naming `init-depth` and the range in depth units.
+pub fn check_constant_initial_depth(z0: f64, depth_scale: f64) -> Result<(), ParamError> {
+    let (low, high) = INIT_DEPTH_RELATIVE_RANGE;
+    let (z_min, z_max) = (low * depth_scale, high * depth_scale);
+    if !(depth_scale.is_finite() && depth_scale > 0.0) || (z_min..=z_max).contains(&z0) {
+        return Ok(());
+    }
+    Err(ParamError {
+        name: "init-depth",
+        value: ParamValue::Real(z0).to_string(),
+        reason: format!(
+            "a constant start must lie within [{low:e}, {high:e}] times the depth the image's \
+             brightness implies ({depth_scale:.4e}), i.e. in [{z_min:.4e}, {z_max:.4e}] depth \
+             units: the solve cannot move a start that far (give a depth in that range, or \
+             leave --init-depth at fast-marching)"
+        ),
+    })
+}
+
 pub mod table;
 
 use crate::material::Material;
@@ -292,7 +320,7 @@ pub struct SolverParams {
     pub smoothing_sweeps: usize,
     /// Inexact Newton: a linear solve stops once its residual has fallen by
     /// this factor (relative to its start); 0 runs the fixed count (the
-    /// paper's). Default 0.1.
+    /// paper's). Default 0 (the fixed count).
     pub linear_tolerance: f64,
     /// Refining a full-resolution start, the inner iterations stop when the
     /// Charbonnier weights Psi' moved by less than this (relative, weighted)
@@ -509,7 +537,11 @@ impl SolverParams {
             return Err(error(
                 "kappa-max",
                 self.kappa_max.to_string(),
-                "must be at least kappa",
+                &format!(
+                    "is below kappa = {}: kappa-max must be at least kappa (raise kappa-max \
+                     or lower kappa)",
+                    self.kappa
+                ),
             ));
         }
         let (z_min, z_max) = DEPTH_RANGE;
@@ -569,6 +601,20 @@ mod tests {
             bad(|p| p.initial_depth = InitialDepth::Constant(-1.0)),
             "init-depth"
         );
+    }
+
+    /// `--init-depth 1e-15` ran to a constant depth with an astronomical
+    /// RIE, `1e25` to a constant depth too: both are refused by name.
+    #[test]
+    fn a_constant_start_far_from_the_images_depth_is_refused() {
+        assert!(check_constant_initial_depth(2.0, 2.0).is_ok());
+        assert!(check_constant_initial_depth(0.01, 2.0).is_ok());
+        for z0 in [1e-15, 1e25, 1e-4, 1e4] {
+            let err = check_constant_initial_depth(z0, 2.0).expect_err("refused");
+            assert_eq!(err.name, "init-depth");
+            let text = err.to_string();
+            assert!(text.contains("[2.0000e-3, 2.0000e3]"), "{text}");
+        }
     }
 
     #[test]

@@ -401,7 +401,7 @@ pub const PARAMS: &[ParamSpec] = &[
         name: "linear-tolerance",
         label: "linear tolerance",
         help: "Inexact Newton: each linear solve stops once its residual fell by this factor \
-               (default 0.1); 0 runs the fixed sweep or cycle count (the paper's).",
+               (default 0: the fixed sweep or cycle count, the paper's).",
         kind: ParamKind::Real {
             min: 0.0,
             max: 1.0,
@@ -652,7 +652,7 @@ pub const PARAMS: &[ParamSpec] = &[
         help: "The albedo prior's weight, used by --albedo auto: the smallest step of log \
                brightness between neighbouring pixels taken as a change of albedo rather than \
                of shading (an L0 penalty tau^2 on the log albedo's gradient; default 0.2, a \
-               ratio of 1.22; a step must also exceed three times its noise). Lower finds \
+               ratio of 1.22; a step must also exceed five times its noise). Lower finds \
                fainter marks and takes more shading for albedo. In [0.02, 2].",
         kind: ParamKind::Real {
             min: 0.02,
@@ -740,5 +740,54 @@ mod tests {
         );
         assert!(spec("lambda").expect("lambda").parse("1e300").is_err());
         assert!(spec("domain").expect("domain").parse("OBJECT").is_ok());
+    }
+
+    /// Every number a help text calls the default ("default 0.1", "Default
+    /// 5") is the default (`--linear-tolerance` said 0.1 where it is 0).
+    #[test]
+    fn the_defaults_the_help_states_are_the_defaults() {
+        let defaults = SolverParams::default();
+        for s in PARAMS {
+            let lower = s.help.to_ascii_lowercase();
+            for (at, _) in lower.match_indices("default ") {
+                let rest = &lower[at + "default ".len()..];
+                let number: String = rest
+                    .chars()
+                    .take_while(|c| c.is_ascii_digit() || matches!(c, '.' | 'e' | '-'))
+                    .collect();
+                let Ok(stated) = number.trim_end_matches('.').parse::<f64>() else {
+                    continue;
+                };
+                let actual = match (s.get)(&defaults) {
+                    ParamValue::Real(v) => v,
+                    ParamValue::Count(v) => v as f64,
+                    other => panic!("{}: help states default {stated}, is {other}", s.name),
+                };
+                assert_eq!(stated, actual, "{}: help says default {stated}", s.name);
+            }
+        }
+    }
+
+    /// The albedo-edge help states the noise factor `crate::albedo` uses
+    /// (it said three times where the code uses five).
+    #[test]
+    fn albedo_edge_help_states_the_codes_noise_factor() {
+        let source = include_str!("../albedo.rs");
+        let key = "const NOISE_SIGMAS: f64 = ";
+        let at = source.find(key).expect("albedo.rs defines NOISE_SIGMAS") + key.len();
+        let sigmas: f64 = source[at..]
+            .split(';')
+            .next()
+            .and_then(|v| v.trim().parse().ok())
+            .expect("NOISE_SIGMAS is a number");
+        let words = [
+            "zero", "one", "two", "three", "four", "five", "six", "seven", "eight",
+        ];
+        let word = words[sigmas as usize];
+        let help = spec("albedo-edge").expect("albedo-edge").help;
+        assert!(
+            help.contains(&format!("{word} times its noise")),
+            "albedo-edge help does not say {word} times the noise: {help}"
+        );
     }
 }

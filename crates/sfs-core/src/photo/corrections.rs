@@ -113,7 +113,15 @@ fn read_sized(
     size: (usize, usize),
     mode: SrgbMode,
 ) -> Result<Grid<f64>, IoError> {
-    let (grid, _, _) = io::read_photo(path, mode)?;
+    // A `.npy` map (the albedo.npy a solve writes) is read as its values.
+    let npy = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+    let grid = if npy {
+        io::read_npy(path)?
+    } else {
+        io::read_photo(path, mode)?.0
+    };
     if grid.size() != size {
         return Err(IoError::BadImage {
             path: path.to_path_buf(),

@@ -1132,6 +1132,22 @@ mod tests {
         assert!((prepared.report.clipped_share.unwrap() - 0.01).abs() < 1e-12);
     }
 
+    /// `--albedo out/albedo.npy` (the tool's own output) was "not an
+    /// image": a `.npy` map is read as its values.
+    #[test]
+    fn an_albedo_npy_map_is_divided_out_like_an_image() {
+        let dir = tempdir().unwrap();
+        let image = dir.path().join("photo.png");
+        write_png16(&image, &Grid::filled(10, 10, 0.4)).unwrap();
+        let albedo = dir.path().join("albedo.npy");
+        let map = Grid::from_fn(10, 10, |c, _| if c < 5 { f64::NAN } else { 0.5 });
+        crate::io::write_npy_f32(&albedo, &map).unwrap();
+        let prepared = prepared_with_albedo(&image, albedo);
+        assert!((*prepared.problem.image.at(9, 0) - 0.8).abs() < 1e-4);
+        // NaN (the background of a solve's albedo.npy) is not trusted.
+        assert!((prepared.report.albedo_untrusted_share - 0.5).abs() < 1e-12);
+    }
+
     #[test]
     fn an_albedo_below_the_floor_is_not_trusted_and_reported() {
         let dir = tempdir().unwrap();

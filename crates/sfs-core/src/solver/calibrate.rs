@@ -570,6 +570,46 @@ impl DistanceTarget {
         }
     }
 
+    /// Refuses a target the image cannot meet within
+    /// [`crate::params::INTENSITY_SCALE_RANGE`]: meeting it needs the
+    /// intensity scale `needed`, and depth grows as `sqrt(s)`. The error
+    /// names the known depth (or distance) and the depths that fit, not the
+    /// intensity scale the user never gave.
+    fn check_reach(&self, needed: f64) -> Result<(), SolveError> {
+        let (s_min, s_max) = crate::params::INTENSITY_SCALE_RANGE;
+        if needed.is_finite() && (s_min..=s_max).contains(&needed) {
+            return Ok(());
+        }
+        let depth = self.mean_depth();
+        let (low, high) = (
+            depth * (s_min / needed).sqrt(),
+            depth * (s_max / needed).sqrt(),
+        );
+        let what = match self {
+            Self::Points(points) => match points.as_slice() {
+                [p] => format!(
+                    "known depth {} at pixel {},{}",
+                    crate::params::ParamValue::Real(p.depth),
+                    p.column_px,
+                    p.row_px
+                ),
+                _ => format!(
+                    "known depths (mean {})",
+                    crate::params::ParamValue::Real(depth)
+                ),
+            },
+            Self::Median(distance) => format!(
+                "object distance {}",
+                crate::params::ParamValue::Real(*distance)
+            ),
+        };
+        Err(SolveError::Input(format!(
+            "{what} is out of this image's reach: a surface that far (or near) would need an \
+             intensity scale of {needed:.4e}, beyond [{s_min:e}, {s_max:e}]; distances from \
+             about {low:.4e} to {high:.4e} fit (check the depth's unit)"
+        )))
+    }
+
     /// The mean of the given depths.
     fn mean_depth(&self) -> f64 {
         match self {
@@ -665,7 +705,14 @@ fn search_scale(
         previous = Some((log_s, log_k));
         // A step of at most a factor 4 in s.
         let step = (-log_k / slope).clamp(-4f64.ln(), 4f64.ln());
-        problem.intensity_scale = (log_s + step).exp();
+        let next = (log_s + step).exp();
+        let (s_min, s_max) = crate::params::INTENSITY_SCALE_RANGE;
+        if !(s_min..=s_max).contains(&next) {
+            // Out of range on the way: named by the scale the target needs
+            // (depth growing as the slope says), beyond it too.
+            target.check_reach((log_s - log_k / slope).exp())?;
+        }
+        problem.intensity_scale = next;
         let solution = super::solve_method(problem, params, method, observer)?;
         solves += 1;
         k = target.factor(&solution.depth)?;
@@ -896,6 +943,7 @@ fn search_target(
         let mut solves = 1;
         let k = target.factor(&solution.depth)?;
         if (k - 1.0).abs() >= KNOWN_DEPTH_TOLERANCE {
+            target.check_reach(problem.intensity_scale * k * k)?;
             problem.intensity_scale *= k * k;
             solution = super::solve_method(problem, params, method, observer)?;
             solves += 1;
@@ -1006,6 +1054,31 @@ mod tests {
     /// +-1 % in turn, uncorrelated with `j` over -3..=3.
     fn alternating(j: i32) -> f64 {
         if j.rem_euclid(2) == 0 { 0.01 } else { -0.01 }
+    }
+
+    /// `--known-depth 64,64,1e30` blamed the intensity scale, which the
+    /// user never gave: the known depth is named, with the depths that fit.
+    #[test]
+    fn a_known_depth_out_of_reach_is_named_with_the_depths_that_fit() {
+        let target = DistanceTarget::Points(vec![KnownDepth {
+            column_px: 24.0,
+            row_px: 20.0,
+            depth: 1e30,
+        }]);
+        assert!(target.check_reach(1.0).is_ok());
+        let err = target
+            .check_reach(1e60)
+            .expect_err("out of reach")
+            .to_string();
+        assert!(err.contains("known depth 1e30 at pixel 24,20"), "{err}");
+        assert!(err.contains("to 1.0000e15 fit"), "{err}");
+        assert!(!err.starts_with("intensity scale"), "{err}");
+        let far = DistanceTarget::Median(1e-20);
+        let err = far
+            .check_reach(1e-40)
+            .expect_err("out of reach")
+            .to_string();
+        assert!(err.contains("object distance 1e-20"), "{err}");
     }
 
     #[test]

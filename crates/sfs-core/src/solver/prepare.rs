@@ -124,6 +124,9 @@ pub(crate) fn prepare<'a>(
     check_cancelled(observer)?;
     let (w, h) = problem.image.size();
     let scales = problem.scales(&confidence, Cancel::new(&|| observer.is_cancelled()))?;
+    if let InitialDepth::Constant(z0) = params.initial_depth {
+        crate::params::check_constant_initial_depth(z0, scales.depth)?;
+    }
     let mut finest = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, problem.camera),
         image: std::borrow::Cow::Borrowed(&problem.image),
