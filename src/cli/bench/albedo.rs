@@ -268,7 +268,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         face,
         skipped,
     };
-    super::report::write_part(&args.out, "albedo", &report, &markdown(&report))?;
+    super::markdown::write_part(&args.out, "albedo", &report, &markdown(&report))?;
     Ok(())
 }
 
@@ -380,8 +380,8 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
 
 /// The report as markdown.
 fn markdown(report: &AlbedoReport) -> String {
-    let mut md = super::report::markdown_head("Albedo from one photograph", &report.command);
-    super::report::table_head(
+    let mut md = super::markdown::markdown_head("Albedo from one photograph", &report.command);
+    super::markdown::table_head(
         &mut md,
         &format!(
             "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \

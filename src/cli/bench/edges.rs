@@ -30,7 +30,7 @@ use sfs_core::params::{InitialDepth, SolverParams};
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
-use super::report::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::robustness::{problem, render_or_skip};
 use super::{BenchArgs, wanted};
 

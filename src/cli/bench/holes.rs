@@ -19,7 +19,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::{Problem, solve};
 
-use super::report::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::robustness::{problem, render_or_skip};
 use super::{BenchArgs, wanted};
 

@@ -19,6 +19,7 @@ mod edges;
 mod face;
 mod holes;
 mod lights;
+mod markdown;
 mod paper_figures;
 mod ps;
 mod real;

@@ -248,7 +248,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
             )),
         }
     }
-    super::report::write_part(&args.out, "ps", &report, &markdown(&report))?;
+    super::markdown::write_part(&args.out, "ps", &report, &markdown(&report))?;
     Ok(())
 }
 

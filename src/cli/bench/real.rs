@@ -205,7 +205,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         truth_distance_mm: truth_distance,
         rows,
     };
-    super::report::write_part(&args.out, "real", &report, &markdown(&report))?;
+    super::markdown::write_part(&args.out, "real", &report, &markdown(&report))?;
     Ok(())
 }
 

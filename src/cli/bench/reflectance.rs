@@ -222,7 +222,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         face,
         skipped,
     };
-    super::report::write_part(&args.out, "reflectance", &report, &markdown(&report))?;
+    super::markdown::write_part(&args.out, "reflectance", &report, &markdown(&report))?;
     Ok(())
 }
 

@@ -10,6 +10,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use super::super::figures;
+use super::markdown::{table_head, write_markdown};
 use super::{
     ALPHA_CLEAN, ALPHA_NOISY, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, TV_ITERATIONS, lights,
     robustness,
@@ -233,77 +234,6 @@ pub(super) fn write(out: &Path, report: &Report, conditions: &Conditions) -> Res
     sfs_core::io::write_json(&json, report)
         .with_context(|| format!("cannot write {}", json.display()))?;
     write_markdown(out, "report", &markdown(report, conditions))
-}
-
-/// Writes a part's markdown `md` as `<name>.md` into `out`, naming the file
-/// when it cannot.
-pub(super) fn write_markdown(out: &Path, name: &str, md: &str) -> Result<()> {
-    let path = out.join(format!("{name}.md"));
-    std::fs::write(&path, md).with_context(|| format!("cannot write {}", path.display()))
-}
-
-/// Writes a part's report as `<name>.json` and its markdown `md` as
-/// `<name>.md` into `out`.
-pub(super) fn write_part<T: Serialize>(out: &Path, name: &str, report: &T, md: &str) -> Result<()> {
-    sfs_core::io::write_json(&out.join(format!("{name}.json")), report)?;
-    write_markdown(out, name, md)
-}
-
-/// The report of a part over rendered scenes (`holes`, `shadows`, `edges`):
-/// its rows and the mesh scenes skipped.
-#[derive(Clone, Debug, Serialize)]
-pub struct SceneReport<R> {
-    /// The command line.
-    pub command: String,
-    /// The rows.
-    pub rows: Vec<R>,
-    /// Mesh scenes whose file was missing.
-    pub skipped: Vec<String>,
-}
-
-impl<R: Serialize> SceneReport<R> {
-    /// The report of `rows` and `skipped` under this run's command line,
-    /// written into `out` as `<name>.json` and, by `markdown`, `<name>.md`.
-    pub(super) fn write(
-        out: &Path,
-        name: &str,
-        rows: Vec<R>,
-        skipped: Vec<String>,
-        markdown: fn(&Self) -> String,
-    ) -> Result<Self> {
-        let report = Self {
-            command: super::command_line(),
-            rows,
-            skipped,
-        };
-        write_part(out, name, &report, &markdown(&report))?;
-        Ok(report)
-    }
-}
-
-/// A part's markdown begun: `title` as its heading, then the command line
-/// that ran it.
-pub(super) fn markdown_head(title: &str, command: &str) -> String {
-    let mut md = String::new();
-    let _ = writeln!(md, "# {title}\n");
-    let _ = writeln!(md, "Command: `{command}`\n");
-    md
-}
-
-/// Writes a markdown table's `header` row (`| a | b |`) and the separator
-/// row under it, one `---` a column.
-pub(super) fn table_head(md: &mut String, header: &str) {
-    let columns = header.matches('|').count().saturating_sub(1);
-    let _ = writeln!(md, "{header}");
-    let _ = writeln!(md, "|{}", " --- |".repeat(columns));
-}
-
-/// Writes the line naming the mesh scenes skipped because their file was
-/// missing (nothing when none was).
-pub(super) fn skipped_meshes(md: &mut String, skipped: &[String]) {
-    if !skipped.is_empty() {
-        let _ = writeln!(md, "\nSkipped (mesh missing): {}", skipped.join(", "));
-    }
 }
 
 /// report.md.

@@ -291,7 +291,7 @@ pub fn markdown(robustness: &Robustness) -> String {
          unchanged (the same shape at depth / sqrt(k)). Truth start: the default solve started \
          from the true depth.\n"
     );
-    super::report::table_head(
+    super::markdown::table_head(
         &mut md,
         "| scene | size | noise | exposure | default RSE | chosen alpha | best RSE (alpha) | default / best | truth start | fast marching | seconds |",
     );

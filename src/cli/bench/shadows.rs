@@ -24,7 +24,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene, mesh, shadow, sombrero};
 use sfs_core::solver::{Problem, Solution, solve};
 
-use super::report::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::{BenchArgs, wanted};
 
 /// Seed of the noise.

@@ -401,7 +401,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         convergence: convergence_rows,
         skipped,
     };
-    super::report::write_part(&args.out, "speed", &report, &markdown(&report))?;
+    super::markdown::write_part(&args.out, "speed", &report, &markdown(&report))?;
     Ok(report)
 }
 
