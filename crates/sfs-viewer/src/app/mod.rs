@@ -18,7 +18,6 @@ mod level_prep;
 mod measure;
 mod panels;
 mod session;
-mod set_view;
 mod settings;
 mod view3d;
 

@@ -14,6 +14,7 @@ mod mask;
 mod menu;
 mod params;
 mod progress;
+mod set_view;
 mod status;
 mod surface;
 mod view_settings;
@@ -25,10 +26,10 @@ use eframe::egui;
 use super::images;
 use super::level_prep::BuiltMesh;
 use super::session::{Export, Session};
-use super::set_view::SetView;
 use super::settings::Settings;
 use super::view3d::SurfaceView;
 use crate::mask_edit::{ImagePoint, Layer};
+use set_view::SetView;
 use sfs_core::grid::Grid;
 
 /// Which 2-D panel is shown.

@@ -9,10 +9,10 @@
 
 use eframe::egui;
 
-use super::images;
-use super::panels::{Action, Panel2d, UiContext};
-use super::session::Session;
-use super::settings::SetParamSettings;
+use super::{Action, Panel2d, UiContext};
+use crate::app::images;
+use crate::app::session::Session;
+use crate::app::settings::SetParamSettings;
 use sfs_core::grid::Grid;
 use sfs_core::solver::photometric::PhotometricSolution;
 
@@ -452,7 +452,7 @@ fn fit_table_ui(ui: &mut egui::Ui, solution: &PhotometricSolution) {
         ui.end_row();
         for photo in &solution.photos {
             let name = std::path::Path::new(&photo.name);
-            ui.label(super::document::file_name(name))
+            ui.label(crate::app::document::file_name(name))
                 .on_hover_text(photo.name.as_str());
             ui.label(format!("{:.3}", photo.intensity));
             ui.label(format!("{:.4}", photo.relative_residual));
