@@ -12,6 +12,7 @@ mod bench;
 mod eval;
 mod figures;
 mod lights;
+mod outputs;
 mod params;
 mod photometric;
 mod solve;

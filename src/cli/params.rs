@@ -51,6 +51,13 @@ impl FromArgMatches for ParamArgs {
 }
 
 impl ParamArgs {
+    /// The names of the table's options given on the command line (the
+    /// table's options have no default on the command line: given means
+    /// typed), in the table's order.
+    pub fn given_names(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.given.iter().map(|(spec, _)| spec.name)
+    }
+
     /// Parameters from the given options over the defaults of the chosen
     /// `--units` (the defaults of lambda and dz-limit depend on them). The
     /// error names the first bad option.
@@ -189,10 +196,10 @@ mod tests {
 
     #[test]
     fn options_come_from_the_table_and_units_set_the_defaults() {
-        let probe = Probe::try_parse_from(["x", "--alpha", "3e-7", "--kappa", "7"]).expect("parse");
+        let probe = Probe::try_parse_from(["x", "--alpha", "3e-7", "--kappa", "3"]).expect("parse");
         let p = probe.params.to_params().expect("params");
         assert_eq!(p.alpha, sfs_core::params::Alpha::Value(3e-7));
-        assert_eq!(p.kappa, 7);
+        assert_eq!(p.kappa, 3);
         assert_eq!(p.lambda, SolverParams::default().lambda);
         let paper = Probe::try_parse_from(["x", "--units", "paper"]).expect("parse");
         let p = paper.params.to_params().expect("params");

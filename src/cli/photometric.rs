@@ -13,37 +13,12 @@ use super::solve::SolveArgs;
 use crate::output::OutputStage;
 use sfs_core::grid::Grid;
 use sfs_core::io;
-use sfs_core::photo::{self, PhotoInput, PhotoReport};
+use sfs_core::photo::{self, CameraSpec, PhotoInput, PhotoReport};
 use sfs_core::scene::photometric::{albedo_error, mean_angle_deg};
 use sfs_core::solver::photometric::{
     self as ps, PhotoResult, PhotometricParams, PhotometricSolution, SingleComparison,
 };
 use sfs_core::solver::{self, LevelResult, SolveObserver};
-
-/// The fixed outputs of a set's solve (each photograph's residual is
-/// `residual_NN.png`, NN its place in the set from 01).
-const FIXED_OUTPUTS: &[&str] = &[
-    "depth.npy",
-    "depth16.png",
-    "mesh.ply",
-    "normals.npy",
-    "normals.png",
-    "albedo.npy",
-    "albedo.png",
-    "single_depth.npy",
-    "single_depth16.png",
-    "report.json",
-];
-
-/// Every file a set's solve may write (for the output folder's stale-file
-/// removal).
-fn outputs() -> Vec<String> {
-    FIXED_OUTPUTS
-        .iter()
-        .map(|s| (*s).to_owned())
-        .chain((1..=64).map(|k| format!("residual_{k:02}.png")))
-        .collect()
-}
 
 /// `--NAME TEXT`: `auto` (`None`) or a number; `positive`: above 0, else
 /// at least 0. One rule and one message per option (`--ps-robust-scale -1`
@@ -101,6 +76,21 @@ fn refuse_single_options(args: &SolveArgs) -> Result<()> {
             "a set leaves out shadows, saturation and outliers per photograph itself",
         )?;
     }
+    // The table's options set the single-image solver: with
+    // --compare-single they apply to that photograph's solve, without it
+    // they would change nothing.
+    if args.compare_single.is_none() {
+        if let Some(name) = args.params.given_names().next() {
+            refuse(&format!("--{name}"), &table_option_in_set(name))?;
+        }
+        if args.albedo.trim() == "1" {
+            refuse(
+                "--albedo 1",
+                "a set always estimates its albedo with the shape (albedo.npy); --albedo \
+                 applies to --compare-single",
+            )?;
+        }
+    }
     if args.intensity_scale.is_some() && args.compare_single.is_none() {
         refuse(
             "--intensity-scale",
@@ -111,19 +101,82 @@ fn refuse_single_options(args: &SolveArgs) -> Result<()> {
     Ok(())
 }
 
+/// Why a single-image solver option (an entry of the parameter table)
+/// does nothing to a set, and the option that does its job there, if any.
+fn table_option_in_set(name: &str) -> String {
+    let does = match name {
+        "alpha" | "lambda" => {
+            "a set's smoothness weight is --ps-smoothness (`auto` or a number)".to_owned()
+        }
+        "shadow-bound" => "a set leaves each photograph's shadows out of its data itself \
+                           (--ps-no-cast-shadows stops tracing cast shadows)"
+            .to_owned(),
+        "reflectance" | "roughness" | "specular" | "shininess" => {
+            "a set is solved as a Lambertian surface whose albedo it estimates".to_owned()
+        }
+        "albedo-edge" => {
+            "a set estimates its albedo per pixel from all its photographs together".to_owned()
+        }
+        "units" => "a set's smoothness is relative (--ps-smoothness)".to_owned(),
+        _ => "a set is solved by its own scheme (its options are the --ps-* ones)".to_owned(),
+    };
+    format!(
+        "{does}; the option sets the single-image solver and applies only with \
+         --compare-single"
+    )
+}
+
 /// The input of a set: the pipeline's input of the options, kept apart,
 /// with each photograph's own confidence.
 fn set_input(args: &SolveArgs) -> Result<PhotoInput> {
-    let mut input = args.photo_input()?;
+    let mut input = match folder_set(args)? {
+        Some(folder) => {
+            let mut input = args.photo_input_of(&folder.images)?;
+            if matches!(input.camera, CameraSpec::Exif { .. }) {
+                input.camera = CameraSpec::File(folder.camera);
+            }
+            let beside = |name: &str| {
+                Some(folder.dir.join(name)).filter(|p| p.is_file() && !folder.images.contains(p))
+            };
+            if input.object_mask.is_none() {
+                input.object_mask = beside("mask.png");
+            }
+            if input.ambient.is_none() {
+                input.ambient = beside("ambient.png");
+            }
+            if !args.quiet {
+                eprintln!(
+                    "the set in {}: {} photographs named by {}{}{}",
+                    folder.dir.display(),
+                    input.images.len(),
+                    match &input.camera {
+                        CameraSpec::File(file) => file.display().to_string(),
+                        _ => "the camera file".into(),
+                    },
+                    input
+                        .object_mask
+                        .as_ref()
+                        .map_or_else(String::new, |m| format!(", object mask {}", m.display())),
+                    input
+                        .ambient
+                        .as_ref()
+                        .map_or_else(String::new, |a| format!(", ambient frame {}", a.display()))
+                );
+            }
+            input
+        }
+        None => args.photo_input()?,
+    };
+    let images = input.images.clone();
     input.photometric_stereo = true;
     input.given_intensities = !args.lights.intensities.is_empty();
     if !args.photo_confidence.is_empty() {
-        let mut each: Vec<Option<PathBuf>> = vec![None; args.images.len()];
+        let mut each: Vec<Option<PathBuf>> = vec![None; images.len()];
         for given in &args.photo_confidence {
             let Some((image, file)) = given.split_once('=') else {
                 bail!("--photo-confidence {given}: expected IMAGE=FILE");
             };
-            let k = find_image(&args.images, Path::new(image)).with_context(|| {
+            let k = find_image(&images, Path::new(image)).with_context(|| {
                 format!("--photo-confidence {given}: {image} is not one of the photographs")
             })?;
             if each[k].is_some() {
@@ -134,6 +187,55 @@ fn set_input(args: &SolveArgs) -> Result<PhotoInput> {
         input.photo_confidence = each;
     }
     Ok(input)
+}
+
+/// A set given as one folder (`solve --photometric-stereo DIR`).
+struct FolderSet {
+    dir: PathBuf,
+    /// The photographs the camera file's lights name, in their order.
+    images: Vec<PathBuf>,
+    /// The folder's camera file.
+    camera: PathBuf,
+}
+
+/// The set a folder holds when the one path given is a folder, found as
+/// `view DIR` finds it (the viewer's [`sfs_viewer::app::set_images_in`]):
+/// the photographs its `scene.json` or `calibration.json` names by their
+/// lights; its `mask.png` and `ambient.png` are used where the options
+/// name none. `None` for photographs.
+#[cfg(feature = "gui")]
+fn folder_set(args: &SolveArgs) -> Result<Option<FolderSet>> {
+    let [dir] = args.images.as_slice() else {
+        return Ok(None);
+    };
+    if !dir.is_dir() {
+        return Ok(None);
+    }
+    let images = sfs_viewer::app::set_images_in(dir)?;
+    // `set_images_in` read the lights from the first of these present.
+    let camera = ["scene.json", "calibration.json"]
+        .iter()
+        .map(|name| dir.join(name))
+        .find(|p| p.is_file())
+        .with_context(|| format!("{} holds no camera file", dir.display()))?;
+    Ok(Some(FolderSet {
+        dir: dir.clone(),
+        images,
+        camera,
+    }))
+}
+
+/// Without the viewer's code (feature `gui`) a folder is refused by name.
+#[cfg(not(feature = "gui"))]
+fn folder_set(args: &SolveArgs) -> Result<Option<FolderSet>> {
+    match args.images.as_slice() {
+        [dir] if dir.is_dir() => bail!(
+            "{} is a folder: this build has no viewer (feature `gui`), whose folder reading \
+             solve shares; give the photographs and --camera",
+            dir.display()
+        ),
+        _ => Ok(None),
+    }
 }
 
 /// The index of `wanted` among `images` (the same path, or the same file
@@ -232,7 +334,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let params = params(args)?;
     let input = set_input(args)?;
     let compare = match &args.compare_single {
-        Some(image) => Some(find_image(&args.images, image).with_context(|| {
+        Some(image) => Some(find_image(&input.images, image).with_context(|| {
             format!(
                 "--compare-single {}: not one of the photographs of the set",
                 image.display()
@@ -242,13 +344,21 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     };
     let prepared = photo::prepare(&input)?;
     let problem = photo::photometric_problem(&prepared, &input)?;
-    let owned = outputs();
-    let owned: Vec<&str> = owned.iter().map(String::as_str).collect();
-    let mut stage = OutputStage::new(&args.out, &owned)?;
-    stage.keep_inputs(input.files());
+    let mut stage = super::outputs::stage(&args.out)?;
+    let truth: Vec<PathBuf> = args
+        .gt
+        .iter()
+        .flat_map(|dir| super::outputs::ground_truth_files(dir))
+        .collect();
+    stage.keep_inputs(
+        input
+            .files()
+            .into_iter()
+            .chain(truth.iter().map(PathBuf::as_path)),
+    );
     let camera = prepared.problem.camera;
     let solution = ps::solve_photometric(&problem, &params, &mut Levels { quiet: args.quiet })
-        .with_context(|| format!("cannot solve the set of {} photographs", args.images.len()))?;
+        .with_context(|| format!("cannot solve the set of {} photographs", input.images.len()))?;
     let mut warnings = ps::warnings(&solution);
 
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;

@@ -9,7 +9,6 @@ use clap::{Args, ValueEnum};
 use serde::Serialize;
 use serde_json::json;
 
-use crate::output::OutputStage;
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
 use sfs_core::memory;
@@ -274,6 +273,22 @@ impl SolveArgs {
         }
         Ok(())
     }
+
+    /// `--albedo-edge` is the albedo prior's weight, used by `--albedo auto`
+    /// only: given with `--albedo 1` or a known albedo map it would change
+    /// nothing, and is refused (as `--roughness` without its reflectance).
+    pub fn refuse_unused_albedo_edge(&self) -> Result<()> {
+        if self.albedo_choice() != AlbedoChoice::Auto
+            && self.params.given_names().any(|n| n == "albedo-edge")
+        {
+            bail!(
+                "--albedo-edge belongs to --albedo auto (the estimated albedo's prior); with \
+                 --albedo {} no albedo is estimated, so it would change nothing",
+                self.albedo
+            );
+        }
+        Ok(())
+    }
 }
 
 /// `--NAME TEXT`: `file` must exist, else the error lists what is
@@ -378,25 +393,15 @@ impl SolveObserver for Progress {
     }
 }
 
-/// Every file `solve` can write into `--out`: those a run does not write are
-/// removed when it commits, so the folder holds one run's output.
-const SOLVE_OUTPUTS: &[&str] = &[
-    "depth.npy",
-    "reprojection.png",
-    "input_linear.png",
-    "residual.png",
-    "confidence_used.png",
-    "shadow.png",
-    "depth16.png",
-    "mesh.ply",
-    "albedo.npy",
-    "albedo.png",
-    "report.json",
-];
-
 impl SolveArgs {
     /// The photo pipeline's input these arguments describe.
     pub fn photo_input(&self) -> Result<PhotoInput> {
+        self.photo_input_of(&self.images)
+    }
+
+    /// The photo pipeline's input these arguments describe, for `images`
+    /// (the photographs a folder holds, say).
+    pub fn photo_input_of(&self, images: &[PathBuf]) -> Result<PhotoInput> {
         let camera = match (&self.camera, self.focal) {
             (Some(path), _) => CameraSpec::File(path.clone()),
             (None, Some(focal_px)) => CameraSpec::Focal {
@@ -438,6 +443,7 @@ impl SolveArgs {
             })?),
         };
         self.check_word_or_file_options()?;
+        self.refuse_unused_albedo_edge()?;
         let vignetting = Vignetting::from_option(self.vignetting.as_deref());
         // The table's parameters (eta, min-level-side) size the pyramid.
         let table_params = self.params.to_params()?;
@@ -450,10 +456,10 @@ impl SolveArgs {
                 table_params.min_level_side,
             )
         };
-        let first = self.images.first().map(PathBuf::as_path);
+        let first = images.first().map(PathBuf::as_path);
         let full = first.and_then(|p| io::photo_size(p).ok());
         Ok(PhotoInput {
-            images: self.images.clone(),
+            images: images.to_vec(),
             srgb: self.srgb.mode(),
             camera,
             lights,
@@ -534,6 +540,9 @@ struct SolveReport<'a> {
     /// Share of the object taken out of the data term as shadow (lights off
     /// the optical centre only; shadow.png marks it).
     shadow_share: Option<f64>,
+    /// Options given that this input leaves without effect (each also a
+    /// warning).
+    unused_options: &'a [String],
     warnings: &'a [String],
     depth16_png_range: Option<DepthRange>,
     rse: Option<f64>,
@@ -553,8 +562,11 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     // decoded (in the pipeline); the destination is locked and checked
     // writable before the solve.
     let prepared = photo::prepare(&input)?;
-    let mut stage = OutputStage::new(&args.out, SOLVE_OUTPUTS)?;
-    let named: Vec<PathBuf> = args.init_depth.iter().map(PathBuf::from).collect();
+    let mut stage = super::outputs::stage(&args.out)?;
+    let mut named: Vec<PathBuf> = args.init_depth.iter().map(PathBuf::from).collect();
+    if let Some(dir) = &args.gt {
+        named.extend(super::outputs::ground_truth_files(dir));
+    }
     stage.keep_inputs(
         input
             .files()
@@ -709,6 +721,16 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         );
     }
     let centred = problem.light_is_centred();
+    // Options that depend on the input to matter, and that this input
+    // leaves without effect: reported on stderr and in report.json.
+    let mut unused_options: Vec<String> = Vec::new();
+    if params.shadow_bound && centred {
+        unused_options.push(
+            "--shadow-bound on: the light is at the optical centre, so the surface casts no \
+             shadow the camera sees and there is nothing to bound"
+                .into(),
+        );
+    }
     let method = args.method.method();
     let cues = solver::depth_unit::DistanceCues {
         known_depths: known_points,
@@ -908,6 +930,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         &solution.depth,
         &camera,
     ));
+    warnings.extend(unused_options.iter().map(|u| format!("unused option {u}")));
     if let Some(d) = dark
         && !warnings.iter().any(|w| w.contains("too dark"))
     {
@@ -939,6 +962,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         model_fit: &model_fit,
         model_fit_per_photo: &model_fit_per_photo,
         shadow_share,
+        unused_options: &unused_options,
         warnings: &warnings,
         depth16_png_range: depth_range.map(|(near_white, far_black)| DepthRange {
             near_white,

@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use clap::Args;
 
-use crate::output::OutputStage;
 use sfs_core::camera_file::CameraFile;
 use sfs_core::camera_file::LightEntry;
 use sfs_core::grid::Grid;
@@ -116,19 +115,6 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
     }
 }
 
-/// Every file `synth` can write into `--out`: those a run does not write
-/// (`noisy8.png` without `--noise`, say) are removed when it commits.
-const SYNTH_OUTPUTS: &[&str] = &[
-    "image16.png",
-    "image8.png",
-    "noisy8.png",
-    "confidence.png",
-    "shadow.png",
-    "mask.png",
-    "depth_gt.npy",
-    "scene.json",
-];
-
 /// Runs `synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
     if args.ps_leds.is_some() {
@@ -153,7 +139,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         "choose a smaller --size",
     )?;
     // The destination is locked and checked writable before any work.
-    let mut stage = OutputStage::new(&args.out, SYNTH_OUTPUTS)?;
+    let mut stage = super::outputs::stage(&args.out)?;
     let (scene, shadow) = render_scene(args)?;
     let (w, h) = scene.image.size();
     // A scene the solver could not take is refused, not written: lights
@@ -222,21 +208,6 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     Ok(())
 }
 
-/// Every file `synth --ps-leds` may write.
-fn set_outputs() -> Vec<String> {
-    [
-        "mask.png",
-        "depth_gt.npy",
-        "normals_gt.npy",
-        "albedo_gt.npy",
-        "scene.json",
-    ]
-    .iter()
-    .map(|s| (*s).to_owned())
-    .chain((1..=64).flat_map(|k| [format!("led{k:02}.png"), format!("clean_led{k:02}.png")]))
-    .collect()
-}
-
 /// `synth --ps-leds N`: a photometric-stereo set with its truth.
 fn run_set(args: &SynthArgs) -> Result<()> {
     let count = args.ps_leds.unwrap_or(2) as usize;
@@ -266,9 +237,7 @@ fn run_set(args: &SynthArgs) -> Result<()> {
         sfs_core::memory::synth_estimate(args.size).saturating_mul(count as u64 + 2),
         "choose a smaller --size or fewer --ps-leds",
     )?;
-    let owned = set_outputs();
-    let owned: Vec<&str> = owned.iter().map(String::as_str).collect();
-    let mut stage = OutputStage::new(&args.out, &owned)?;
+    let mut stage = super::outputs::stage(&args.out)?;
     // The object's centre: the Sombrero's rim depth, a mesh's distance.
     let target = if args.scene == "sombrero" {
         [0.0, 0.0, 2.0]

@@ -231,3 +231,34 @@ fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
     let share = report["shadow_share"].as_f64().expect("shadow_share");
     assert!((share - in_shadow as f64 / 9216.0).abs() < 0.01, "{share}");
 }
+
+/// Issue 48, item 7: `synth` 64x64 with noise, then 96x96 without, into one
+/// folder left the old `noisy8.png`; a set (`--ps-leds`) then one image left
+/// the set's photographs and truth. One run's files per folder, whatever
+/// ran there before; files the tool does not write are never removed.
+#[test]
+fn a_reused_synth_folder_holds_one_runs_files() {
+    let dir = tempdir().unwrap();
+    let out = dir.path().join("d");
+    let synth = |extra: &[&str]| {
+        let mut args = vec!["synth", "sombrero", "--out"];
+        let path = s(&out);
+        args.push(&path);
+        args.extend(extra);
+        assert_success(&sfs(&args), &format!("synth {extra:?}"));
+    };
+    synth(&["--size", "64x64", "--noise", "5"]);
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    synth(&["--size", "96x96"]);
+    let names = entries(&out);
+    assert!(!names.contains(&"noisy8.png".to_owned()), "{names:?}");
+    assert!(names.contains(&"notes.txt".to_owned()), "{names:?}");
+    synth(&["--size", "32x32", "--ps-leds", "3"]);
+    synth(&["--size", "32x32"]);
+    let names = entries(&out);
+    for gone in ["led01.png", "led03.png", "normals_gt.npy", "albedo_gt.npy"] {
+        assert!(!names.contains(&gone.to_owned()), "{gone} left: {names:?}");
+    }
+    assert!(names.contains(&"notes.txt".to_owned()), "{names:?}");
+    assert!(names.contains(&"image16.png".to_owned()), "{names:?}");
+}
