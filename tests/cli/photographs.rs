@@ -231,3 +231,100 @@ fn photometric_stereo_end_to_end() {
     ]);
     expect_failure(&unknown, &bad, &["led09.png", "not one of the photographs"]);
 }
+
+/// Silent wrong answers of issue 48, now refused naming the cause: a
+/// photograph repeated in a set under another light (12.8 degrees off), a
+/// black photograph in a set (residual NaN), and an absurd principal point
+/// (`--cy 1e100`: an all-zero depth.npy with exit 0; a camera file with
+/// `cx = 1e6` taken without a word).
+#[test]
+fn a_repeated_or_black_photograph_and_an_absurd_principal_point_are_refused() {
+    let dir = tempdir().expect("temp dir");
+    let set = dir.path().join("set");
+    let out = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "48x48",
+        "--ps-leds",
+        "4",
+        "--out",
+        &s(&set),
+    ]);
+    assert_success(&out, "synth --ps-leds");
+    let bad = dir.path().join("bad");
+    let set_args = |folder: &std::path::Path| {
+        let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+        args.extend((1..=4).map(|k| s(&folder.join(format!("led{k:02}.png")))));
+        args.extend([
+            "--camera".into(),
+            s(&folder.join("scene.json")),
+            "--mask".into(),
+            s(&folder.join("mask.png")),
+            "--out".into(),
+            s(&bad),
+        ]);
+        args
+    };
+    let variant = |name: &str| {
+        let folder = dir.path().join(name);
+        fs::create_dir(&folder).expect("folder");
+        for file in ["led01.png", "led02.png", "led03.png", "led04.png"] {
+            fs::copy(set.join(file), folder.join(file)).expect("copy");
+        }
+        for file in ["scene.json", "mask.png"] {
+            fs::copy(set.join(file), folder.join(file)).expect("copy");
+        }
+        folder
+    };
+    // led02.png is a copy of led01.png.
+    let copied = variant("copied");
+    fs::copy(set.join("led01.png"), copied.join("led02.png")).expect("copy");
+    expect_failure(
+        &set_args(&copied),
+        &bad,
+        &["led01.png", "led02.png", "same photograph"],
+    );
+    // led03.png is black.
+    let black = variant("black");
+    sfs_core::io::write_png16(
+        &black.join("led03.png"),
+        &sfs_core::grid::Grid::filled(48, 48, 0.0),
+    )
+    .expect("black");
+    expect_failure(
+        &set_args(&black),
+        &bad,
+        &["led03.png", "no lit object pixel above the noise"],
+    );
+    // One photograph with an absurd principal point.
+    let image = s(&set.join("led01.png"));
+    for (key, value) in [("--cy", "1e100"), ("--cx", "1e300"), ("--cy", "1e8")] {
+        let args: Vec<String> = vec![
+            "solve".into(),
+            image.clone(),
+            "--focal".into(),
+            "60".into(),
+            key.into(),
+            value.into(),
+            "--out".into(),
+            s(&bad),
+        ];
+        expect_failure(&args, &bad, &[key.trim_start_matches("--"), "outside"]);
+    }
+    let camera = dir.path().join("camera.json");
+    fs::write(
+        &camera,
+        r#"{"width": 48, "height": 48, "focal": 60, "cx": 1e6, "cy": 23.5}"#,
+    )
+    .expect("camera file");
+    let args: Vec<String> = vec![
+        "solve".into(),
+        image,
+        "--camera".into(),
+        s(&camera),
+        "--out".into(),
+        s(&bad),
+    ];
+    expect_failure(&args, &bad, &["camera.json", "cx", "outside"]);
+}

@@ -2,6 +2,19 @@
 
 use serde::{Deserialize, Serialize};
 
+/// How far outside the image the principal point may lie, in image sides:
+/// `cx` in `[-k W, (1 + k) W]`, `cy` in `[-k H, (1 + k) H]`. A real lens
+/// (even a shifted tilt-shift one, or a crop far from the sensor's centre)
+/// keeps it within a few sides; `--cy 1e8` put every pixel at the same
+/// huge image-plane coordinate and solved to a constant depth of 1e-6
+/// (`1e100`: an all-zero depth) without a word.
+pub const MAX_PRINCIPAL_OFFSET_SIDES: f64 = 10.0;
+
+/// The largest focal length, as a multiple of the image's longest side:
+/// above it the field of view is below 0.006 degrees, an orthographic
+/// camera the perspective model only reaches by underflow.
+pub const MAX_FOCAL_PER_SIDE: f64 = 1e4;
+
 /// Pinhole intrinsics at full image resolution, all in pixels.
 ///
 /// Pixel (column `i`, row `j`) has image-plane coordinates
@@ -38,6 +51,45 @@ impl Intrinsics {
     #[inline]
     pub fn back_project(&self, x: f64, y: f64, depth: f64) -> [f64; 3] {
         [depth * x / self.focal_px, depth * y / self.focal_px, depth]
+    }
+
+    /// Checks the intrinsics for a `width` x `height` image: a focal length
+    /// in `[MIN_FOCAL_PER_SIDE, MAX_FOCAL_PER_SIDE]` times the longest side
+    /// (see [`crate::camera_file::MIN_FOCAL_PER_SIDE`],
+    /// [`MAX_FOCAL_PER_SIDE`]) and a principal point within
+    /// [`MAX_PRINCIPAL_OFFSET_SIDES`] of the image. The message names the
+    /// value (`focal`, `cx`, `cy`) and the range.
+    ///
+    /// # Errors
+    /// The first value out of its range, in words.
+    pub fn check_for(&self, width: usize, height: usize) -> Result<(), String> {
+        let side = width.max(height).max(1) as f64;
+        let (f_min, f_max) = (
+            crate::camera_file::MIN_FOCAL_PER_SIDE * side,
+            MAX_FOCAL_PER_SIDE * side,
+        );
+        let f = self.focal_px;
+        if !(f.is_finite() && f >= f_min && f <= f_max) {
+            return Err(format!(
+                "focal length {f:e} px is outside [{f_min:e}, {f_max:e}] px for a \
+                 {width}x{height} image ({} to {MAX_FOCAL_PER_SIDE:e} times its longest side)",
+                crate::camera_file::MIN_FOCAL_PER_SIDE
+            ));
+        }
+        let k = MAX_PRINCIPAL_OFFSET_SIDES;
+        for (key, v, extent) in [
+            ("cx", self.principal_x_px, width as f64),
+            ("cy", self.principal_y_px, height as f64),
+        ] {
+            let (lo, hi) = (-k * extent, (1.0 + k) * extent);
+            if !(v.is_finite() && v >= lo && v <= hi) {
+                return Err(format!(
+                    "principal point {key} = {v:e} px is outside [{lo}, {hi}] px for a \
+                     {width}x{height} image (at most {k} image sides beyond its edge)"
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Horizontal field of view in degrees for an image `width_px` wide.

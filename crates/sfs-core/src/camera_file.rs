@@ -291,12 +291,12 @@ impl CameraFile {
                 camera.focal_px, MIN_FOCAL_PER_SIDE, self.width, self.height
             ));
         }
-        for (key, v) in [("cx", camera.principal_x_px), ("cy", camera.principal_y_px)] {
-            if !(v.is_finite() && v.abs() < 1e9) {
-                return bad(format!(
-                    "`{key}` must be a finite number of pixels below 1e9 in size, got {v}"
-                ));
-            }
+        // The principal point (and the focal length's upper bound) against
+        // the calibration's size, as every solve checks them.
+        if let Err(reason) = camera.check_for(self.width, self.height) {
+            return bad(format!(
+                "{reason}: the size of the file's `width` and `height`"
+            ));
         }
         // Each LED number and image name once: a duplicate would silently
         // resolve to the first.

@@ -114,6 +114,9 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
             if let Some(cy) = cy_px {
                 camera.principal_y_px = *cy;
             }
+            camera
+                .check_for(full_size.0, full_size.1)
+                .map_err(|reason| PhotoError::Input(format!("--focal/--cx/--cy: {reason}")))?;
             (camera, CameraSource::Given)
         }
         CameraSpec::Exif { guess } => from_exif(&input.images[0], full_size, *guess, &mut notes)?,

@@ -26,6 +26,35 @@ pub const MIN_IMAGE_SIDE: usize = 3;
 /// move beyond its start) and below float32's largest value (depth.npy).
 pub const MAX_SOLVED_DEPTH: f64 = 1e30;
 
+/// The smallest depth a solve may return: below [`crate::params::DEPTH_RANGE`]
+/// (a solve may move beyond its start) and above float32's smallest normal
+/// value, 1.2e-38 (depth.npy): an absurd principal point solved to depths
+/// of 1e-200 that the file held as an all-zero depth.
+pub const MIN_SOLVED_DEPTH: f64 = 1e-30;
+
+/// Why the depths `values` (NaN left out) are no surface: none at all, or
+/// one outside `[MIN_SOLVED_DEPTH, MAX_SOLVED_DEPTH]` (infinities too).
+/// `None`: a surface. (A constant depth is not refused here: a solve whose
+/// light points away from the object returns its start, with a warning
+/// about the light.)
+pub(crate) fn depth_divergence(values: &[f64]) -> Option<String> {
+    use rayon::prelude::*;
+    let (z_min, z_max) = (MIN_SOLVED_DEPTH, MAX_SOLVED_DEPTH);
+    if values.is_empty() {
+        return Some("no pixel has a depth".into());
+    }
+    let outside = |z: &&f64| !(**z >= z_min && **z <= z_max);
+    if let Some(example) = values.par_iter().with_min_len(8192).find_first(outside) {
+        return Some(format!(
+            "{} of {} depths are not in [{z_min:e}, {z_max:e}] (e.g. {example:e}); check the \
+             intensity scale, the camera and the parameters",
+            values.par_iter().with_min_len(8192).filter(outside).count(),
+            values.len()
+        ));
+    }
+    None
+}
+
 /// What the solver is asked to explain.
 #[derive(Clone, Debug)]
 pub struct Problem {
@@ -215,26 +244,17 @@ impl Solution {
     /// [`MAX_SOLVED_DEPTH`], and its reprojection is finite.
     pub(crate) fn checked(self) -> Result<Self, SolveError> {
         use rayon::prelude::*;
-        let z_max = MAX_SOLVED_DEPTH;
-        // No copy, in parallel: the depth can be a photograph's size.
-        let values = || {
-            self.depth
-                .as_slice()
-                .par_iter()
-                .with_min_len(8192)
-                .filter(|z| !z.is_nan())
-        };
-        let outside = |z: &&f64| !(**z > 0.0 && **z <= z_max);
-        if values().find_any(|_| true).is_none() {
-            return Err(SolveError::Diverged("no pixel has a depth".into()));
-        }
-        if let Some(example) = values().find_first(outside) {
-            return Err(SolveError::Diverged(format!(
-                "{} of {} depths are not in (0, {z_max:e}] (e.g. {example:e}); \
-                 check the intensity scale and the parameters",
-                values().filter(outside).count(),
-                values().count()
-            )));
+        // Only the object's depths (NaN: off the object).
+        let values: Vec<f64> = self
+            .depth
+            .as_slice()
+            .par_iter()
+            .with_min_len(8192)
+            .copied()
+            .filter(|z| !z.is_nan())
+            .collect();
+        if let Some(why) = depth_divergence(&values) {
+            return Err(SolveError::Diverged(why));
         }
         if self
             .reprojection
@@ -313,13 +333,7 @@ impl Problem {
                 "image is {w}x{h}; at least {MIN_IMAGE_SIDE}x{MIN_IMAGE_SIDE} pixels are needed"
             ));
         }
-        let f = self.camera.focal_px;
-        if !(f.is_finite() && f > 0.0) {
-            return bad(format!("focal length must be finite and > 0 (got {f})"));
-        }
-        if !(self.camera.principal_x_px.is_finite() && self.camera.principal_y_px.is_finite()) {
-            return bad("principal point must be finite".into());
-        }
+        self.camera.check_for(w, h).map_err(SolveError::Input)?;
         let s = self.intensity_scale;
         let (s_min, s_max) = crate::params::INTENSITY_SCALE_RANGE;
         if !(s.is_finite() && (s_min..=s_max).contains(&s)) {
@@ -635,5 +649,28 @@ mod tests {
         }
         let stopped = single.install(|| free_on_pool(vec![4u8; 1 << 22], &Cancelled));
         assert!(matches!(stopped, Err(SolveError::Cancelled)));
+    }
+
+    /// A depth map that a file would hold as zeros (an absurd principal
+    /// point solved to depths of 1e-200) is "the solve diverged", as is
+    /// one beyond float32 (issue 48).
+    #[test]
+    fn zero_tiny_and_huge_depths_are_divergence() {
+        let varied: Vec<f64> = (0..64).map(|k| 1.0 + 1e-3 * f64::from(k)).collect();
+        assert_eq!(depth_divergence(&varied), None);
+        assert_eq!(depth_divergence(&[1e-18; 64]), None);
+        for (values, words) in [
+            (vec![0.0; 64], "not in"),
+            (vec![1e-200; 64], "not in"),
+            (
+                (0..64).map(|k| 1e-200 * (1.0 + f64::from(k))).collect(),
+                "not in",
+            ),
+            (vec![1e31; 64], "not in"),
+            (Vec::new(), "no pixel"),
+        ] {
+            let why = depth_divergence(&values).expect("divergence");
+            assert!(why.contains(words), "{why}");
+        }
     }
 }

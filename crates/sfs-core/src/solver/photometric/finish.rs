@@ -12,7 +12,7 @@ use super::{
 };
 use crate::grid::Grid;
 use crate::model::Energy;
-use crate::solver::problem::{LevelReport, MAX_SOLVED_DEPTH, SolveError};
+use crate::solver::problem::{LevelReport, SolveError, depth_divergence};
 
 /// What the solve gathered for its result.
 pub(super) struct FinishInfo {
@@ -115,8 +115,9 @@ pub(super) fn finish(
     }
 }
 
-/// Refuses a result that is not a surface: a depth that is not positive
-/// and finite, or none at all.
+/// Refuses a result that is not a surface (see
+/// [`depth_divergence`]): a depth outside the range a file holds, or none
+/// at all.
 pub(super) fn check_finite(solution: &PhotometricSolution) -> Result<(), SolveError> {
     let values: Vec<f64> = solution
         .depth
@@ -125,18 +126,8 @@ pub(super) fn check_finite(solution: &PhotometricSolution) -> Result<(), SolveEr
         .copied()
         .filter(|z| !z.is_nan())
         .collect();
-    if values.is_empty() {
-        return Err(SolveError::Diverged("no pixel has a depth".into()));
+    match depth_divergence(&values) {
+        Some(why) => Err(SolveError::Diverged(why)),
+        None => Ok(()),
     }
-    let bad = values
-        .iter()
-        .filter(|z| !(z.is_finite() && **z > 0.0 && **z <= MAX_SOLVED_DEPTH))
-        .count();
-    if bad > 0 {
-        return Err(SolveError::Diverged(format!(
-            "{bad} of {} depths are not positive and finite",
-            values.len()
-        )));
-    }
-    Ok(())
 }
