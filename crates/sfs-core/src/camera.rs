@@ -2,6 +2,11 @@
 
 use serde::{Deserialize, Serialize};
 
+/// The smallest focal length, as a share of the image's longest side: below
+/// it the field of view nears 180 degrees, which the model cannot represent
+/// (a focal length of 1e-300 solved to an all-zero depth).
+pub const MIN_FOCAL_PER_SIDE: f64 = 1e-3;
+
 /// How far outside the image the principal point may lie, in image sides:
 /// `cx` in `[-k W, (1 + k) W]`, `cy` in `[-k H, (1 + k) H]`. A real lens
 /// (even a shifted tilt-shift one, or a crop far from the sensor's centre)
@@ -55,7 +60,7 @@ impl Intrinsics {
 
     /// Checks the intrinsics for a `width` x `height` image: a focal length
     /// in `[MIN_FOCAL_PER_SIDE, MAX_FOCAL_PER_SIDE]` times the longest side
-    /// (see [`crate::camera_file::MIN_FOCAL_PER_SIDE`],
+    /// (see [`MIN_FOCAL_PER_SIDE`],
     /// [`MAX_FOCAL_PER_SIDE`]) and a principal point within
     /// [`MAX_PRINCIPAL_OFFSET_SIDES`] of the image. The message names the
     /// value (`focal`, `cx`, `cy`) and the range.
@@ -64,16 +69,13 @@ impl Intrinsics {
     /// The first value out of its range, in words.
     pub fn check_for(&self, width: usize, height: usize) -> Result<(), String> {
         let side = width.max(height).max(1) as f64;
-        let (f_min, f_max) = (
-            crate::camera_file::MIN_FOCAL_PER_SIDE * side,
-            MAX_FOCAL_PER_SIDE * side,
-        );
+        let (f_min, f_max) = (MIN_FOCAL_PER_SIDE * side, MAX_FOCAL_PER_SIDE * side);
         let f = self.focal_px;
         if !(f.is_finite() && f >= f_min && f <= f_max) {
             return Err(format!(
                 "focal length {f:e} px is outside [{f_min:e}, {f_max:e}] px for a \
                  {width}x{height} image ({} to {MAX_FOCAL_PER_SIDE:e} times its longest side)",
-                crate::camera_file::MIN_FOCAL_PER_SIDE
+                MIN_FOCAL_PER_SIDE
             ));
         }
         let k = MAX_PRINCIPAL_OFFSET_SIDES;

@@ -20,10 +20,6 @@ pub const MAX_ASPECT_MISMATCH: f64 = 0.01;
 /// Largest relative difference between a `K`'s fx and fy the model takes
 /// (square pixels; their mean is used).
 pub const MAX_FOCAL_MISMATCH: f64 = 0.01;
-/// The smallest focal length, as a share of the image's longest side: below
-/// it the field of view nears 180 degrees, which the model cannot represent
-/// (a focal length of 1e-300 solved to an all-zero depth).
-pub const MIN_FOCAL_PER_SIDE: f64 = 1e-3;
 
 /// One light as a camera file stores it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -220,7 +216,7 @@ impl CameraFile {
     }
 
     /// Checks every value (a `K` the pinhole model cannot represent, a focal
-    /// length below [`MIN_FOCAL_PER_SIDE`] of the longest side, duplicate
+    /// length below [`crate::camera::MIN_FOCAL_PER_SIDE`] of the longest side, duplicate
     /// LED numbers or image names); the error names the key and `path`.
     pub fn validate(&self, path: &Path) -> Result<(), IoError> {
         let bad = |reason: String| {
@@ -283,12 +279,15 @@ impl CameraFile {
                 camera.focal_px
             ));
         }
-        let smallest = MIN_FOCAL_PER_SIDE * self.width.max(self.height) as f64;
+        let smallest = crate::camera::MIN_FOCAL_PER_SIDE * self.width.max(self.height) as f64;
         if camera.focal_px < smallest {
             return bad(format!(
                 "{focal_key} {:?} px is below {smallest} px ({} of the longest side of the \
                  {}x{} calibration): a field of view near 180 degrees the model cannot represent",
-                camera.focal_px, MIN_FOCAL_PER_SIDE, self.width, self.height
+                camera.focal_px,
+                crate::camera::MIN_FOCAL_PER_SIDE,
+                self.width,
+                self.height
             ));
         }
         // The principal point (and the focal length's upper bound) against

@@ -95,8 +95,7 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
             cx_px,
             cy_px,
         } => {
-            let smallest =
-                crate::camera_file::MIN_FOCAL_PER_SIDE * full_size.0.max(full_size.1) as f64;
+            let smallest = crate::camera::MIN_FOCAL_PER_SIDE * full_size.0.max(full_size.1) as f64;
             if !(focal_px.is_finite() && *focal_px >= smallest && *focal_px < 1e9) {
                 return Err(PhotoError::Input(format!(
                     "--focal {focal_px:?}: must be a number of pixels in [{smallest}, 1e9) for the \
@@ -104,7 +103,7 @@ pub(super) fn decide(input: &PhotoInput, full_size: (usize, usize)) -> Result<De
                      degrees, which the model cannot represent)",
                     full_size.0,
                     full_size.1,
-                    crate::camera_file::MIN_FOCAL_PER_SIDE
+                    crate::camera::MIN_FOCAL_PER_SIDE
                 )));
             }
             let mut camera = Intrinsics::centred(*focal_px, full_size.0, full_size.1);
