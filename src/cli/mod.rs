@@ -80,6 +80,7 @@ pub fn run(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> Resul
     };
     match cli.command {
         Some(Command::Synth(args)) => synth::run(&args),
+        Some(Command::Solve(args)) if args.photometric_stereo => photometric::run(&args),
         Some(Command::Solve(args)) => solve::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
         Some(Command::Bench(args)) => bench::run(&args),

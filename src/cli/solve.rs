@@ -549,11 +549,9 @@ struct SolveReport<'a> {
     rie: Option<f64>,
 }
 
-/// Runs `solve`.
+/// Runs `solve` on one photograph (`cli::run` hands `--photometric-stereo`
+/// to `cli::photometric`).
 pub fn run(args: &SolveArgs) -> Result<()> {
-    if args.photometric_stereo {
-        return super::photometric::run(args);
-    }
     if args.ps_smoothness != "auto" || args.ps_robust_scale != "auto" {
         bail!("--ps-smoothness and --ps-robust-scale need --photometric-stereo");
     }
