@@ -9,6 +9,15 @@ use tempfile::tempdir;
 
 use crate::common::{assert_success, read_json, s, sfs, stderr};
 
+/// Runs `bench --quick ARGS --out OUT` and asserts it succeeded.
+#[track_caller]
+fn bench_quick(out: &Path, args: &[&str]) {
+    let mut all: Vec<String> = vec!["bench".into(), "--quick".into()];
+    all.extend(args.iter().map(|a| a.to_string()));
+    all.extend(["--out".into(), s(out)]);
+    assert_success(&sfs(&all), &format!("bench {}", args.join(" ")));
+}
+
 /// `bench --part albedo --quick` on the Sombrero: every light, pattern and
 /// noise level, three RSEs each; a uniform clean render is solved exactly
 /// as with albedo 1 (auto finds no edge or does not use it), a clean patch
@@ -18,17 +27,7 @@ use crate::common::{assert_success, read_json, s, sfs, stderr};
 fn bench_albedo_solves_each_render_three_ways() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("albedo");
-    let run = sfs([
-        "bench",
-        "--part",
-        "albedo",
-        "--quick",
-        "--scenes",
-        "sombrero",
-        "--out",
-        &s(&out),
-    ]);
-    assert_success(&run, "bench --part albedo");
+    bench_quick(&out, &["--part", "albedo", "--scenes", "sombrero"]);
     assert!(out.join("albedo.md").is_file());
     let report = read_json(&out.join("albedo.json"));
     let rows = report["rows"].as_array().expect("rows");
@@ -61,19 +60,17 @@ fn bench_edges_compares_the_truth_with_the_answer_and_finds_contours() {
     let meshes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("edges");
-    let run = sfs([
-        "bench",
-        "--part",
-        "edges",
-        "--quick",
-        "--scenes",
-        "sombrero,suzanne",
-        "--meshes",
-        &s(&meshes),
-        "--out",
-        &s(&out),
-    ]);
-    assert_success(&run, "bench --part edges");
+    bench_quick(
+        &out,
+        &[
+            "--part",
+            "edges",
+            "--scenes",
+            "sombrero,suzanne",
+            "--meshes",
+            &s(&meshes),
+        ],
+    );
     let report = read_json(&out.join("edges.json"));
     let rows = report["rows"].as_array().expect("rows");
     let suzanne_there = meshes.join("suzanne.obj").is_file();
@@ -114,17 +111,7 @@ fn bench_edges_compares_the_truth_with_the_answer_and_finds_contours() {
 fn bench_holes_measures_every_hole_against_the_harmonic_fill() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("holes");
-    let run = sfs([
-        "bench",
-        "--part",
-        "holes",
-        "--quick",
-        "--scenes",
-        "sombrero",
-        "--out",
-        &s(&out),
-    ]);
-    assert_success(&run, "bench --part holes");
+    bench_quick(&out, &["--part", "holes", "--scenes", "sombrero"]);
     let report = read_json(&out.join("holes.json"));
     let rows = report["rows"].as_array().expect("rows");
     let holes: BTreeSet<&str> = rows.iter().map(|r| r["hole"].as_str().unwrap()).collect();
@@ -157,17 +144,7 @@ fn bench_holes_measures_every_hole_against_the_harmonic_fill() {
 fn bench_speed_reports_every_method_side_by_side() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("speed");
-    let run = sfs([
-        "bench",
-        "--part",
-        "speed",
-        "--quick",
-        "--scenes",
-        "sombrero",
-        "--out",
-        &s(&out),
-    ]);
-    assert_success(&run, "bench --part speed");
+    bench_quick(&out, &["--part", "speed", "--scenes", "sombrero"]);
     let report = read_json(&out.join("speed.json"));
     let rows = report["rows"].as_array().expect("rows");
     let methods: BTreeSet<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
@@ -211,17 +188,7 @@ fn bench_speed_reports_every_method_side_by_side() {
 fn bench_quick_on_a_tiny_configuration_writes_a_report_that_parses() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("bench");
-    let run = sfs([
-        "bench",
-        "--quick",
-        "--scenes",
-        "sombrero",
-        "--explicit-seconds",
-        "0.5",
-        "--out",
-        &s(&out),
-    ]);
-    assert_success(&run, "bench --quick");
+    bench_quick(&out, &["--scenes", "sombrero", "--explicit-seconds", "0.5"]);
     let report = read_json(&out.join("report.json"));
     let rows = report["rows"].as_array().expect("rows");
     let methods: BTreeSet<&str> = rows

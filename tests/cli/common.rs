@@ -229,3 +229,39 @@ pub(crate) fn assert_refused(args: &[String], says: &[&str]) {
         assert!(message.contains(part), "{args:?}: {message}");
     }
 }
+
+/// Runs `synth ARGS --out DIR` (`args` start with the model), asserts it
+/// succeeded and returns `DIR`.
+#[track_caller]
+pub(crate) fn synth_into(dir: &Path, args: &[&str]) -> PathBuf {
+    let mut all: Vec<String> = vec!["synth".into()];
+    all.extend(args.iter().map(|a| a.to_string()));
+    all.extend(["--out".into(), s(dir)]);
+    assert_success(&sfs(&all), &format!("synth {}", args.join(" ")));
+    dir.to_path_buf()
+}
+
+/// Runs `solve SCENE/IMAGE --camera SCENE/scene.json EXTRA --out OUT` on a
+/// folder `synth` wrote and returns the run, unchecked.
+pub(crate) fn solve_scene(scene: &Path, image: &str, out: &Path, extra: &[&str]) -> Output {
+    sfs(solve_scene_args(scene, image, out, extra))
+}
+
+/// The arguments of [`solve_scene`]: `solve SCENE/IMAGE --camera
+/// SCENE/scene.json EXTRA --out OUT`.
+pub(crate) fn solve_scene_args(
+    scene: &Path,
+    image: &str,
+    out: &Path,
+    extra: &[&str],
+) -> Vec<String> {
+    let mut args: Vec<String> = vec![
+        "solve".into(),
+        s(&scene.join(image)),
+        "--camera".into(),
+        s(&scene.join("scene.json")),
+    ];
+    args.extend(extra.iter().map(|a| a.to_string()));
+    args.extend(["--out".into(), s(out)]);
+    args
+}

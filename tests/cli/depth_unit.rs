@@ -3,7 +3,9 @@
 
 use tempfile::tempdir;
 
-use crate::common::{assert_refused, assert_success, read_json, s, sfs, stderr};
+use crate::common::{
+    assert_refused, assert_success, read_json, solve_scene, solve_scene_args, stderr, synth_into,
+};
 
 /// With a light beside the lens: without a known distance the solve says
 /// plainly that the image does not determine the depth unit (and the
@@ -12,30 +14,13 @@ use crate::common::{assert_refused, assert_success, read_json, s, sfs, stderr};
 #[test]
 fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
     let dir = tempdir().expect("temp dir");
-    let scene = dir.path().join("scene");
-    let run = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "64x64",
-        "--light",
-        "0.5,0,0",
-        "--out",
-        &s(&scene),
-    ]);
-    assert_success(&run, "synth with a flash beside the lens");
+    let scene = synth_into(
+        &dir.path().join("scene"),
+        &["sombrero", "--size", "64x64", "--light", "0.5,0,0"],
+    );
     let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
     let out = dir.path().join("auto");
-    let run = sfs([
-        "solve",
-        &s(&scene.join("image16.png")),
-        "--camera",
-        &s(&scene.join("scene.json")),
-        "--intensity-scale",
-        "auto",
-        "--out",
-        &s(&out),
-    ]);
+    let run = solve_scene(&scene, "image16.png", &out, &["--intensity-scale", "auto"]);
     assert_success(&run, "solve with s auto");
     let report = read_json(&out.join("report.json"));
     let determined = report["depth_unit"]["shading"]["well_determined"]
@@ -53,20 +38,19 @@ fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
     assert_eq!(warned, !determined, "{}", stderr(&run));
     let out = dir.path().join("known");
     let (a, b) = (*truth.at(32, 32), *truth.at(20, 40));
-    let run = sfs([
-        "solve",
-        &s(&scene.join("image16.png")),
-        "--camera",
-        &s(&scene.join("scene.json")),
-        "--intensity-scale",
-        "auto",
-        "--known-depth",
-        &format!("32,32,{a}"),
-        "--known-depth",
-        &format!("20,40,{b}"),
-        "--out",
-        &s(&out),
-    ]);
+    let run = solve_scene(
+        &scene,
+        "image16.png",
+        &out,
+        &[
+            "--intensity-scale",
+            "auto",
+            "--known-depth",
+            &format!("32,32,{a}"),
+            "--known-depth",
+            &format!("20,40,{b}"),
+        ],
+    );
     assert_success(&run, "solve with two known distances");
     let report = read_json(&out.join("report.json"));
     let points = report["depth_unit"]["fit"]["points"]
@@ -91,35 +75,26 @@ fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
 fn an_object_distance_sets_the_depth_unit() {
     let dir = tempdir().expect("temp dir");
     for (name, light) in [("beside", Some("0.5,0,0")), ("centred", None)] {
-        let scene = dir.path().join(name);
-        let mut args = vec![
-            "synth".to_owned(),
-            "sombrero".into(),
-            "--size".into(),
-            "64x64".into(),
-            "--out".into(),
-            s(&scene),
-        ];
+        let mut args = vec!["sombrero", "--size", "64x64"];
         if let Some(light) = light {
-            args.extend(["--light".into(), light.into()]);
+            args.extend(["--light", light]);
         }
-        assert_success(&sfs(&args), "synth");
+        let scene = synth_into(&dir.path().join(name), &args);
         let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
         let median = sfs_core::solver::calibrate::median_depth(&truth);
         let out = dir.path().join(format!("{name}-out"));
         let given = 1.2 * median;
-        let run = sfs([
-            "solve",
-            &s(&scene.join("image16.png")),
-            "--camera",
-            &s(&scene.join("scene.json")),
-            "--intensity-scale",
-            "auto",
-            "--distance",
-            &given.to_string(),
-            "--out",
-            &s(&out),
-        ]);
+        let run = solve_scene(
+            &scene,
+            "image16.png",
+            &out,
+            &[
+                "--intensity-scale",
+                "auto",
+                "--distance",
+                &given.to_string(),
+            ],
+        );
         assert_success(&run, "solve with --distance");
         let report = read_json(&out.join("report.json"));
         assert_eq!(report["depth_unit"]["source"], "distance", "{report}");
@@ -138,9 +113,7 @@ fn an_object_distance_sets_the_depth_unit() {
         );
     }
     let scene = dir.path().join("centred");
-    let image = s(&scene.join("image16.png"));
-    let camera = s(&scene.join("scene.json"));
-    let out = s(&dir.path().join("refused"));
+    let out = dir.path().join("refused");
     for (extra, says) in [
         (
             vec!["--distance", "2", "--known-depth", "20,20,2"],
@@ -153,15 +126,10 @@ fn an_object_distance_sets_the_depth_unit() {
         (vec!["--distance=-1"], "--distance -1"),
         (vec!["--distance", "0"], "must be a positive distance"),
     ] {
-        let mut args = vec![
-            "solve".to_owned(),
-            image.clone(),
-            "--camera".into(),
-            camera.clone(),
-        ];
-        args.extend(extra.iter().map(|a| (*a).to_owned()));
-        args.extend(["--out".to_owned(), out.clone()]);
-        assert_refused(&args, &[says]);
+        assert_refused(
+            &solve_scene_args(&scene, "image16.png", &out, &extra),
+            &[says],
+        );
     }
 }
 
@@ -172,18 +140,10 @@ fn an_object_distance_sets_the_depth_unit() {
 #[test]
 fn a_rig_s_aim_sets_the_depth_unit_at_the_defaults() {
     let dir = tempdir().expect("temp dir");
-    let scene = dir.path().join("set");
-    let run = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "64x64",
-        "--ps-leds",
-        "4",
-        "--out",
-        &s(&scene),
-    ]);
-    assert_success(&run, "synth a set of four LEDs");
+    let scene = synth_into(
+        &dir.path().join("set"),
+        &["sombrero", "--size", "64x64", "--ps-leds", "4"],
+    );
     let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
     let median = sfs_core::solver::calibrate::median_depth(&truth);
     let camera = read_json(&scene.join("scene.json"));
@@ -192,16 +152,7 @@ fn a_rig_s_aim_sets_the_depth_unit_at_the_defaults() {
         .expect("the first light's image")
         .to_owned();
     let out = dir.path().join("one");
-    let run = sfs([
-        "solve",
-        &s(&scene.join(&first)),
-        "--camera",
-        &s(&scene.join("scene.json")),
-        "--intensity-scale",
-        "auto",
-        "--out",
-        &s(&out),
-    ]);
+    let run = solve_scene(&scene, &first, &out, &["--intensity-scale", "auto"]);
     assert_success(&run, "solve one LED's photograph, its scale unknown");
     let report = read_json(&out.join("report.json"));
     assert_eq!(report["depth_unit"]["source"], "rig_aim", "{report}");

@@ -5,7 +5,10 @@
 use serde_json::Value;
 use tempfile::tempdir;
 
-use crate::common::{Fixture, assert_success, expect_failure, read_json, s, sfs, stderr, stdout};
+use crate::common::{
+    Fixture, assert_success, expect_failure, read_json, s, sfs, solve_scene, stderr, stdout,
+    synth_into,
+};
 
 #[test]
 fn solve_with_focal_and_intensity_scale() {
@@ -120,10 +123,9 @@ fn solve_picks_the_method_and_chains_one_into_another() {
 #[test]
 fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
     let tmp = tempdir().unwrap();
-    let scene = tmp.path().join("lit");
-    assert_success(
-        &sfs([
-            "synth",
+    let scene = synth_into(
+        &tmp.path().join("lit"),
+        &[
             "sombrero",
             "--size",
             "64x64",
@@ -133,28 +135,16 @@ fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
             "-0.2,0.2,1",
             "--light-mu",
             "1",
-            "--out",
-            &s(&scene),
-        ]),
-        "synth with a light",
+        ],
     );
     let camera = read_json(&scene.join("scene.json"));
     assert_eq!(camera["lights"][0]["mu"], 1.0);
     let rse = |out: &str, extra: &[&str]| {
         let r = tmp.path().join(out);
-        let mut args = vec![
-            "solve".to_string(),
-            s(&scene.join("image16.png")),
-            "--camera".into(),
-            s(&scene.join("scene.json")),
-            "--gt".into(),
-            s(&scene),
-            "-q".into(),
-            "--out".into(),
-            s(&r),
-        ];
-        args.extend(extra.iter().map(|a| a.to_string()));
-        assert_success(&sfs(&args), out);
+        let gt = s(&scene);
+        let mut args = vec!["--gt", &gt, "-q"];
+        args.extend(extra);
+        assert_success(&solve_scene(&scene, "image16.png", &r, &args), out);
         read_json(&r.join("report.json"))["rse"].as_f64().unwrap()
     };
     let with_light = rse("with", &[]);
@@ -165,17 +155,12 @@ fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
         "ignored {ignored} vs {with_light}"
     );
     // Fast marching knows only the centred light and says so.
-    let out = sfs([
-        "solve",
-        &s(&scene.join("image16.png")),
-        "--camera",
-        &s(&scene.join("scene.json")),
-        "--method",
-        "fast-marching",
-        "-q",
-        "--out",
-        &s(&tmp.path().join("fm")),
-    ]);
+    let out = solve_scene(
+        &scene,
+        "image16.png",
+        &tmp.path().join("fm"),
+        &["--method", "fast-marching", "-q"],
+    );
     assert!(!out.status.success());
     assert!(
         stderr(&out).contains("optical centre only"),
@@ -193,10 +178,7 @@ fn max_side_solves_at_a_working_size() {
     let big = tmp.path().join("big");
     let small = tmp.path().join("small");
     for (dir, size) in [(&big, "96x64"), (&small, "48x32")] {
-        assert_success(
-            &sfs(["synth", "sombrero", "--size", size, "--out", &s(dir)]),
-            "synth",
-        );
+        synth_into(dir, &["sombrero", "--size", size]);
     }
     let r = tmp.path().join("r");
     let args = [
@@ -265,11 +247,7 @@ fn calibration_for_another_size_is_scaled() {
 #[test]
 fn a_dark_image_gets_a_plain_warning() {
     let tmp = tempdir().unwrap();
-    let scene = tmp.path().join("dark");
-    assert_success(
-        &sfs(["synth", "sombrero", "--size", "32x32", "--out", &s(&scene)]),
-        "synth",
-    );
+    let scene = synth_into(&tmp.path().join("dark"), &["sombrero", "--size", "32x32"]);
     let image = sfs_core::io::read_image(&scene.join("image16.png"), false).unwrap();
     let dark = tmp.path().join("dark.png");
     sfs_core::io::write_png16(&dark, &image.map(|v| v * 0.0008)).unwrap();
@@ -302,40 +280,29 @@ fn a_dark_image_gets_a_plain_warning() {
 #[test]
 fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
     let dir = tempdir().expect("temp dir");
-    let scene = dir.path().join("glossy");
-    let out = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "64x64",
-        "--reflectance",
-        "blinn-phong",
-        "--specular",
-        "0.3",
-        "--shininess",
-        "30",
-        "--out",
-        &s(&scene),
-    ]);
-    assert_success(&out, "synth with blinn-phong");
+    let scene = synth_into(
+        &dir.path().join("glossy"),
+        &[
+            "sombrero",
+            "--size",
+            "64x64",
+            "--reflectance",
+            "blinn-phong",
+            "--specular",
+            "0.3",
+            "--shininess",
+            "30",
+        ],
+    );
     let camera = read_json(&scene.join("scene.json"));
     assert_eq!(camera["material"]["model"], "blinn-phong");
     assert_eq!(camera["material"]["shininess"], 30.0);
     let solve = |name: &str, extra: &[&str]| -> Value {
         let result = dir.path().join(name);
-        let mut args = vec![
-            "solve".to_string(),
-            s(&scene.join("image16.png")),
-            "--camera".into(),
-            s(&scene.join("scene.json")),
-            "--gt".into(),
-            s(&scene),
-            "--quiet".into(),
-            "--out".into(),
-            s(&result),
-        ];
-        args.extend(extra.iter().map(|a| a.to_string()));
-        assert_success(&sfs(&args), name);
+        let gt = s(&scene);
+        let mut args = vec!["--gt", &gt, "--quiet"];
+        args.extend(extra);
+        assert_success(&solve_scene(&scene, "image16.png", &result, &args), name);
         read_json(&result.join("report.json"))
     };
     let matched = solve(
@@ -422,19 +389,10 @@ fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
 
 /// `synth --ps-leds 3` at 32x32 in `DIR/set`.
 fn small_set(dir: &std::path::Path) -> std::path::PathBuf {
-    let set = dir.join("set");
-    let out = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "32x32",
-        "--ps-leds",
-        "3",
-        "--out",
-        &s(&set),
-    ]);
-    assert_success(&out, "synth --ps-leds 3");
-    set
+    synth_into(
+        &dir.join("set"),
+        &["sombrero", "--size", "32x32", "--ps-leds", "3"],
+    )
 }
 
 /// `solve --photometric-stereo` of `small_set`'s photographs, by name,
@@ -538,15 +496,15 @@ fn a_reused_out_holds_one_kind_of_run_and_a_set_opens_as_a_folder() {
     let names = crate::common::entries(&out);
     assert!(names.contains(&"reprojection.png".to_owned()), "{names:?}");
     assert_success(&sfs(set_args(&set, &out, &[])), "set solve");
-    let names = crate::common::entries(&out);
-    for gone in [
-        "reprojection.png",
-        "residual.png",
-        "input_linear.png",
-        "occlusion_edges.png",
-    ] {
-        assert!(!names.contains(&gone.to_owned()), "{gone} left: {names:?}");
-    }
+    let names = assert_gone(
+        &out,
+        &[
+            "reprojection.png",
+            "residual.png",
+            "input_linear.png",
+            "occlusion_edges.png",
+        ],
+    );
     assert!(names.contains(&"normals.png".to_owned()), "{names:?}");
     let by_name = std::fs::read(out.join("depth.npy")).unwrap();
 
@@ -567,13 +525,24 @@ fn a_reused_out_holds_one_kind_of_run_and_a_set_opens_as_a_folder() {
     );
 
     assert_success(&sfs(&single), "single-image solve again");
-    let names = crate::common::entries(&out);
-    for gone in [
-        "normals.png",
-        "normals.npy",
-        "residual_01.png",
-        "residual_03.png",
-    ] {
-        assert!(!names.contains(&gone.to_owned()), "{gone} left: {names:?}");
+    assert_gone(
+        &out,
+        &[
+            "normals.png",
+            "normals.npy",
+            "residual_01.png",
+            "residual_03.png",
+        ],
+    );
+}
+
+/// Asserts none of `gone` is left in `out` after a run of the other kind;
+/// returns the names `out` holds.
+#[track_caller]
+fn assert_gone(out: &std::path::Path, gone: &[&str]) -> Vec<String> {
+    let names = crate::common::entries(out);
+    for gone in gone {
+        assert!(!names.contains(&gone.to_string()), "{gone} left: {names:?}");
     }
+    names
 }

@@ -9,7 +9,8 @@ use sfs_core::params::SolverParams;
 use tempfile::tempdir;
 
 use crate::common::{
-    Fixture, SOLVE_FILES, SYNTH_FILES, assert_success, entries, read_json, s, sfs, stderr, stdout,
+    Fixture, SOLVE_FILES, SYNTH_FILES, assert_success, entries, read_json, s, sfs, solve_scene,
+    stderr, stdout, synth_into,
 };
 
 #[test]
@@ -158,9 +159,7 @@ fn synth_renders_a_mesh() {
         return;
     }
     let tmp = tempdir().unwrap();
-    let d = tmp.path().join("suzanne");
-    let out = sfs(["synth", &s(&mesh), "--size", "64x32", "--out", &s(&d)]);
-    assert_success(&out, "synth suzanne.obj");
+    let d = synth_into(&tmp.path().join("suzanne"), &[&s(&mesh), "--size", "64x32"]);
     let mask = image::open(d.join("mask.png")).unwrap().to_luma8();
     assert_eq!(mask.dimensions(), (64, 32));
     let values: BTreeSet<u8> = mask.pixels().map(|p| p.0[0]).collect();
@@ -179,19 +178,17 @@ fn synth_renders_a_mesh() {
 #[test]
 fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
     let dir = tempdir().expect("temp dir");
-    let scene = dir.path().join("scene");
-    let run = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "96x96",
-        "--light",
-        "1.29,0,0.47",
-        "--shadows",
-        "--out",
-        &s(&scene),
-    ]);
-    assert_success(&run, "synth --shadows");
+    let scene = synth_into(
+        &dir.path().join("scene"),
+        &[
+            "sombrero",
+            "--size",
+            "96x96",
+            "--light",
+            "1.29,0,0.47",
+            "--shadows",
+        ],
+    );
     let truth = image::open(scene.join("shadow.png"))
         .expect("shadow.png")
         .to_luma8();
@@ -201,14 +198,7 @@ fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
         "the light 40 degrees off casts a shadow: {in_shadow}"
     );
     let out = dir.path().join("solved");
-    let run = sfs([
-        "solve",
-        &s(&scene.join("image16.png")),
-        "--camera",
-        &s(&scene.join("scene.json")),
-        "--out",
-        &s(&out),
-    ]);
+    let run = solve_scene(&scene, "image16.png", &out, &[]);
     assert_success(&run, "solve of the shadowed render");
     assert!(
         stderr(&run).contains("taken out of the data term"),
@@ -241,11 +231,9 @@ fn a_reused_synth_folder_holds_one_runs_files() {
     let dir = tempdir().unwrap();
     let out = dir.path().join("d");
     let synth = |extra: &[&str]| {
-        let mut args = vec!["synth", "sombrero", "--out"];
-        let path = s(&out);
-        args.push(&path);
+        let mut args = vec!["sombrero"];
         args.extend(extra);
-        assert_success(&sfs(&args), &format!("synth {extra:?}"));
+        synth_into(&out, &args);
     };
     synth(&["--size", "64x64", "--noise", "5"]);
     std::fs::write(out.join("notes.txt"), "mine").unwrap();
