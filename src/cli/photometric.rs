@@ -332,6 +332,9 @@ struct SetReport<'a> {
 pub fn run(args: &SolveArgs) -> Result<()> {
     refuse_single_options(args)?;
     let params = params(args)?;
+    if let Some(dir) = &args.gt {
+        super::solve::check_ground_truth(dir, false)?;
+    }
     let input = set_input(args)?;
     let compare = match &args.compare_single {
         Some(image) => Some(find_image(&input.images, image).with_context(|| {

@@ -353,8 +353,40 @@ pub struct GroundTruth {
     pub image: Grid<f64>,
 }
 
+/// Refuses `--gt DIR` that cannot be the ground truth before anything is
+/// solved, in the user's terms: no such folder, or a folder without the
+/// files `synth` writes (`depth_gt.npy`, and `image16.png` for one
+/// photograph, `with_image`).
+pub fn check_ground_truth(dir: &Path, with_image: bool) -> Result<()> {
+    if !dir.is_dir() {
+        bail!(
+            "--gt {}: no such folder (--gt takes a folder written by `synth`)",
+            dir.display()
+        );
+    }
+    let wanted: &[(&str, &str)] = if with_image {
+        &[
+            ("depth_gt.npy", "the true depth"),
+            ("image16.png", "the noise-free render"),
+        ]
+    } else {
+        &[("depth_gt.npy", "the true depth")]
+    };
+    for (file, what) in wanted {
+        if !dir.join(file).is_file() {
+            bail!(
+                "--gt {}: the folder has no {file} ({what} that `synth` writes); --gt takes a \
+                 folder written by `synth`",
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Reads `DIR/depth_gt.npy` and `DIR/image16.png`.
 pub fn read_ground_truth(dir: &Path) -> Result<GroundTruth> {
+    check_ground_truth(dir, true)?;
     let depth = io::read_npy(&dir.join("depth_gt.npy"))?;
     let image = io::read_image(&dir.join("image16.png"), false)?;
     if depth.size() != image.size() {
@@ -559,6 +591,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     // A solve that would not fit the memory is refused before any pixel is
     // decoded (in the pipeline); the destination is locked and checked
     // writable before the solve.
+    if let Some(dir) = &args.gt {
+        check_ground_truth(dir, true)?;
+    }
     let prepared = photo::prepare(&input)?;
     let mut stage = super::outputs::stage(&args.out)?;
     let mut named: Vec<PathBuf> = args.init_depth.iter().map(PathBuf::from).collect();

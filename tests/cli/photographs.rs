@@ -328,3 +328,60 @@ fn a_repeated_or_black_photograph_and_an_absurd_principal_point_are_refused() {
     ];
     expect_failure(&args, &bad, &["camera.json", "cx", "outside"]);
 }
+
+/// `--gt` is checked before the solve, in the user's terms: a folder that
+/// does not exist was found out only after a whole photometric-stereo
+/// solve, and `--gt DIR` without `image16.png` named a file the user never
+/// gave (issue 48, item 12).
+#[test]
+fn a_ground_truth_folder_is_checked_before_the_solve() {
+    let dir = tempdir().expect("temp dir");
+    let set = dir.path().join("set");
+    let out = sfs([
+        "synth",
+        "sombrero",
+        "--size",
+        "32x32",
+        "--ps-leds",
+        "3",
+        "--out",
+        &s(&set),
+    ]);
+    assert_success(&out, "synth --ps-leds");
+    let bad = dir.path().join("bad");
+    let missing = dir.path().join("no-such-folder");
+    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    args.extend((1..=3).map(|k| s(&set.join(format!("led{k:02}.png")))));
+    args.extend([
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--gt".into(),
+        s(&missing),
+        "--out".into(),
+        s(&bad),
+    ]);
+    let err = expect_failure(&args, &bad, &["--gt", "no-such-folder", "no such folder"]);
+    assert!(!err.contains("cannot solve"), "{err}");
+    // One photograph against a set's folder: it has no image16.png.
+    let args: Vec<String> = vec![
+        "solve".into(),
+        s(&set.join("led01.png")),
+        "--camera".into(),
+        s(&set.join("scene.json")),
+        "--light-index".into(),
+        "1".into(),
+        "--gt".into(),
+        s(&set),
+        "--out".into(),
+        s(&bad),
+    ];
+    expect_failure(
+        &args,
+        &bad,
+        &[
+            "--gt",
+            "the folder has no image16.png",
+            "written by `synth`",
+        ],
+    );
+}

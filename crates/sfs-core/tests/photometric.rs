@@ -440,3 +440,135 @@ fn an_absurd_principal_point_or_focal_length_is_refused() {
         .to_string();
     assert!(e.contains("cx") && e.contains("1e6"), "{e}");
 }
+
+/// Nearly coincident or collinear lights are refused naming them, before
+/// the solve that "diverged" with them (issue 48, item 18).
+#[test]
+fn nearly_coincident_or_collinear_lights_are_refused_naming_them() {
+    let set = sombrero_set(16, 4);
+    let mut near = problem(&set);
+    let mut moved = near.photos[0].light.position;
+    moved[0] += 1e-6;
+    near.photos[2].light.position = moved;
+    let e = validate(&near).expect_err("nearly coincident").to_string();
+    assert!(
+        e.contains("led1.png") && e.contains("led3.png") && e.contains("degrees apart"),
+        "{e}"
+    );
+    let mut line = problem(&set);
+    for (k, x) in [-0.6, -0.2, 0.3, 0.7].into_iter().enumerate() {
+        line.photos[k].light.position = [x, 0.0, 0.1];
+        line.photos[k].light.direction = None;
+    }
+    let e = validate(&line).expect_err("collinear").to_string();
+    assert!(
+        e.contains("led1.png") && e.contains("led4.png") && e.contains("one plane"),
+        "{e}"
+    );
+    let e = solve_photometric(&line, &PhotometricParams::default(), &mut ())
+        .expect_err("the solve refuses it too")
+        .to_string();
+    assert!(!e.contains("diverged"), "{e}");
+    // The standard rings pass.
+    for leds in [3, 4, 8] {
+        let set = sombrero_set(16, leds);
+        assert!(validate(&problem(&set)).is_ok(), "{leds} LEDs");
+    }
+}
+
+/// A set with no trusted, lit object pixel says why, as one photograph
+/// does: an empty mask, or photographs black where trusted (an ambient
+/// frame as bright as they are) (issue 48, item 10).
+#[test]
+fn a_set_without_a_lit_object_pixel_names_the_cause() {
+    let set = sombrero_set(16, 3);
+    let mut empty = problem(&set);
+    empty.object_mask = Some(Grid::filled(16, 16, false));
+    let e = solve_photometric(&empty, &PhotometricParams::default(), &mut ())
+        .expect_err("empty mask")
+        .to_string();
+    assert!(e.contains("mask is empty"), "{e}");
+    let mut black = problem(&set);
+    for photo in &mut black.photos {
+        photo.image = Grid::filled(16, 16, 0.0);
+    }
+    let e = solve_photometric(&black, &PhotometricParams::default(), &mut ())
+        .expect_err("black")
+        .to_string();
+    assert!(
+        e.contains("black on every trusted object pixel") && e.contains("ambient"),
+        "{e}"
+    );
+}
+
+/// Messages of the set pipeline: no run of spaces inside them (string
+/// continuations without `\`), a photograph without its light says what a
+/// set needs rather than `--light-index` (which a set refuses), and a
+/// working size too small is named as the setting that made it (issue 48,
+/// items 10 and 18).
+#[test]
+fn set_messages_are_plain_and_in_the_users_terms() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let set = sombrero_set(32, 4);
+    let images = write_set(dir.path(), &set, 3);
+    let camera = CameraSpec::File(dir.path().join("scene.json"));
+    let set_input = |lights: LightSpec| PhotoInput {
+        images: images.clone(),
+        camera: camera.clone(),
+        lights,
+        photometric_stereo: true,
+        ..PhotoInput::new(&images[0])
+    };
+    let mut messages = Vec::new();
+    let unnamed = photo::prepare(&set_input(LightSpec::CameraFile { picks: Vec::new() }))
+        .expect_err("led4.png has no light")
+        .to_string();
+    assert!(
+        unnamed.contains("led4.png")
+            && unnamed.contains("\"image\"")
+            && !unnamed.contains("--light-index"),
+        "{unnamed}"
+    );
+    messages.push(unnamed);
+    messages.push(
+        photo::prepare(&set_input(LightSpec::CameraFile { picks: vec![1] }))
+            .expect_err("picks")
+            .to_string(),
+    );
+    messages.push(
+        photo::prepare(&set_input(LightSpec::Given(set.lights[..3].to_vec())))
+            .expect_err("count")
+            .to_string(),
+    );
+    let named = tempfile::tempdir().expect("temp dir");
+    let all = write_set(named.path(), &set, 4);
+    let summed = PhotoInput {
+        images: all.clone(),
+        camera: CameraSpec::File(named.path().join("scene.json")),
+        lights: LightSpec::Given(vec![set.lights[0]]),
+        ..PhotoInput::new(&all[0])
+    };
+    let prepared = photo::prepare(&summed).expect("a sum");
+    messages.push(
+        photo::photometric_problem(&prepared, &summed)
+            .expect_err("not a set")
+            .to_string(),
+    );
+    let tiny = PhotoInput {
+        images: all.clone(),
+        camera: CameraSpec::File(named.path().join("scene.json")),
+        lights: LightSpec::CameraFile { picks: Vec::new() },
+        photometric_stereo: true,
+        max_side: Some(1),
+        ..PhotoInput::new(&all[0])
+    };
+    let small = photo::prepare(&tiny).expect_err("1x1").to_string();
+    assert!(
+        small.contains("the working size (--max-side 1) is 1x1"),
+        "{small}"
+    );
+    messages.push(small);
+    for message in &messages {
+        assert!(!message.contains("  "), "a run of spaces: {message:?}");
+    }
+}

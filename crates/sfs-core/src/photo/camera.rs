@@ -247,6 +247,28 @@ fn decide_lights(
         // Several photographs: each one's own light, summed.
         let mut each = Vec::new();
         for name in &names {
+            let marked = file
+                .lights
+                .iter()
+                .filter(|e| e.image.as_deref() == Some(name.as_str()))
+                .count();
+            if input.photometric_stereo && marked != 1 {
+                // --light-index is refused with a set: say what the set
+                // needs instead.
+                return Err(PhotoError::Input(format!(
+                    "{}: {} of its {} lights {} marked as taking {name}: each photograph of a \
+                     photometric-stereo set needs exactly one light whose `image` is its file \
+                     name (add \"image\": \"{name}\" to the light that took it)",
+                    path.display(),
+                    if marked == 0 {
+                        "none".to_string()
+                    } else {
+                        marked.to_string()
+                    },
+                    file.lights.len(),
+                    if marked > 1 { "are" } else { "is" },
+                )));
+            }
             let (one, _) = file.lights_for(path, &[], Some(name))?;
             let number = file
                 .lights

@@ -541,6 +541,22 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
     if input.photometric_stereo {
         check_set(input, &decided.lights)?;
     }
+    let working = working_size(full_size.0, full_size.1, input.max_side);
+    let least = crate::solver::problem::MIN_IMAGE_SIDE;
+    if working != full_size && (working.0 < least || working.1 < least) {
+        // Named as what the user set: the solver only sees "the image".
+        return Err(PhotoError::Input(format!(
+            "the working size ({} {}) is {}x{}; at least {least}x{least} pixels are needed: \
+             give a larger {} (0 for the full size, {}x{})",
+            input.max_side_setting,
+            input.max_side.unwrap_or(0),
+            working.0,
+            working.1,
+            input.max_side_setting,
+            full_size.0,
+            full_size.1
+        )));
+    }
     let own_lights = lights_per_photograph(input, &decided.lights);
     check_memory(input, full_size, own_lights)?;
     let vignetting = &input.vignetting;
@@ -779,13 +795,15 @@ fn check_set(input: &PhotoInput, lights: &[PointLight]) -> Result<(), PhotoError
         && !picks.is_empty()
     {
         return Err(PhotoError::Input(
-            "--light-index picks lights that are on together; a photometric-stereo set takes              each photograph's own light from the camera file's `image` names"
+            "--light-index picks lights that are on together; a photometric-stereo set takes \
+             each photograph's own light from the camera file's `image` names"
                 .into(),
         ));
     }
     if lights.len() != input.images.len() {
         return Err(PhotoError::Input(format!(
-            "{} photographs but {} lights: each photograph of a set needs its own light (a              camera file whose `lights` name each image, or one --light per photograph)",
+            "{} photographs but {} lights: each photograph of a set needs its own light (a \
+             camera file whose `lights` name each image, or one --light per photograph)",
             input.images.len(),
             lights.len()
         )));
@@ -794,7 +812,8 @@ fn check_set(input: &PhotoInput, lights: &[PointLight]) -> Result<(), PhotoError
         for (b, lb) in input.images[..k].iter().zip(lights) {
             if la.position == lb.position {
                 return Err(PhotoError::Input(format!(
-                    "{} and {} have the same light (at {:?}): each photograph of a set must be                      lit from a different place",
+                    "{} and {} have the same light (at {:?}): each photograph of a set must be \
+                     lit from a different place",
                     b.display(),
                     a.display(),
                     la.position
@@ -827,7 +846,9 @@ pub fn photometric_problem(
     use crate::solver::photometric::{PhotometricProblem, SetPhoto, validate};
     if prepared.photos.len() != input.images.len() || input.images.len() < 2 {
         return Err(PhotoError::Input(
-            "these photographs are not a set with a light each (solve them with              --photometric-stereo and a camera file that names each image, or one --light per              photograph)"
+            "these photographs are not a set with a light each (solve them with \
+             --photometric-stereo and a camera file that names each image, or one --light per \
+             photograph)"
                 .into(),
         ));
     }

@@ -261,6 +261,9 @@ pub fn validate(problem: &PhotometricProblem) -> Result<(), SolveError> {
     if let Some(size_error) = mask_size_error(problem, size) {
         return bad(size_error);
     }
+    if let Some(message) = light_geometry_error(photos) {
+        return bad(message);
+    }
     if let Some((a, b, sine)) = most_similar_pair(problem) {
         return bad(format!(
             "{} and {} are the same photograph (they differ by {:.2} % of their brightness \
@@ -280,6 +283,96 @@ pub fn validate(problem: &PhotometricProblem) -> Result<(), SolveError> {
         .check_for(size.0, size.1)
         .map_err(SolveError::Input)?;
     Ok(())
+}
+
+/// Two lights of a set closer than this angle, seen from where the object
+/// is expected, are one light: their photographs say the same.
+pub const MIN_LIGHT_ANGLE_DEG: f64 = 0.25;
+/// Three or more lights whose unit directions towards the object have a
+/// smallest singular value below this share of their largest lie in one
+/// plane with it (collinear lights): one component of the normal is not
+/// seen. A ring of LEDs 10 degrees off the axis has about 0.12.
+pub const MIN_LIGHT_SPREAD: f64 = 0.01;
+
+/// Refuses a set whose lights cannot tell the normals apart, naming them:
+/// two lights (nearly) in one direction, or three or more (nearly) in one
+/// plane with the object. The object is expected on the optical axis at
+/// twice the farthest light's distance from the camera (lights sit around
+/// the camera or between it and the object); directions are judged from
+/// there. These sets gave "the solve diverged".
+fn light_geometry_error(photos: &[SetPhoto]) -> Option<String> {
+    let positions: Vec<DVec3> = photos
+        .iter()
+        .map(|p| DVec3::from_array(p.light.position))
+        .collect();
+    let reach = positions.iter().map(|p| p.length()).fold(0.0, f64::max);
+    if !(reach.is_finite() && reach > 0.0) {
+        return None;
+    }
+    let object = DVec3::new(0.0, 0.0, 2.0 * reach);
+    let directions: Vec<DVec3> = positions
+        .iter()
+        .map(|p| (*p - object).normalize_or_zero())
+        .collect();
+    for (k, a) in directions.iter().enumerate() {
+        for (j, b) in directions[..k].iter().enumerate() {
+            let angle = a.angle_between(*b).to_degrees();
+            if angle < MIN_LIGHT_ANGLE_DEG {
+                return Some(format!(
+                    "the lights of {} (at {:?}) and {} (at {:?}) are {angle:.3} degrees apart \
+                     seen from the object (under {MIN_LIGHT_ANGLE_DEG}): their photographs \
+                     cannot tell the normals apart; each photograph of a set needs a light \
+                     from a different direction",
+                    photos[j].name,
+                    photos[j].light.position,
+                    photos[k].name,
+                    photos[k].light.position
+                ));
+            }
+        }
+    }
+    if directions.len() >= 3 {
+        let m = directions.iter().fold(glam::DMat3::ZERO, |m, d| {
+            m + glam::DMat3::from_cols(*d * d.x, *d * d.y, *d * d.z)
+        });
+        let (smallest, largest) = symmetric_eigen_range(&m);
+        let spread = (smallest.max(0.0) / largest.max(1e-300)).sqrt();
+        if spread < MIN_LIGHT_SPREAD {
+            let names: Vec<String> = photos
+                .iter()
+                .map(|p| format!("{} (at {:?})", p.name, p.light.position))
+                .collect();
+            return Some(format!(
+                "the lights of {} lie in one plane with the object (spread {spread:.4}, under \
+                 {MIN_LIGHT_SPREAD}): one component of the normals is not seen; a set needs \
+                 lights around the object's direction, not on one line",
+                names.join(", ")
+            ));
+        }
+    }
+    None
+}
+
+/// The smallest and largest eigenvalue of a symmetric 3x3 matrix (the
+/// trigonometric closed form).
+fn symmetric_eigen_range(m: &glam::DMat3) -> (f64, f64) {
+    let a = m.to_cols_array_2d();
+    let p1 = a[0][1].powi(2) + a[0][2].powi(2) + a[1][2].powi(2);
+    if p1 <= 0.0 {
+        let d = [a[0][0], a[1][1], a[2][2]];
+        let lo = d.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = d.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        return (lo, hi);
+    }
+    let q = (a[0][0] + a[1][1] + a[2][2]) / 3.0;
+    let p2 = (a[0][0] - q).powi(2) + (a[1][1] - q).powi(2) + (a[2][2] - q).powi(2) + 2.0 * p1;
+    let p = (p2 / 6.0).sqrt();
+    let b = (*m - glam::DMat3::from_diagonal(DVec3::splat(q))) * (1.0 / p);
+    let r = (b.determinant() / 2.0).clamp(-1.0, 1.0);
+    let phi = r.acos() / 3.0;
+    let largest = q + 2.0 * p * phi.cos();
+    let smallest = q + 2.0 * p * (phi + 2.0 * std::f64::consts::PI / 3.0).cos();
+    (smallest, largest)
 }
 
 /// The message when a mask is not the photographs' size.
@@ -370,6 +463,47 @@ fn most_similar_pair(problem: &PhotometricProblem) -> Option<(usize, usize, f64)
     None
 }
 
+/// Why a set has no trusted, lit object pixel in any photograph, named as
+/// the single-image path names it: an empty object mask, no trusted
+/// object pixel, every one saturated, or every photograph black there (an
+/// ambient frame as bright as the photographs leaves nothing).
+fn why_unlit(problem: &PhotometricProblem) -> String {
+    let count = problem.photos[0].image.as_slice().len();
+    let object = |q: usize| problem.object_mask.as_ref().is_none_or(|m| m.as_slice()[q]);
+    let trusted = |q: usize| {
+        object(q)
+            && problem
+                .confidence
+                .as_ref()
+                .is_none_or(|c| c.as_slice()[q] > 0.0)
+    };
+    if !(0..count).any(object) {
+        return "the object mask is empty: no photograph has an object pixel to solve".into();
+    }
+    if !(0..count).any(trusted) {
+        return "no pixel is both on the object and trusted (confidence > 0)".into();
+    }
+    let usable = |photo: &SetPhoto, q: usize| {
+        !photo.saturated.as_ref().is_some_and(|s| s.as_slice()[q])
+            && photo
+                .confidence
+                .as_ref()
+                .is_none_or(|c| c.as_slice()[q] > 0.0)
+    };
+    if !problem
+        .photos
+        .iter()
+        .any(|p| (0..count).any(|q| trusted(q) && usable(p, q)))
+    {
+        return "every photograph is saturated or untrusted on every trusted object pixel: \
+                lower the exposure or mask the saturated region (confidence 0)"
+            .into();
+    }
+    "every photograph is black on every trusted object pixel: there is no shading to explain \
+     (an --ambient frame as bright as the photographs takes all of their light away)"
+        .into()
+}
+
 /// A photograph of a set with fewer than this many trusted object pixels
 /// above [`unlit_level`] is refused as unlit: a black photograph (or one
 /// whose light misses the object) was used, the fit came out 0.41 in RSE
@@ -455,9 +589,8 @@ pub fn solve_photometric(
     validate(problem)?;
     let (width, height) = problem.photos[0].image.size();
     let finest = finest_level(problem);
-    let brightness = reference_brightness(&finest).ok_or_else(|| {
-        SolveError::Input("no trusted, lit object pixel in any photograph".into())
-    })?;
+    let brightness =
+        reference_brightness(&finest).ok_or_else(|| SolveError::Input(why_unlit(problem)))?;
     let sigma = noise_sigma(problem, &finest);
     let alpha = match params.alpha {
         Some(a) => a,
