@@ -6,7 +6,9 @@ use std::fs;
 use serde_json::Value;
 use tempfile::tempdir;
 
-use crate::common::{assert_success, entries, expect_failure, read_json, s, sfs, stderr};
+use crate::common::{
+    assert_success, entries, expect_failure, read_json, s, sfs, stderr, synth_into,
+};
 
 /// Two photographs of the Sombrero, each under a light of its own that a
 /// camera file ties to it by name, bright enough that their sum passes 1
@@ -108,18 +110,10 @@ fn two_photographs_get_a_model_fit_each() {
 #[test]
 fn photometric_stereo_end_to_end() {
     let dir = tempdir().expect("temp dir");
-    let set = dir.path().join("set");
-    let out = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "48x48",
-        "--ps-leds",
-        "4",
-        "--out",
-        &s(&set),
-    ]);
-    assert_success(&out, "synth --ps-leds");
+    let set = synth_into(
+        &dir.path().join("set"),
+        &["sombrero", "--size", "48x48", "--ps-leds", "4"],
+    );
     let files = entries(&set);
     for name in [
         "led01.png",
@@ -240,18 +234,10 @@ fn photometric_stereo_end_to_end() {
 #[test]
 fn a_repeated_or_black_photograph_and_an_absurd_principal_point_are_refused() {
     let dir = tempdir().expect("temp dir");
-    let set = dir.path().join("set");
-    let out = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "48x48",
-        "--ps-leds",
-        "4",
-        "--out",
-        &s(&set),
-    ]);
-    assert_success(&out, "synth --ps-leds");
+    let set = synth_into(
+        &dir.path().join("set"),
+        &["sombrero", "--size", "48x48", "--ps-leds", "4"],
+    );
     let bad = dir.path().join("bad");
     let set_args = |folder: &std::path::Path| {
         let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
@@ -336,18 +322,10 @@ fn a_repeated_or_black_photograph_and_an_absurd_principal_point_are_refused() {
 #[test]
 fn a_ground_truth_folder_is_checked_before_the_solve() {
     let dir = tempdir().expect("temp dir");
-    let set = dir.path().join("set");
-    let out = sfs([
-        "synth",
-        "sombrero",
-        "--size",
-        "32x32",
-        "--ps-leds",
-        "3",
-        "--out",
-        &s(&set),
-    ]);
-    assert_success(&out, "synth --ps-leds");
+    let set = synth_into(
+        &dir.path().join("set"),
+        &["sombrero", "--size", "32x32", "--ps-leds", "3"],
+    );
     let bad = dir.path().join("bad");
     let missing = dir.path().join("no-such-folder");
     let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
