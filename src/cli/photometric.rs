@@ -199,11 +199,10 @@ struct FolderSet {
 }
 
 /// The set a folder holds when the one path given is a folder, found as
-/// `view DIR` finds it (the viewer's [`sfs_viewer::app::set_images_in`]):
-/// the photographs its `scene.json` or `calibration.json` names by their
+/// `view DIR` finds it (`sfs_core::photo::folder::SetFolder`): the
+/// photographs its `scene.json` or `calibration.json` names by their
 /// lights; its `mask.png` and `ambient.png` are used where the options
 /// name none. `None` for photographs.
-#[cfg(feature = "gui")]
 fn folder_set(args: &SolveArgs) -> Result<Option<FolderSet>> {
     let [dir] = args.images.as_slice() else {
         return Ok(None);
@@ -211,31 +210,12 @@ fn folder_set(args: &SolveArgs) -> Result<Option<FolderSet>> {
     if !dir.is_dir() {
         return Ok(None);
     }
-    let images = sfs_viewer::app::set_images_in(dir)?;
-    // `set_images_in` read the lights from the first of these present.
-    let camera = ["scene.json", "calibration.json"]
-        .iter()
-        .map(|name| dir.join(name))
-        .find(|p| p.is_file())
-        .with_context(|| format!("{} holds no camera file", dir.display()))?;
+    let found = sfs_core::photo::folder::SetFolder::find(dir)?;
     Ok(Some(FolderSet {
         dir: dir.clone(),
-        images,
-        camera,
+        images: found.images,
+        camera: found.camera,
     }))
-}
-
-/// Without the viewer's code (feature `gui`) a folder is refused by name.
-#[cfg(not(feature = "gui"))]
-fn folder_set(args: &SolveArgs) -> Result<Option<FolderSet>> {
-    match args.images.as_slice() {
-        [dir] if dir.is_dir() => bail!(
-            "{} is a folder: this build has no viewer (feature `gui`), whose folder reading \
-             solve shares; give the photographs and --camera",
-            dir.display()
-        ),
-        _ => Ok(None),
-    }
 }
 
 /// The index of `wanted` among `images` (the same path, or the same file

@@ -24,6 +24,7 @@
 
 mod camera;
 pub mod corrections;
+pub mod folder;
 
 use std::path::{Path, PathBuf};
 

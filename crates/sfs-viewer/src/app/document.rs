@@ -25,6 +25,7 @@ use sfs_core::camera::Intrinsics;
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
 use sfs_core::light::PointLight;
+use sfs_core::photo::folder::{SetFolder, camera_file_in};
 use sfs_core::photo::{
     self, CameraSpec, LightSpec, PhotoInput, PhotoReport, PreparedPhoto, ScaleSpec, Vignetting,
 };
@@ -258,10 +259,7 @@ pub struct Document {
 /// file found beside it and whether the object mask was found beside it.
 pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<PathBuf>, bool) {
     let folder = path.parent().unwrap_or(Path::new("."));
-    let camera_beside = ["scene.json", "calibration.json"]
-        .iter()
-        .map(|name| folder.join(name))
-        .find(|p| p.is_file());
+    let camera_beside = camera_file_in(folder);
     let mask_beside = Some(folder.join("mask.png")).filter(|m| m.is_file() && m != path);
     let camera = match (&options.camera, &camera_beside) {
         (Some(file), _) | (None, Some(file)) => CameraSpec::File(file.clone()),
@@ -294,49 +292,13 @@ pub fn viewer_input(path: &Path, options: &OpenOptions) -> (PhotoInput, Option<P
     (input, camera_beside, found_mask)
 }
 
-/// The camera file of a folder: its `scene.json`, else its
-/// `calibration.json`.
-fn camera_file_in(folder: &Path) -> Option<PathBuf> {
-    ["scene.json", "calibration.json"]
-        .iter()
-        .map(|name| folder.join(name))
-        .find(|p| p.is_file())
-}
-
-/// The photographs of a set folder: those its camera file's lights name
-/// (`image`) that are present in it, in the lights' order.
+/// The photographs of a set folder (`sfs_core::photo::folder::SetFolder`):
+/// those its camera file's lights name that are present, in their order.
 ///
 /// # Errors
-/// No camera file, one that cannot be read, or fewer than two named
-/// photographs present (the message names the folder and the file).
+/// As [`SetFolder::find`].
 pub fn set_images_in(folder: &Path) -> Result<Vec<PathBuf>> {
-    let camera = camera_file_in(folder).ok_or_else(|| {
-        anyhow::anyhow!(
-            "{} holds no scene.json or calibration.json: a photometric-stereo folder needs a \
-             camera file whose lights name each photograph (`image`)",
-            folder.display()
-        )
-    })?;
-    let file = sfs_core::camera_file::read_camera(&camera)
-        .with_context(|| format!("cannot read {}", camera.display()))?;
-    let images: Vec<PathBuf> = file
-        .lights
-        .iter()
-        .filter_map(|light| light.image.as_ref())
-        .map(|name| folder.join(name))
-        .filter(|p| p.is_file())
-        .collect();
-    if images.len() < 2 {
-        anyhow::bail!(
-            "{} names {} photograph{} present in {}: a photometric-stereo set needs at least 2, \
-             each named by its light's `image`",
-            camera.display(),
-            images.len(),
-            if images.len() == 1 { "" } else { "s" },
-            folder.display()
-        );
-    }
-    Ok(images)
+    Ok(SetFolder::find(folder)?.images)
 }
 
 /// The photo pipeline's input for opening `images` as a photometric-stereo
