@@ -6,8 +6,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use serde::Serialize;
-use serde_json::json;
 
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
@@ -15,9 +13,8 @@ use sfs_core::memory;
 use sfs_core::metrics;
 use sfs_core::model_fit;
 use sfs_core::params::{self as parameters, AlbedoChoice, InitialDepth, SolverParams};
-use sfs_core::photo::{
-    self, CameraSpec, LightSpec, PhotoInput, PhotoReport, ScaleSpec, Vignetting,
-};
+use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput, ScaleSpec, Vignetting};
+use sfs_core::photograph_solve::{KnownDistance, PhotographSolve, SolvedPhotograph, shown};
 use sfs_core::solver::{self, IterationReport, SolveObserver};
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
@@ -334,17 +331,6 @@ pub fn parse_initial_depth(text: Option<&str>, image_size: (usize, usize)) -> Re
     Ok(InitialDepth::Map(map))
 }
 
-/// A depth or distance as the user reads it: four decimals for moderate
-/// values, scientific notation for very small or large ones (`1e-6` was
-/// printed as "0.0000").
-pub fn shown(v: f64) -> String {
-    if v != 0.0 && v.is_finite() && !(1e-2..1e6).contains(&v.abs()) {
-        format!("{v:.4e}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
 /// Ground truth of a synth folder.
 pub struct GroundTruth {
     /// Depth, NaN on the background.
@@ -514,73 +500,6 @@ impl SolveArgs {
     }
 }
 
-/// The depth picture's range, for the report.
-#[derive(Debug, Serialize)]
-struct DepthRange {
-    /// Depth shown white.
-    near_white: f64,
-    /// Depth shown black.
-    far_black: f64,
-}
-
-/// The input as solved: the photo pipeline's report (with the intensity
-/// scale the solve ended with) and the known distance.
-#[derive(Debug, Serialize)]
-struct SolveInput {
-    #[serde(flatten)]
-    photo: PhotoReport,
-    /// `--known-depth` as given (pixels of the photograph as given).
-    known_depth: Vec<[f64; 3]>,
-    /// `--distance` as given.
-    distance: Option<f64>,
-}
-
-/// A known distance is met when the solved depth there is within this share.
-const KNOWN_DEPTH_MET: f64 = 0.005;
-
-/// `report.json`: everything a solve decided and measured.
-#[derive(Debug, Serialize)]
-struct SolveReport<'a> {
-    input: SolveInput,
-    /// Which cue set the depth unit, how precisely, the shading search and
-    /// how the solve met `--known-depth` (working-size pixels) or
-    /// `--distance`.
-    depth_unit: &'a solver::depth_unit::DepthUnit,
-    notes: &'a [String],
-    parameters: serde_json::Value,
-    /// The material the surface was solved as (with `--reflectance auto`,
-    /// the fitted one).
-    material: sfs_core::material::Material,
-    /// With `--reflectance auto`: every candidate and the verdict.
-    material_fit: Option<&'a solver::material_fit::MaterialFit>,
-    /// With `--albedo auto`: the estimate and whether the solve used it.
-    albedo_fit: Option<&'a solver::albedo_fit::AlbedoFit>,
-    alpha_used: f64,
-    alpha_px: f64,
-    lambda_px: f64,
-    scales: &'a sfs_core::params::ProblemScales,
-    initial_depth: f64,
-    levels: &'a [solver::LevelReport],
-    phases: &'a solver::PhaseTimes,
-    final_energy: &'a sfs_core::model::Energy,
-    seconds: f64,
-    model_fit: &'a model_fit::ModelFit,
-    /// Several photographs, each with its own light: the fit of the depth
-    /// to each one alone under its light.
-    #[serde(skip_serializing_if = "<[_]>::is_empty")]
-    model_fit_per_photo: &'a [photo::PhotoFit],
-    /// Share of the object taken out of the data term as shadow (lights off
-    /// the optical centre only; shadow.png marks it).
-    shadow_share: Option<f64>,
-    /// Options given that this input leaves without effect (each also a
-    /// warning).
-    unused_options: &'a [String],
-    warnings: &'a [String],
-    depth16_png_range: Option<DepthRange>,
-    rse: Option<f64>,
-    rie: Option<f64>,
-}
-
 /// Runs `solve` on one photograph (`cli::run` hands `--photometric-stereo`
 /// to `cli::photometric`).
 pub fn run(args: &SolveArgs) -> Result<()> {
@@ -607,54 +526,30 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             .chain(named.iter().map(PathBuf::as_path)),
     );
     let size = prepared.size();
-    let full_size = prepared.full_size();
-    let camera = prepared.problem.camera;
-    let mut notes = prepared.report.notes.clone();
-    let object_mask = prepared.problem.object_mask.clone();
-    let image = &prepared.problem.image;
-    if let Some(reason) = model_fit::too_dark_to_solve(image, object_mask.as_ref()) {
-        // The cause, where the input names one before the image's darkness.
-        let report = &prepared.report;
-        let cause = if object_mask
-            .as_ref()
-            .is_some_and(|m| !m.as_slice().iter().any(|&o| o))
-        {
-            format!(
-                "the object mask {} marks no pixel as object (white = object)",
-                report
-                    .mask
-                    .as_deref()
-                    .map_or_else(String::new, |p| p.display().to_string())
-            )
-        } else if let Some(ambient) = &report.ambient
-            && !image
-                .as_slice()
-                .iter()
-                .zip(0..)
-                .any(|(&v, q)| v > 0.0 && object_mask.as_ref().is_none_or(|m| m.as_slice()[q]))
-        {
-            format!(
-                "after subtracting the ambient frame {} the image is black on every object \
-                 pixel: the ambient frame is at least as bright as the photograph there (the \
-                 wrong frame, or the two swapped?)",
-                ambient.display()
-            )
-        } else if let Some(albedo) = &report.albedo
-            && report.albedo_untrusted_share >= 0.999
-        {
-            format!(
-                "the albedo {} is zero (below the smallest albedo divided out) on every object \
-                 pixel",
-                albedo.display()
-            )
-        } else {
-            reason
-        };
-        bail!("cannot solve {}: {cause}", args.images[0].display());
+    let params = args.params(size)?;
+    let mut job = PhotographSolve::of_prepared(&prepared, params, args.method.method());
+    job.initial_depth_given = Some(
+        args.init_depth
+            .clone()
+            .unwrap_or_else(|| "fast-marching".into()),
+    );
+    job.known_distances = args
+        .known_depth
+        .iter()
+        .map(|&[column_px, row_px, depth]| KnownDistance {
+            column_px,
+            row_px,
+            depth,
+        })
+        .collect();
+    job.distance = args.distance;
+    if let Some(reason) = job.refusal() {
+        bail!("cannot solve {}: {reason}", args.images[0].display());
     }
-    let dark = model_fit::darkness_warning(image, object_mask.as_ref());
-    if let Some(warning) = &dark
-        && !args.quiet
+    let camera = job.problem.camera;
+    if !args.quiet
+        && let Some(warning) =
+            model_fit::darkness_warning(&job.problem.image, job.problem.object_mask.as_ref())
     {
         eprintln!("warning: {warning}");
     }
@@ -675,12 +570,37 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         }
         None => None,
     };
-    let params = args.params(size)?;
-    let set_up_cues = prepared.distance_cues();
-    let units = prepared.report.camera.units.clone();
-    let mut photo_report = prepared.report.clone();
-    let confidence_derived = prepared.confidence_derived;
-    let mut problem = prepared.problem;
+    // The distances given, checked where the user gave them (the pixel of
+    // the photograph as given).
+    for point in &job.known_distances {
+        if let Err(e) = job.known_depth(point) {
+            bail!(
+                "--known-depth {},{},{}: {e}",
+                point.column_px,
+                point.row_px,
+                shown(point.depth)
+            );
+        }
+    }
+    if let Some(distance) = args.distance
+        && !(distance.is_finite() && distance > 0.0)
+    {
+        bail!("--distance {distance}: must be a positive distance (the camera file's unit)");
+    }
+    if (!args.known_depth.is_empty() || args.distance.is_some())
+        && let Some(given) = &args.intensity_scale
+        && given != "auto"
+    {
+        bail!(
+            "--{} and --intensity-scale {given} both set the depth unit: give one (a distance \
+             searches the intensity scale)",
+            if args.known_depth.is_empty() {
+                "distance"
+            } else {
+                "known-depth"
+            }
+        );
+    }
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(1);
         bar.set_style(
@@ -693,211 +613,26 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     });
     let mut progress = Progress {
         bar,
-        kappa: params.kappa,
+        kappa: job.params.kappa,
     };
-    // The intensity scale: estimated with lights off the centre; a known
-    // distance fixes it (and the depth unit).
-    let known_points: Vec<solver::calibrate::KnownDepth> = args
-        .known_depth
-        .iter()
-        .map(|&[x, y, z]| {
-            let kx = size.0 as f64 / full_size.0 as f64;
-            let ky = size.1 as f64 / full_size.1 as f64;
-            solver::calibrate::KnownDepth {
-                column_px: ((x + 0.5) * kx - 0.5).round(),
-                row_px: ((y + 0.5) * ky - 0.5).round(),
-                depth: z,
-            }
-        })
-        .collect();
-    let (z_min, z_max) = parameters::DEPTH_RANGE;
-    for (given, p) in args.known_depth.iter().zip(&known_points) {
-        let [x, y, z] = [given[0].to_string(), given[1].to_string(), shown(given[2])];
-        if !(p.column_px >= 0.0
-            && p.row_px >= 0.0
-            && (p.column_px as usize) < size.0
-            && (p.row_px as usize) < size.1
-            && p.depth > 0.0
-            && p.depth.is_finite())
-        {
-            bail!(
-                "--known-depth {x},{y},{z}: the pixel must lie in the {}x{} image and the \
-                 distance be positive",
-                full_size.0,
-                full_size.1
-            );
-        }
-        if !(z_min..=z_max).contains(&p.depth) {
-            bail!(
-                "--known-depth {x},{y},{z}: the distance must lie in [{z_min:e}, {z_max:e}] depth \
-                 units (check its unit)"
-            );
-        }
-    }
-    if let Some(distance) = args.distance
-        && !(distance.is_finite() && distance > 0.0)
-    {
-        bail!("--distance {distance}: must be a positive distance (the camera file's unit)");
-    }
-    if (!known_points.is_empty() || args.distance.is_some())
-        && let Some(given) = &args.intensity_scale
-        && given != "auto"
-    {
-        bail!(
-            "--{} and --intensity-scale {given} both set the depth unit: give one (a distance \
-             searches the intensity scale)",
-            if known_points.is_empty() {
-                "distance"
-            } else {
-                "known-depth"
-            }
-        );
-    }
-    let centred = problem.light_is_centred();
-    // Options that depend on the input to matter, and that this input
-    // leaves without effect: reported on stderr and in report.json.
-    let mut unused_options: Vec<String> = Vec::new();
-    if params.shadow_bound && centred {
-        unused_options.push(
-            "--shadow-bound on: the light is at the optical centre, so the surface casts no \
-             shadow the camera sees and there is nothing to bound"
-                .into(),
-        );
-    }
-    let method = args.method.method();
-    let cues = solver::depth_unit::DistanceCues {
-        known_depths: known_points,
-        distance: args.distance,
-        ..set_up_cues
-    };
-    let unit_name = units.as_deref().unwrap_or("depth units");
-    let solved =
-        solver::depth_unit::solve_photograph(&mut problem, &params, &method, &cues, &mut progress);
-    let mut known_depth_warning = None;
-    let mut loose_scale_warning = None;
-    if let Ok((_, unit)) = &solved {
-        notes.push(unit.words(unit_name));
-        if let Some(fit) = unit.fit.as_ref().filter(|f| !f.points.is_empty()) {
-            notes.push(format!(
-                "depth scale from --known-depth: s = {:.4e} after {} solve{}; {}",
-                fit.intensity_scale,
-                fit.solves,
-                if fit.solves == 1 { "" } else { "s" },
-                fit.points
-                    .iter()
-                    .map(|p| format!(
-                        "pixel {},{} given {} solved {} ({:+.2} %)",
-                        p.column_px,
-                        p.row_px,
-                        shown(p.given),
-                        shown(p.solved),
-                        100.0 * p.relative_residual
-                    ))
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            ));
-            if let Some(precision) = &fit.scale_precision {
-                let points = fit.points.len();
-                match precision.warning(points) {
-                    Some(warning) => loose_scale_warning = Some(warning),
-                    None => notes.push(precision.words(points)),
-                }
-            }
-            if let Some(worst) = fit
-                .points
-                .iter()
-                .max_by(|a, b| {
-                    a.relative_residual
-                        .abs()
-                        .total_cmp(&b.relative_residual.abs())
-                })
-                .filter(|p| p.relative_residual.abs() > KNOWN_DEPTH_MET)
-            {
-                known_depth_warning = Some(format!(
-                    "--known-depth is not met: pixel {},{} (working size) is at {} for the \
-                     given {} ({:+.2} %){}; the depth unit is off by about that much",
-                    worst.column_px,
-                    worst.row_px,
-                    shown(worst.solved),
-                    shown(worst.given),
-                    100.0 * worst.relative_residual,
-                    if fit.points.len() > 1 {
-                        " (several points: they may disagree with each other)"
-                    } else if fit.converged {
-                        ""
-                    } else {
-                        " (the scale search did not settle)"
-                    }
-                ));
-            }
-        }
-        if let Some(median) = unit.fit.as_ref().and_then(|f| f.median_depth)
-            && median.relative_residual.abs() > KNOWN_DEPTH_MET
-            && unit.source == solver::depth_unit::UnitSource::Distance
-        {
-            known_depth_warning = Some(format!(
-                "--distance is not met: the surface's median depth is {} for the given {} \
-                 ({:+.2} %); the depth unit is off by about that much",
-                shown(median.solved),
-                shown(median.given),
-                100.0 * median.relative_residual
-            ));
-        }
-    }
+    let solved = job.run(&mut progress);
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
-    // With `--albedo auto` every solve (the searches' too) estimated the
-    // albedo and compared it with albedo 1 at its own scale
-    // (`solver::albedo_fit`); the reprojection is the photograph's.
-    let (solution, depth_unit) =
-        solved.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
-    let model = problem.model(solution.material);
+    let solved = solved.with_context(|| format!("cannot solve {}", args.images[0].display()))?;
+    let solution = &solved.solution;
+    let problem = &solved.problem;
     let errors = match &ground_truth {
         Some(gt) => Some(metrics::errors_with_model(
             &solution.depth,
             &gt.depth,
             &gt.image,
             camera,
-            &model,
+            &problem.model(solution.material),
         )?),
         None => None,
     };
-    let domain = solution.depth.map(|z| z.is_finite());
-    let fit_confidence = problem.confidence.clone();
-    // A sum of photographs is saturated where one of them was, not where
-    // its value is.
-    let sum_divisor = prepared.report.sum_divisor.unwrap_or(1.0);
-    let model_fit = model_fit::measure_photographs(
-        &problem.image,
-        &solution.reprojection,
-        &domain,
-        fit_confidence.as_ref(),
-        solution.scales.intensity,
-        model_fit::Photographs {
-            saturated: prepared.clipped.as_ref(),
-            scale: sum_divisor,
-        },
-    );
-    // Geometry of the solved surface: where it grazes the view beside a
-    // brighter surface (what lies behind was joined to the contour).
-    let occlusion_edges = model_fit::occlusion_edges(&problem.image, &solution.depth, camera);
-    let model_fit = model_fit.with_occlusion_edges(&occlusion_edges, &solution.depth);
-    let model_fit_per_photo = photo::fit_per_photo(
-        &prepared.photos,
-        &solution,
-        camera,
-        problem.intensity_scale,
-        fit_confidence.as_ref(),
-        sum_divisor,
-    );
-    let residual = model_fit::residual_map(
-        &problem.image,
-        &solution.reprojection,
-        &domain,
-        solution.scales.intensity,
-    );
-
+    let residual = solved.residual();
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
     io::write_png16(&stage.path("reprojection.png"), &solution.reprojection)?;
     io::write_png16(&stage.path("input_linear.png"), &problem.image)?;
@@ -907,14 +642,14 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         &residual.map(|v| if v.is_finite() { 0.5 + v } else { 0.5 }),
     )?;
     if let Some(c) = &problem.confidence
-        && confidence_derived
+        && solved.confidence_derived
     {
         io::write_png8(&stage.path("confidence_used.png"), c)?;
     }
     if let Some(shadow) = &solution.shadow {
         io::write_mask_png(&stage.path("shadow.png"), shadow)?;
     }
-    io::write_mask_png(&stage.path("occlusion_edges.png"), &occlusion_edges)?;
+    io::write_mask_png(&stage.path("occlusion_edges.png"), &solved.occlusion_edges)?;
     if let Some(fit) = &solution.albedo_fit {
         // Relative: the object's 90th percentile is 1.
         let used = fit.used_albedo(&solution.depth);
@@ -924,90 +659,35 @@ pub fn run(args: &SolveArgs) -> Result<()> {
             &used.map(|a| if a.is_finite() { *a } else { 0.0 }),
         )?;
     }
-    let object_pixels = problem
-        .object_mask
-        .as_ref()
-        .map_or(problem.image.len(), |m| {
-            m.as_slice().iter().filter(|&&o| o).count()
-        });
-    let shadow_share = solution.shadow.as_ref().map(|shadow| {
-        shadow.as_slice().iter().filter(|&&s| s).count() as f64 / object_pixels.max(1) as f64
-    });
-    let depth_range = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
+    io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
     io::write_depth_ply(
         &stage.path("mesh.ply"),
         &solution.depth,
         &camera,
         Some(&solution.reprojection),
     )?;
-    let mut warnings: Vec<String> = model_fit.warnings.clone();
-    if let Some(w) = depth_unit.warning(unit_name) {
-        warnings.insert(0, w);
-    }
-    if let Some(w) = known_depth_warning {
-        warnings.insert(0, w);
-    }
-    if let Some(w) = loose_scale_warning {
-        warnings.insert(0, w);
-    }
-    if let Some(fit) = &solution.material_fit
-        && !fit.best.is_lambert()
-    {
-        warnings.push(fit.summary.clone());
-    }
-    if let Some(close) = solution.albedo_fit.as_ref().and_then(|f| f.close_call()) {
-        warnings.push(format!("albedo: {close}"));
-    }
-    warnings.extend(sfs_core::light::lights_that_miss(
-        &problem.lights,
-        &solution.depth,
-        &camera,
-    ));
-    warnings.extend(unused_options.iter().map(|u| format!("unused option {u}")));
-    if let Some(d) = dark
-        && !warnings.iter().any(|w| w.contains("too dark"))
-    {
-        warnings.insert(0, d);
-    }
-    photo_report.camera.intensity_scale = problem.intensity_scale;
-    photo_report.lights = problem.lights.clone();
-    let report = SolveReport {
-        input: SolveInput {
-            photo: photo_report,
-            known_depth: args.known_depth.clone(),
-            distance: args.distance,
-        },
-        depth_unit: &depth_unit,
-        notes: &notes,
-        parameters: params_json(&params, args),
-        material: solution.material,
-        material_fit: solution.material_fit.as_ref(),
-        albedo_fit: solution.albedo_fit.as_ref(),
-        alpha_used: solution.alpha,
-        alpha_px: solution.alpha_px,
-        lambda_px: solution.lambda_px,
-        scales: &solution.scales,
-        initial_depth: solution.initial_depth,
-        levels: &solution.levels,
-        phases: &solution.phases,
-        final_energy: &solution.final_energy,
-        seconds: solution.seconds,
-        model_fit: &model_fit,
-        model_fit_per_photo: &model_fit_per_photo,
-        shadow_share,
-        unused_options: &unused_options,
-        warnings: &warnings,
-        depth16_png_range: depth_range.map(|(near_white, far_black)| DepthRange {
-            near_white,
-            far_black,
-        }),
-        rse: errors.map(|e| e.rse),
-        rie: errors.map(|e| e.rie),
-    };
-    io::write_json(&stage.path("report.json"), &report)?;
+    io::write_json(
+        &stage.path("report.json"),
+        &solved.report(errors.map(|e| (e.rse, e.rie))),
+    )?;
     stage
         .commit()
         .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    if !args.quiet {
+        print_summary(args, &solved, errors.map(|e| (e.rse, e.rie)));
+    }
+    // Warnings are never quiet (--quiet drops the progress, notes and
+    // summary only).
+    for warning in &solved.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(())
+}
+
+/// The notes, the one-line summary and the fits on stderr.
+fn print_summary(args: &SolveArgs, solved: &SolvedPhotograph, errors: Option<(f64, f64)>) {
+    let solution = &solved.solution;
+    let params = &solved.params;
     let levels = solution.levels.len();
     let mut summary = format!(
         "solved {} in {:.2} s ({} level{}{}{}) -> {}",
@@ -1015,7 +695,9 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         solution.seconds,
         levels,
         if levels == 1 { "" } else { "s" },
-        if matches!(params.initial_depth, InitialDepth::FastMarching) && centred {
+        if matches!(params.initial_depth, InitialDepth::FastMarching)
+            && solved.problem.light_is_centred()
+        {
             " after the fast-marching start"
         } else {
             ""
@@ -1034,86 +716,61 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         },
         args.out.display()
     );
-    if let Some(e) = errors {
-        summary.push_str(&format!("  rse {:.5} rie {:.5}", e.rse, e.rie));
+    if let Some((rse, rie)) = errors {
+        summary.push_str(&format!("  rse {rse:.5} rie {rie:.5}"));
     }
-    if !args.quiet {
-        for note in &notes {
-            eprintln!("{note}");
-        }
-        eprintln!("{summary}");
-        if !solution.material.is_lambert() || solution.material_fit.is_some() {
-            eprintln!("reflectance: {}", solution.material.describe());
-        }
-        if let Some(fit) = solution
-            .material_fit
-            .as_ref()
-            .filter(|f| f.best.is_lambert())
-        {
-            eprintln!(
-                "material fit ({} px working copy, {:.1} s): {}",
-                fit.working_side, fit.seconds, fit.summary
-            );
-        }
+    for note in &solved.notes {
+        eprintln!("{note}");
+    }
+    eprintln!("{summary}");
+    if !solution.material.is_lambert() || solution.material_fit.is_some() {
+        eprintln!("reflectance: {}", solution.material.describe());
+    }
+    if let Some(fit) = solution
+        .material_fit
+        .as_ref()
+        .filter(|f| f.best.is_lambert())
+    {
         eprintln!(
-            "model fit: RIE {:.3} over trusted pixels, {:.0} % badly explained, {:.0} % \
+            "material fit ({} px working copy, {:.1} s): {}",
+            fit.working_side, fit.seconds, fit.summary
+        );
+    }
+    let fit = &solved.fit;
+    eprintln!(
+        "model fit: RIE {:.3} over trusted pixels, {:.0} % badly explained, {:.0} % \
+         near-black, {:.1} % saturated",
+        fit.rie_trusted,
+        100.0 * fit.poor_share,
+        100.0 * fit.near_black_share,
+        100.0 * fit.saturated_share
+    );
+    for each in &solved.fit_per_photo {
+        let name = each.image.file_name().map_or_else(
+            || each.image.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        eprintln!(
+            "  {name} alone, its own light: RIE {:.3}, {:.0} % badly explained, {:.0} % \
              near-black, {:.1} % saturated",
-            model_fit.rie_trusted,
-            100.0 * model_fit.poor_share,
-            100.0 * model_fit.near_black_share,
-            100.0 * model_fit.saturated_share
-        );
-        for each in &model_fit_per_photo {
-            let name = each.image.file_name().map_or_else(
-                || each.image.display().to_string(),
-                |n| n.to_string_lossy().into_owned(),
-            );
-            eprintln!(
-                "  {name} alone, its own light: RIE {:.3}, {:.0} % badly explained, {:.0} % \
-                 near-black, {:.1} % saturated",
-                each.fit.rie_trusted,
-                100.0 * each.fit.poor_share,
-                100.0 * each.fit.near_black_share,
-                100.0 * each.fit.saturated_share
-            );
-        }
-        if let Some(fit) = &solution.albedo_fit {
-            eprintln!(
-                "albedo (decided at {} px, {:.1} s): {}",
-                fit.working_side, fit.seconds, fit.summary
-            );
-        }
-        if let Some(share) = shadow_share {
-            eprintln!(
-                "shadow: {:.1} % of the object taken out of the data term (no light reaches it; shadow.png)",
-                100.0 * share
-            );
-        }
-    }
-    // Warnings are never quiet (--quiet drops the progress, notes and
-    // summary only).
-    for warning in &warnings {
-        eprintln!("warning: {warning}");
-    }
-    Ok(())
-}
-
-/// Every parameter as JSON, for the report: the table's, the method and
-/// the initial depth as given.
-fn params_json(params: &SolverParams, args: &SolveArgs) -> serde_json::Value {
-    let mut json = parameters::table::to_json(params);
-    if let Some(object) = json.as_object_mut() {
-        object.insert("method".into(), json!(args.method.method().name()));
-        object.insert(
-            "init_depth".into(),
-            json!(
-                args.init_depth
-                    .clone()
-                    .unwrap_or_else(|| "fast-marching".into())
-            ),
+            each.fit.rie_trusted,
+            100.0 * each.fit.poor_share,
+            100.0 * each.fit.near_black_share,
+            100.0 * each.fit.saturated_share
         );
     }
-    json
+    if let Some(fit) = &solution.albedo_fit {
+        eprintln!(
+            "albedo (decided at {} px, {:.1} s): {}",
+            fit.working_side, fit.seconds, fit.summary
+        );
+    }
+    if let Some(share) = solved.shadow_share {
+        eprintln!(
+            "shadow: {:.1} % of the object taken out of the data term (no light reaches it; shadow.png)",
+            100.0 * share
+        );
+    }
 }
 
 #[cfg(test)]

@@ -7,6 +7,8 @@
 mod bench;
 mod common;
 mod depth_unit;
+#[cfg(feature = "gui")]
+mod fronts;
 mod photographs;
 mod solve;
 mod synth;

@@ -32,6 +32,7 @@ pub mod model_fit;
 pub mod occlusion;
 pub mod params;
 pub mod photo;
+pub mod photograph_solve;
 pub mod resample;
 pub mod scene;
 pub mod selection;

@@ -49,16 +49,14 @@ use crossbeam_channel::{
     Receiver, RecvTimeoutError, SendTimeoutError, Sender, TryRecvError, TrySendError, bounded,
 };
 
-use sfs_core::light::PointLight;
 use sfs_core::params::{InitialDepth, SolverParams};
-use sfs_core::solver::calibrate::KnownDepth;
-use sfs_core::solver::depth_unit::{self, DepthUnit, DistanceCues};
+use sfs_core::photograph_solve::{PhotographSolve, PhotographSolveError, SolvedPhotograph};
 use sfs_core::solver::photometric::{
     PhotometricParams, PhotometricProblem, PhotometricSolution, solve_photometric,
 };
 use sfs_core::solver::pyramid;
 use sfs_core::solver::{
-    IterationReport, LevelResult, Method, Problem, Solution, SolveError, SolveObserver,
+    IterationReport, LevelResult, Problem, Solution, SolveError, SolveObserver,
 };
 
 /// Commands queued while the worker is busy (submits beyond this wait).
@@ -80,54 +78,10 @@ impl fmt::Display for JobId {
     }
 }
 
-/// One solve to run: the problem and the parameters.
-#[derive(Clone, Debug)]
-pub struct SolveRequest {
-    /// Image, camera, masks.
-    pub problem: Problem,
-    /// Solver parameters (validated by the solver: bad ones end in `Failed`).
-    pub params: SolverParams,
-    /// Decide the intensity scale (no scale given; see
-    /// [`sfs_core::solver::depth_unit`]): with lights off the centre the
-    /// job runs [`depth_unit::solve_photograph`] instead of the
-    /// [`SolveFn`]. Ignored when [`Self::known_depths`] or
-    /// [`Self::distance`] set the scale.
-    pub estimate_scale: bool,
-    /// Distances the user knows, in pixels of `problem.image` (the working
-    /// size). Not empty: the job runs [`depth_unit::solve_photograph`] with
-    /// the linearised scheme, which moves the intensity scale until the
-    /// depth meets them, instead of the [`SolveFn`].
-    pub known_depths: Vec<KnownDepth>,
-    /// The object's distance (median depth) the user gives: as
-    /// [`Self::known_depths`], with the median.
-    pub distance: Option<f64>,
-    /// The rig's aimed lights (`photo::PhotoReport::rig_lights`), a cue to
-    /// the distance.
-    pub rig_lights: Vec<PointLight>,
-}
-
-impl SolveRequest {
-    /// A plain request: the problem and parameters, the scale estimated
-    /// where `estimate_scale`, no distance given, no rig.
-    pub fn new(problem: Problem, params: SolverParams, estimate_scale: bool) -> Self {
-        Self {
-            problem,
-            params,
-            estimate_scale,
-            known_depths: Vec::new(),
-            distance: None,
-            rig_lights: Vec::new(),
-        }
-    }
-
-    /// Whether the job decides its depth unit ([`depth_unit::solve_photograph`])
-    /// rather than running the [`SolveFn`].
-    pub fn decides_depth_unit(&self) -> bool {
-        !self.known_depths.is_empty()
-            || self.distance.is_some()
-            || (self.estimate_scale && !self.problem.light_is_centred())
-    }
-}
+/// One photograph's solve to run: the core's [`PhotographSolve`] (the
+/// problem, parameters, known distances and the pipeline's report), the
+/// same job the command line runs.
+pub type SolveRequest = PhotographSolve;
 
 /// One photometric-stereo solve to run: the set and the scheme's settings.
 #[derive(Clone, Debug)]
@@ -151,11 +105,14 @@ pub type SetSolveFn = Arc<
         + Sync,
 >;
 
-/// The function a worker runs for each job without known depths
-/// ([`Worker::spawn`] uses [`sfs_core::solver::solve`]; tests inject
-/// failures through it).
+/// The function a worker runs for each photograph's job
+/// ([`Worker::spawn`] uses [`PhotographSolve::run`]; the app runs it on a
+/// pool that leaves the UI a core; tests inject failures through it).
 pub type SolveFn = Arc<
-    dyn Fn(&Problem, &SolverParams, &mut dyn SolveObserver) -> Result<Solution, SolveError>
+    dyn Fn(
+            &PhotographSolve,
+            &mut dyn SolveObserver,
+        ) -> Result<SolvedPhotograph, PhotographSolveError>
         + Send
         + Sync,
 >;
@@ -198,11 +155,9 @@ pub enum Event {
     Finished {
         /// The job.
         job: JobId,
-        /// The full-resolution result.
-        solution: Box<Solution>,
-        /// The depth unit the job decided, and how it met known depths or
-        /// the object's distance (`None` when it decided none).
-        depth_unit: Option<Box<DepthUnit>>,
+        /// The full-resolution result with everything measured of it
+        /// (the depth unit, the fit, the warnings, the report).
+        solved: Box<SolvedPhotograph>,
     },
     /// A photometric-stereo set's solve completed.
     SetFinished {
@@ -461,43 +416,26 @@ impl Runner {
         }
         let mut observer = ChannelObserver::new(job, &self.outbox);
         let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
-            if request.decides_depth_unit() {
-                let mut problem = request.problem.clone();
-                let cues = DistanceCues {
-                    known_depths: request.known_depths.clone(),
-                    distance: request.distance,
-                    scale_given: !request.estimate_scale,
-                    rig_lights: request.rig_lights.clone(),
-                };
-                let (solution, unit) = depth_unit::solve_photograph(
-                    &mut problem,
-                    &request.params,
-                    &Method::Linearised,
-                    &cues,
-                    &mut observer,
-                )?;
-                return Ok((solution, Some(Box::new(unit))));
-            }
-            (self.solve_fn)(&request.problem, &request.params, &mut observer).map(|s| (s, None))
+            (self.solve_fn)(request, &mut observer).map_err(|e| match e {
+                PhotographSolveError::Solve(e) => e,
+                other => SolveError::Input(other.to_string()),
+            })
         }));
         if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
             return Err(Stop);
         }
-        if let Ok(Ok((solution, Some(unit)))) = &outcome
-            && unit.fit.is_some()
-            && let Some(level) = rescaled_level(observer.last_level.take(), solution)
+        if let Ok(Ok(solved)) = &outcome
+            && solved.depth_unit.as_ref().is_some_and(|u| u.fit.is_some())
+            && let Some(level) = rescaled_level(observer.last_level.take(), &solved.solution)
         {
             // The search scaled the last solve's depth onto the known
             // distances: the UI shows what `Finished` holds.
             self.outbox.deliver(Event::Level { job, result: level })?;
         }
         self.outbox
-            .deliver(end_event(job, outcome, |(solution, depth_unit)| {
-                Event::Finished {
-                    job,
-                    solution: Box::new(solution),
-                    depth_unit,
-                }
+            .deliver(end_event(job, outcome, |solved| Event::Finished {
+                job,
+                solved: Box::new(solved),
             }))
     }
 
@@ -624,7 +562,7 @@ impl Worker {
     /// Starts the thread `sfs-solver` running [`sfs_core::solver::solve`]
     /// (and [`solve_photometric`] for sets).
     pub fn spawn(waker: Waker) -> io::Result<Self> {
-        Self::spawn_with(waker, Arc::new(sfs_core::solver::solve))
+        Self::spawn_with(waker, Arc::new(|job, observer| job.run(observer)))
     }
 
     /// Starts the thread with another solve function (a different

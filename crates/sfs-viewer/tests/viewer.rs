@@ -45,7 +45,7 @@ fn step_until(harness: &mut Harness<'_, ViewerApp>, done: impl Fn(&ViewerApp) ->
 fn solves_the_sample_and_streams_its_levels_and_reports_errors() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     let app = harness.state();
     // The default: the fast-marching start, then the refined surface.
     let sizes = &app.solve_state().arrived;
@@ -99,7 +99,7 @@ fn alpha_slider_changes_the_parameter_and_starts_a_new_solve() {
     );
     // After the debounce a new job replaces the first one.
     step_until(&mut harness, |app| app.solve_state().job != first_job);
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
 }
 
 /// The open document's confidence mask.
@@ -193,13 +193,13 @@ fn bad_files_leave_the_open_image_and_say_why() {
 fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     // The sample fits the model: a summary, no warning.
     let fit = harness
         .state()
         .solve_state()
-        .fit
-        .clone()
+        .fit()
+        .cloned()
         .expect("a model-fit summary after the solve");
     assert!(fit.rie_trusted < 0.05, "{fit:?}");
     assert!(fit.warnings.is_empty(), "{fit:?}");
@@ -207,8 +207,8 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     let contours = harness
         .state()
         .solve_state()
-        .occlusion_edges
-        .clone()
+        .occlusion_edges()
+        .cloned()
         .expect("occluding contours measured with the fit");
     assert!(!contours.as_slice().iter().any(|&on| on));
     assert_eq!(fit.occlusion_edge_share, 0.0);
@@ -220,8 +220,7 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     let albedo = harness
         .state()
         .solve_state()
-        .finished
-        .as_ref()
+        .finished()
         .and_then(|s| s.albedo_fit.clone())
         .expect("albedo auto reports its fit");
     assert!(!albedo.used, "{}", albedo.summary);
@@ -357,7 +356,7 @@ fn the_input_shows_the_photograph_as_it_looks_and_hovering_reads_linear_values()
     // Hovering the image reads the linear value, not the displayed one
     // (once the solve is done: its result adds the albedo tab's row, which
     // moves the image down; so down the panel until the readout appears).
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     let tab = harness.get_by_label("input + mask").rect();
     let linear = (1..16).any(|k| {
         harness.hover_at(egui::pos2(
@@ -438,12 +437,11 @@ fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
         image: Some(image.clone()),
         ..options(dir.path())
     });
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     let shadow = harness
         .state()
         .solve_state()
-        .finished
-        .as_ref()
+        .finished()
         .and_then(|s| s.shadow.clone())
         .expect("a light off the axis: the solve reports its shadow");
     let found = shadow.as_slice().iter().filter(|&&s| s).count();
@@ -476,7 +474,7 @@ fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
 fn a_known_distance_is_picked_typed_solved_to_and_restored() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     // "Set distance", then a click on the object in the input panel.
     harness.get_by_label("Set distance").click_accesskit();
     harness.step();
@@ -526,14 +524,13 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
     let (c, r) = doc.working_pixel(point.column_px, point.row_px);
     // The change re-solves; the fit comes with the result.
     step_until(&mut harness, |app| {
-        app.solve_state().job != job_before && app.solve_state().finished.is_some()
+        app.solve_state().job != job_before && app.solve_state().finished().is_some()
     });
     let solve = harness.state().solve_state();
-    let fit = solve.known_depth_fit.as_ref().expect("the fit is reported");
+    let fit = solve.known_depth_fit().expect("the fit is reported");
     assert_eq!(fit.points.len(), 1);
     let solved = *solve
-        .finished
-        .as_ref()
+        .finished()
         .expect("finished")
         .depth
         .at(c as usize, r as usize);
@@ -562,8 +559,8 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
             .known_depths
             .is_empty()
     );
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
-    assert!(harness.state().solve_state().known_depth_fit.is_none());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
+    assert!(harness.state().solve_state().known_depth_fit().is_none());
 }
 
 /// The object's distance typed in the Known distance section: refused when
@@ -574,7 +571,7 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
 fn an_object_distance_is_typed_solved_to_and_restored() {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     let typed = |harness: &mut Harness<'_, ViewerApp>, text: &str| {
         harness
             .get_by_role_and_label(Role::TextInput, "object distance")
@@ -600,10 +597,10 @@ fn an_object_distance_is_typed_solved_to_and_restored() {
         Some(4.5)
     );
     step_until(&mut harness, |app| {
-        app.solve_state().job != job_before && app.solve_state().finished.is_some()
+        app.solve_state().job != job_before && app.solve_state().finished().is_some()
     });
     let solve = harness.state().solve_state();
-    let unit = solve.depth_unit.as_ref().expect("the depth unit is said");
+    let unit = solve.depth_unit().expect("the depth unit is said");
     assert_eq!(
         unit.source,
         sfs_core::solver::depth_unit::UnitSource::Distance
@@ -659,7 +656,7 @@ fn choose_and_solve(harness: &mut Harness<'_, ViewerApp>, word: &str) {
     let before = harness.state().solve_state().job;
     choose_reflectance(harness, word);
     step_until(harness, |app| {
-        app.solve_state().job != before && app.solve_state().finished.is_some()
+        app.solve_state().job != before && app.solve_state().finished().is_some()
     });
     harness.step();
 }
@@ -670,7 +667,7 @@ fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_
     use sfs_core::params::ReflectanceChoice;
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished.is_some());
+    step_until(&mut harness, |app| app.solve_state().finished().is_some());
     harness.step();
     // Lambert, the default: no model's parameters, nothing said.
     for label in ["roughness (rad)", "specular k_s", "shininess n"] {
@@ -692,12 +689,7 @@ fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_
     choose_and_solve(&mut harness, "oren-nayar");
     assert!(has_slider(&harness, "roughness (rad)"));
     assert!(!has_slider(&harness, "shininess n") && !has_slider(&harness, "specular k_s"));
-    let solution = harness
-        .state()
-        .solve_state()
-        .finished
-        .as_ref()
-        .expect("solved");
+    let solution = harness.state().solve_state().finished().expect("solved");
     assert_eq!(
         solution.material,
         Material::OrenNayar { roughness_rad: 0.3 }
@@ -709,8 +701,7 @@ fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_
     let fit = harness
         .state()
         .solve_state()
-        .finished
-        .as_ref()
+        .finished()
         .and_then(|s| s.material_fit.clone())
         .expect("auto reports its fit");
     assert!(!has_slider(&harness, "roughness (rad)"));

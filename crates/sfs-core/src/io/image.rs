@@ -512,16 +512,23 @@ pub fn write_mask_png(path: &Path, mask: &Grid<bool>) -> Result<(), IoError> {
     save_png(path, DynamicImage::ImageLuma8(buffer))
 }
 
-/// Writes depth as a 16-bit PNG for viewing: 1 (white) at the nearest depth,
-/// 0 at the farthest and off the object. Returns `(near, far)` or `None`
-/// when no depth is finite.
-pub fn write_depth_png16(path: &Path, depth: &Grid<f64>) -> Result<Option<(f64, f64)>, IoError> {
+/// The nearest and farthest finite depth, as `depth16.png` maps them to
+/// white and black (`None`: no finite depth).
+pub fn depth_range(depth: &Grid<f64>) -> Option<(f64, f64)> {
     let mut range: Option<(f64, f64)> = None;
     for &z in depth.as_slice() {
         if z.is_finite() {
             range = Some(range.map_or((z, z), |(lo, hi)| (lo.min(z), hi.max(z))));
         }
     }
+    range
+}
+
+/// Writes depth as a 16-bit PNG for viewing: 1 (white) at the nearest depth,
+/// 0 at the farthest and off the object. Returns `(near, far)` or `None`
+/// when no depth is finite.
+pub fn write_depth_png16(path: &Path, depth: &Grid<f64>) -> Result<Option<(f64, f64)>, IoError> {
+    let range = depth_range(depth);
     let (near, far) = range.unwrap_or((0.0, 1.0));
     let span = (far - near).max(f64::MIN_POSITIVE);
     let view = depth.map(|&z| {

@@ -17,8 +17,9 @@ pub mod mesh;
 pub mod npy;
 
 pub use self::image::{
-    SrgbMode, exif_orientation, image_size, photo_size, read_image, read_mask, read_photo,
-    srgb_decision, write_depth_png16, write_mask_png, write_png8, write_png16, write_rgb_png8,
+    SrgbMode, depth_range, exif_orientation, image_size, photo_size, read_image, read_mask,
+    read_photo, srgb_decision, write_depth_png16, write_mask_png, write_png8, write_png16,
+    write_rgb_png8,
 };
 pub use atomic::write_atomic;
 pub use json::write_json;

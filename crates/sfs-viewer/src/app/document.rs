@@ -18,33 +18,23 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use serde::{Deserialize, Serialize};
 
 use crate::mask_edit::{ImagePoint, Masks};
 use sfs_core::camera::Intrinsics;
 use sfs_core::grid::Grid;
 use sfs_core::io::{self, SrgbMode};
 use sfs_core::light::PointLight;
+use sfs_core::params::SolverParams;
 use sfs_core::photo::folder::{SetFolder, camera_file_in};
 use sfs_core::photo::{
     self, CameraSpec, LightSpec, PhotoInput, PhotoReport, PreparedPhoto, ScaleSpec, Vignetting,
 };
+use sfs_core::photograph_solve::PhotographSolve;
 use sfs_core::solver::Problem;
 use sfs_core::solver::calibrate::KnownDepth;
 use sfs_core::solver::photometric::PhotometricProblem;
 
-/// A distance the user knows: the surface seen at pixel
-/// `(column_px, row_px)` of the photograph (its own, full size) lies at
-/// depth `depth` (the camera's depth unit).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct KnownDistance {
-    /// Pixel column in the photograph.
-    pub column_px: f64,
-    /// Pixel row in the photograph.
-    pub row_px: f64,
-    /// The distance (depth along the optical axis).
-    pub depth: f64,
-}
+pub use sfs_core::photograph_solve::KnownDistance;
 
 /// Where the camera values came from.
 #[derive(Clone, Debug, PartialEq)]
@@ -240,6 +230,11 @@ pub struct Document {
     pub ground_truth: Option<Grid<f64>>,
     /// What the photo pipeline decided, and why.
     pub report: PhotoReport,
+    /// Where a photograph was clipped (saturated), working size.
+    pub clipped: Option<Grid<bool>>,
+    /// The photographs of a sum, each with its own light (the fit per
+    /// photograph).
+    pub photos: Vec<sfs_core::photo::SummedPhoto>,
     /// Messages about what was found beside the image (for the status line).
     pub notes: Vec<String>,
     /// Distances the user knows, in pixels of the photograph, in the order
@@ -488,6 +483,8 @@ impl Document {
             srgb: prepared.report.srgb,
             srgb_reason: prepared.report.srgb_reason.clone(),
             full_size: prepared.full_size(),
+            clipped: prepared.clipped,
+            photos: prepared.photos,
             report: prepared.report,
             image,
             input: input.clone(),
@@ -589,6 +586,8 @@ impl Document {
             srgb: prepared.report.srgb,
             srgb_reason: prepared.report.srgb_reason.clone(),
             full_size,
+            clipped: prepared.clipped,
+            photos: prepared.photos,
             report: prepared.report,
             image: prepared.problem.image,
             input,
@@ -619,47 +618,24 @@ impl Document {
     /// The working-size pixel of a photograph pixel, as `solve
     /// --known-depth` converts it: `((x + 0.5) * w / W - 0.5).round()`.
     pub fn working_pixel(&self, column_px: f64, row_px: f64) -> (f64, f64) {
-        let (w, h) = self.size();
-        let (fw, fh) = self.full_size;
-        (
-            ((column_px + 0.5) * w as f64 / fw as f64 - 0.5).round(),
-            ((row_px + 0.5) * h as f64 / fh as f64 - 0.5).round(),
-        )
+        sfs_core::photograph_solve::working_pixel(self.full_size, self.size(), column_px, row_px)
     }
 
     /// The point as the solver takes it (working-size pixel), or why it
     /// cannot be used: a distance that is not positive and finite, a pixel
     /// outside the photograph or off the object mask.
     pub fn check_known_depth(&self, point: &KnownDistance) -> Result<KnownDepth, String> {
-        let KnownDistance {
-            column_px: x,
-            row_px: y,
-            depth,
-        } = *point;
-        if !(depth.is_finite() && depth > 0.0) {
-            return Err(format!(
-                "the distance at pixel ({x}, {y}) must be a positive number, not {depth}"
-            ));
-        }
-        let (fw, fh) = self.full_size;
-        if !(x >= 0.0 && y >= 0.0 && x < fw as f64 && y < fh as f64) {
-            return Err(format!(
-                "pixel ({x}, {y}) is outside the {fw}x{fh} photograph"
-            ));
-        }
-        let (c, r) = self.working_pixel(x, y);
-        let (w, h) = self.size();
-        let inside = c >= 0.0 && r >= 0.0 && (c as usize) < w && (r as usize) < h;
-        if !inside || !*self.masks.object().at(c as usize, r as usize) {
-            return Err(format!(
-                "pixel ({x}, {y}) is off the object (the object mask): a known distance must \
-                 be a point of the surface"
-            ));
-        }
-        Ok(KnownDepth {
-            column_px: c,
-            row_px: r,
-            depth,
+        sfs_core::photograph_solve::known_depth(
+            point,
+            self.full_size,
+            self.size(),
+            Some(self.masks.object()),
+        )
+        .map_err(|e| {
+            format!(
+                "known distance at pixel ({}, {}): {e}",
+                point.column_px, point.row_px
+            )
         })
     }
 
@@ -673,19 +649,6 @@ impl Document {
             None => self.known_depths.push(point),
         }
         Ok(())
-    }
-
-    /// The known distances as the solver takes them (working-size pixels),
-    /// or the first reason one cannot be used (the object mask may have
-    /// changed since it was given).
-    pub fn known_depths_for_solver(&self) -> Result<Vec<KnownDepth>, String> {
-        self.known_depths
-            .iter()
-            .map(|p| {
-                self.check_known_depth(p)
-                    .map_err(|e| format!("known distance: {e}; remove it or change the mask"))
-            })
-            .collect()
     }
 
     /// A number that changes with every mask edit: the painted layers and
@@ -723,6 +686,29 @@ impl Document {
             object_mask: self.masks.object_for_solver(),
             confidence: self.masks.confidence_for_solver(),
             lights: self.camera.solve_lights(),
+        }
+    }
+
+    /// The solve of the document as it is now, with `params`: the problem
+    /// ([`Self::problem`]), the pipeline's report and clipping, the known
+    /// distances (which win over the object's distance) — the same job the
+    /// command line's `solve` runs.
+    pub fn photograph_solve(&self, params: SolverParams) -> PhotographSolve {
+        PhotographSolve {
+            problem: self.problem(),
+            params,
+            method: sfs_core::solver::Method::Linearised,
+            initial_depth_given: None,
+            photo: self.report.clone(),
+            full_size: self.full_size,
+            clipped: self.clipped.clone(),
+            photos: self.photos.clone(),
+            scale_given: self.camera.scale_given,
+            confidence_derived: false,
+            known_distances: self.known_depths.clone(),
+            distance: self
+                .object_distance
+                .filter(|_| self.known_depths.is_empty()),
         }
     }
 
@@ -767,6 +753,8 @@ impl Document {
         self.srgb = prepared.report.srgb;
         self.srgb_reason = prepared.report.srgb_reason.clone();
         self.report = prepared.report;
+        self.clipped = prepared.clipped;
+        self.photos = prepared.photos;
         match (set_problem, &mut self.set) {
             (Some(problem), Some(set)) => {
                 self.image = mean_image(&problem, prepared.problem.image.size());
@@ -981,7 +969,12 @@ mod tests {
         doc.masks.clear(crate::mask_edit::Layer::Object);
         doc.masks.invert(crate::mask_edit::Layer::Object);
         assert!(doc.masks.object().as_slice().iter().all(|&o| !o));
-        let reason = doc.known_depths_for_solver().err().unwrap_or_default();
+        let reason = doc
+            .photograph_solve(SolverParams::default())
+            .known_depths()
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
         assert!(reason.contains("off the object"), "{reason}");
         let other = KnownDistance {
             column_px: 10.0,

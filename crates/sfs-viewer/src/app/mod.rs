@@ -484,12 +484,7 @@ impl ViewerApp {
         if self.measure.start_latency_trial(&self.measured_state()) {
             // As a slider release would: change alpha, the debounce, then
             // the solve.
-            let chosen = self
-                .session
-                .solve
-                .finished
-                .as_ref()
-                .map_or(1e-7, |s| s.alpha);
+            let chosen = self.session.solve.finished().map_or(1e-7, |s| s.alpha);
             self.settings.params.update(|p| {
                 p.alpha = match p.alpha {
                     Alpha::Value(v) => Alpha::Value(v * 1.1),
@@ -568,11 +563,10 @@ fn solver_leaving_a_core() -> (crate::worker::SolveFn, crate::worker::SetSolveFn
         .ok()
         .map(std::sync::Arc::new);
     let set_pool = pool.clone();
-    let single: crate::worker::SolveFn =
-        std::sync::Arc::new(move |problem, params, observer| match &pool {
-            Some(pool) => pool.install(|| sfs_core::solver::solve(problem, params, observer)),
-            None => sfs_core::solver::solve(problem, params, observer),
-        });
+    let single: crate::worker::SolveFn = std::sync::Arc::new(move |job, observer| match &pool {
+        Some(pool) => pool.install(|| job.run(observer)),
+        None => job.run(observer),
+    });
     let set: crate::worker::SetSolveFn = std::sync::Arc::new(move |problem, params, observer| {
         use sfs_core::solver::photometric::solve_photometric;
         match &set_pool {

@@ -13,13 +13,16 @@ use std::time::{Duration, Instant};
 use serde::{Deserialize, Serialize};
 
 use crate::mask_edit::{self, Layer, Masks};
-use crate::worker::{Event, JobId, SetRequest, SolveRequest, Worker};
+use crate::worker::{Event, JobId, SetRequest, Worker};
 use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::metrics;
+use sfs_core::model_fit::ModelFit;
 use sfs_core::params::SolverParams;
+use sfs_core::photograph_solve::{PhotographSolve, SolvedPhotograph};
 use sfs_core::solver::albedo_fit::divide_out;
 use sfs_core::solver::calibrate::KnownDepthFit;
+use sfs_core::solver::depth_unit::DepthUnit;
 use sfs_core::solver::photometric::{
     PhotometricParams, PhotometricSolution, SingleComparison, compare_single,
 };
@@ -122,27 +125,12 @@ pub struct SolveState {
     pub energies: Vec<EnergyPoint>,
     /// Progress.
     pub progress: Progress,
-    /// Final result.
-    pub finished: Option<Box<Solution>>,
+    /// The final result with everything the core measured of it (the
+    /// depth unit, the fit, the occlusion edges, the shadow share, the
+    /// warnings, the report).
+    pub solved: Option<Box<SolvedPhotograph>>,
     /// RSE and RIE against the ground truth.
     pub errors: Option<(f64, f64)>,
-    /// How well the final result explains the image.
-    pub fit: Option<sfs_core::model_fit::ModelFit>,
-    /// Share of the object the final result took out as shadow (lights off
-    /// the optical centre).
-    pub shadow_share: Option<f64>,
-    /// Where the final result grazes the view beside a much brighter pixel
-    /// ([`sfs_core::model_fit::occlusion_edges`]: an occluding contour, or
-    /// dark albedo read as a slope), once per result.
-    pub occlusion_edges: Option<Grid<bool>>,
-    /// The intensity scale the final result used (estimated or given).
-    pub intensity_scale_used: Option<f64>,
-    /// The depth unit the last solve decided: which cue set it, how
-    /// precisely (`None` when it decided none: a centred light or a given
-    /// scale with no distance).
-    pub depth_unit: Option<sfs_core::solver::depth_unit::DepthUnit>,
-    /// How the final result met the known distances (`None` without them).
-    pub known_depth_fit: Option<KnownDepthFit>,
     /// With known distances, the solve of the scale search now running
     /// (from 1; each one streams its levels anew), 0 before its first level.
     pub search_solve: usize,
@@ -152,6 +140,56 @@ pub struct SolveState {
     pub completed_jobs: usize,
     /// A set's final result: depth, normals, albedo, each photograph's fit.
     pub set: Option<Box<PhotometricSolution>>,
+}
+
+impl SolveState {
+    /// The final result's solution.
+    pub fn finished(&self) -> Option<&Solution> {
+        self.solved.as_deref().map(|s| &s.solution)
+    }
+
+    /// How well the final result explains the image.
+    pub fn fit(&self) -> Option<&ModelFit> {
+        self.solved.as_deref().map(|s| &s.fit)
+    }
+
+    /// Share of the object the final result took out as shadow (lights off
+    /// the optical centre).
+    pub fn shadow_share(&self) -> Option<f64> {
+        self.solved.as_deref().and_then(|s| s.shadow_share)
+    }
+
+    /// Where the final result grazes the view beside a much brighter pixel
+    /// ([`sfs_core::model_fit::occlusion_edges`]).
+    pub fn occlusion_edges(&self) -> Option<&Grid<bool>> {
+        self.solved.as_deref().map(|s| &s.occlusion_edges)
+    }
+
+    /// The depth unit the last solve decided: which cue set it, how
+    /// precisely.
+    pub fn depth_unit(&self) -> Option<&DepthUnit> {
+        self.solved.as_deref().and_then(|s| s.depth_unit.as_ref())
+    }
+
+    /// How the final result met the known distances (`None` without them).
+    pub fn known_depth_fit(&self) -> Option<&KnownDepthFit> {
+        self.depth_unit()
+            .and_then(|u| u.fit.as_ref())
+            .filter(|f| !f.points.is_empty())
+    }
+
+    /// The intensity scale `s = I_ref Z^2` the final result used
+    /// (estimated or given).
+    pub fn intensity_scale_used(&self) -> Option<f64> {
+        let solution = self.finished()?;
+        let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
+        s_used.is_finite().then_some(s_used)
+    }
+
+    /// Every warning of the final result, most telling first.
+    pub fn warnings(&self) -> &[String] {
+        self.solved.as_deref().map_or(&[], |s| &s.warnings)
+    }
 }
 
 /// One photograph of a set solved alone with the single-image method, and
@@ -190,6 +228,9 @@ pub enum Export {
     MeshObj,
     /// Reprojected image, 16-bit linear PNG.
     Reprojection,
+    /// Everything the solve decided and measured (`report.json`, the same
+    /// as `solve` writes).
+    Report,
 }
 
 /// A level of the job on screen, to prepare for display.
@@ -350,7 +391,7 @@ impl Session {
     /// [`sfs_core::solver::shadows::shadow_mask`]); returns a sentence for
     /// the status line.
     pub fn suggest_confidence(&mut self) -> String {
-        let reprojection = self.solve.finished.as_ref().map(|s| s.reprojection.clone());
+        let reprojection = self.solve.finished().map(|s| s.reprojection.clone());
         let Some(doc) = &mut self.document else {
             return "no image".into();
         };
@@ -602,50 +643,33 @@ impl Session {
             self.begin_job(job);
             return;
         }
-        let object = doc.masks.object_for_solver();
-        let refused = sfs_core::model_fit::too_dark_to_solve(&doc.image, object.as_ref())
-            .map(Err)
-            .unwrap_or_else(|| doc.known_depths_for_solver());
-        let known_depths = match refused {
-            Ok(points) => points,
-            Err(reason) => {
-                // The running job (of other masks) is stale: no result of it
-                // may appear beside this failure.
-                if let Some(job) = self.solve.job.take() {
-                    worker.cancel(job);
-                }
-                self.solve.finished = None;
-                self.solve.shadow_share = None;
-                self.solve.occlusion_edges = None;
-                self.solve.known_depth_fit = None;
-                self.solve.depth_unit = None;
-                self.solve.failure = Some(reason);
-                self.solve.running = false;
-                self.solve.completed_jobs += 1;
-                return;
+        let job = doc.photograph_solve(params);
+        let refused = job.refusal().or_else(|| {
+            job.known_depths()
+                .err()
+                .map(|e| format!("{e}; remove it or change the mask"))
+        });
+        if let Some(reason) = refused {
+            // The running job (of other masks) is stale: no result of it
+            // may appear beside this failure.
+            if let Some(job) = self.solve.job.take() {
+                worker.cancel(job);
             }
-        };
-        let problem = doc.problem();
+            self.solve.solved = None;
+            self.solve.failure = Some(reason);
+            self.solve.running = false;
+            self.solve.completed_jobs += 1;
+            return;
+        }
         self.level_inputs = Some(LevelInputs {
             image: Arc::new(doc.image.clone()),
             ground_truth: doc.ground_truth.clone().map(Arc::new),
-            object: problem.object_mask.clone().map(Arc::new),
+            object: job.problem.object_mask.clone().map(Arc::new),
             display: self.display,
             texture: None,
         });
         self.mask_revision_solved = doc.mask_revision();
-        let estimate_scale = !doc.camera.scale_given;
-        // Known distances at pixels win over the object's distance (the
-        // panel says the distance is then not used).
-        let distance = doc.object_distance.filter(|_| known_depths.is_empty());
-        let job = worker.submit(SolveRequest {
-            problem,
-            params,
-            estimate_scale,
-            known_depths,
-            distance,
-            rig_lights: doc.report.rig_lights.clone(),
-        });
+        let job = worker.submit(job);
         self.begin_job(job);
     }
 
@@ -658,12 +682,8 @@ impl Session {
         solve.arrived.clear();
         solve.energies.clear();
         solve.failure = None;
-        solve.finished = None;
+        solve.solved = None;
         solve.errors = None;
-        solve.shadow_share = None;
-        solve.occlusion_edges = None;
-        solve.known_depth_fit = None;
-        solve.depth_unit = None;
         solve.search_solve = 0;
         solve.set = None;
         self.last_level = None;
@@ -721,72 +741,24 @@ impl Session {
                         });
                     }
                 }
-                Event::Finished {
-                    solution,
-                    depth_unit,
-                    ..
-                } => {
-                    let known_depth_fit = depth_unit
-                        .as_ref()
-                        .and_then(|u| u.fit.clone())
-                        .filter(|f| !f.points.is_empty());
-                    self.solve.depth_unit = depth_unit.map(|u| *u);
-                    // s = I_ref Z^2 (the problem's scales), the estimated one
-                    // when the worker estimated it.
-                    let s_used = solution.scales.intensity * solution.scales.depth.powi(2);
-                    self.solve.intensity_scale_used = s_used.is_finite().then_some(s_used);
-                    self.solve.known_depth_fit = known_depth_fit;
+                Event::Finished { solved, .. } => {
+                    let solution = &solved.solution;
                     self.solve.errors = self.document.as_ref().and_then(|doc| {
                         let gt = doc.ground_truth.as_ref()?;
-                        // RIE with the material the solve used.
-                        let model = sfs_core::light::LightModel::with_material(
-                            s_used,
-                            &doc.camera.solve_lights(),
-                            solution.material,
-                        );
+                        // RIE with the material and the scale the solve used.
+                        let model = solved.problem.model(solution.material);
                         metrics::errors_with_model(
                             &solution.depth,
                             gt,
                             &doc.image,
-                            doc.camera.intrinsics(),
+                            solved.problem.camera,
                             &model,
                         )
                         .ok()
                         .map(|e| (e.rse, e.rie))
                     });
-                    self.solve.occlusion_edges = self.document.as_ref().and_then(|doc| {
-                        (solution.depth.size() == doc.image.size()).then(|| {
-                            sfs_core::model_fit::occlusion_edges(
-                                &doc.image,
-                                &solution.depth,
-                                doc.camera.intrinsics(),
-                            )
-                        })
-                    });
-                    self.solve.fit = self.document.as_ref().and_then(|doc| {
-                        (solution.reprojection.size() == doc.image.size()).then(|| {
-                            let domain = solution.depth.map(|z| z.is_finite());
-                            let fit = sfs_core::model_fit::measure(
-                                &doc.image,
-                                &solution.reprojection,
-                                &domain,
-                                doc.masks.confidence_for_solver().as_ref(),
-                                solution.scales.intensity,
-                            );
-                            match &self.solve.occlusion_edges {
-                                Some(edges) => fit.with_occlusion_edges(edges, &solution.depth),
-                                None => fit,
-                            }
-                        })
-                    });
-                    // Once per result, not per frame: a pass over the image.
-                    self.solve.shadow_share = solution.shadow.as_ref().map(|shadow| {
-                        let object = solution.depth.as_slice().iter().filter(|z| z.is_finite());
-                        let taken = shadow.as_slice().iter().filter(|&&t| t).count();
-                        taken as f64 / object.count().max(1) as f64
-                    });
                     let estimated_albedo = solution.albedo_fit.is_some();
-                    self.solve.finished = Some(solution);
+                    self.solve.solved = Some(solved);
                     self.solve.running = false;
                     self.solve.completed_jobs += 1;
                     if self.albedo_texture
@@ -881,7 +853,7 @@ impl Session {
         match &self.solve.set {
             Some(set) => Some(set.albedo.clone()),
             None => {
-                let solution = self.solve.finished.as_ref()?;
+                let solution = self.solve.finished()?;
                 Some(solution.albedo_fit.as_ref()?.used_albedo(&solution.depth))
             }
         }
@@ -951,7 +923,7 @@ impl Session {
             camera: doc.camera.intrinsics(),
             object_mask: doc.masks.object_for_solver(),
             confidence: doc.masks.confidence_for_solver(),
-            ..prepared.problem
+            ..prepared.problem.clone()
         };
         let mut params = params;
         let mut estimate_scale = !prepared.intensity_scale_given;
@@ -965,14 +937,11 @@ impl Session {
             params.albedo = sfs_core::params::AlbedoChoice::One;
             estimate_scale = estimate_scale && !set.albedo_relative;
         }
-        let job = worker.submit(SolveRequest {
-            problem,
-            params,
-            estimate_scale,
-            known_depths: Vec::new(),
-            distance: None,
-            rig_lights: prepared.report.rig_lights.clone(),
-        });
+        let mut request =
+            PhotographSolve::of_prepared(&prepared, params, sfs_core::solver::Method::Linearised);
+        request.problem = problem;
+        request.scale_given = !estimate_scale;
+        let job = worker.submit(request);
         self.compare.job = Some(job);
         self.compare.running = true;
     }
@@ -980,7 +949,8 @@ impl Session {
     /// An event of the comparison's job.
     fn receive_comparison(&mut self, event: Event) {
         match event {
-            Event::Finished { solution, .. } => {
+            Event::Finished { solved, .. } => {
+                let solution = &solved.solution;
                 self.compare.running = false;
                 self.compare.completed += 1;
                 let (Some(set), Some(doc)) = (&self.solve.set, &self.document) else {
@@ -1096,14 +1066,22 @@ impl Session {
                                 reprojection: export the depth or the mesh"
                         .into());
                 }
+                Export::Report => {
+                    return Err(
+                        "a set's report is written by `solve --photometric-stereo`: \
+                                export the depth or the mesh"
+                            .into(),
+                    );
+                }
             };
             return result
                 .map(|()| format!("wrote {}", path.display()))
                 .map_err(|e| e.to_string());
         }
-        let (Some(solution), Some(doc)) = (&self.solve.finished, &self.document) else {
+        let (Some(solved), Some(doc)) = (self.solve.solved.as_deref(), &self.document) else {
             return Err("nothing to export yet: the solve has not finished".into());
         };
+        let solution = &solved.solution;
         let camera = doc.camera.intrinsics();
         let result = match what {
             Export::DepthNpy => io::write_npy_f32(path, &solution.depth),
@@ -1113,6 +1091,7 @@ impl Session {
             }
             Export::MeshObj => io::write_depth_obj(path, &solution.depth, &camera),
             Export::Reprojection => io::write_png16(path, &solution.reprojection),
+            Export::Report => io::write_json(path, &solved.report(self.solve.errors)),
         };
         result
             .map(|()| format!("wrote {}", path.display()))

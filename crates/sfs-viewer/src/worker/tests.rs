@@ -22,6 +22,10 @@ use sfs_core::material::Material;
 use sfs_core::params::ReflectanceChoice;
 use sfs_core::scene::sombrero::sombrero;
 
+use sfs_core::photograph_solve::KnownDistance;
+use sfs_core::solver::Method;
+use sfs_core::solver::calibrate::KnownDepth;
+
 use super::*;
 
 /// Generous: a wait that fails means a lost event, not a slow machine.
@@ -47,14 +51,7 @@ fn sombrero_request(side: usize) -> SolveRequest {
         initial_depth: InitialDepth::FromImage,
         ..SolverParams::default()
     };
-    SolveRequest {
-        problem,
-        params,
-        estimate_scale: false,
-        known_depths: Vec::new(),
-        distance: None,
-        rig_lights: Vec::new(),
-    }
+    SolveRequest::new(problem, params, Method::Linearised, true)
 }
 
 /// The 64x64 Sombrero (light at the optical centre, default parameters)
@@ -68,14 +65,17 @@ fn known_depth_request(distance_factor: f64) -> (SolveRequest, KnownDepth) {
         row_px: row as f64,
         depth: distance_factor * scene.depth_gt.at(column, row),
     };
-    let request = SolveRequest {
-        problem: scene_problem(scene),
-        params: SolverParams::default(),
-        estimate_scale: true,
-        known_depths: vec![point],
-        distance: None,
-        rig_lights: Vec::new(),
-    };
+    let mut request = SolveRequest::new(
+        scene_problem(scene),
+        SolverParams::default(),
+        Method::Linearised,
+        false,
+    );
+    request.known_distances = vec![KnownDistance {
+        column_px: point.column_px,
+        row_px: point.row_px,
+        depth: point.depth,
+    }];
     (request, point)
 }
 
@@ -199,9 +199,10 @@ fn small_solve_reports_levels_coarse_to_fine_and_finishes() {
         assert_eq!(result.depth.size(), *size);
     }
     assert!(events.iter().any(|e| matches!(e, Event::Progress { .. })));
-    let Some(Event::Finished { solution, .. }) = events.last() else {
+    let Some(Event::Finished { solved, .. }) = events.last() else {
         panic!("last event is {}", kind(events.last()));
     };
+    let solution = &solved.solution;
     assert_eq!(solution.depth.size(), (32, 32));
     assert_eq!(solution.levels.len(), level_sizes.len());
     assert_eq!(events.iter().filter(|e| e.is_terminal()).count(), 1);
@@ -219,15 +220,11 @@ fn a_known_depth_sets_the_scale_and_the_fit_reaches_the_ui() {
     let (request, point) = known_depth_request(1.5);
     let job = worker.submit(request);
     let events = events_until_end(&mut worker, job);
-    let Some(Event::Finished {
-        solution,
-        depth_unit,
-        ..
-    }) = events.last()
-    else {
+    let Some(Event::Finished { solved, .. }) = events.last() else {
         panic!("last event is {}", kind(events.last()));
     };
-    let known_depth_fit = depth_unit.as_ref().and_then(|u| u.fit.as_ref());
+    let solution = &solved.solution;
+    let known_depth_fit = solved.depth_unit.as_ref().and_then(|u| u.fit.as_ref());
     let (c, r) = (point.column_px as usize, point.row_px as usize);
     let solved = *solution.depth.at(c, r);
     assert!(
@@ -258,19 +255,16 @@ fn a_known_depth_sets_the_scale_and_the_fit_reaches_the_ui() {
     // Without known depths there is no fit.
     let job = worker.submit(sombrero_request(32));
     let events = events_until_end(&mut worker, job);
-    assert!(matches!(
-        events.last(),
-        Some(Event::Finished {
-            depth_unit: None,
-            ..
-        })
-    ));
+    let Some(Event::Finished { solved, .. }) = events.last() else {
+        panic!("last event is {}", kind(events.last()));
+    };
+    assert!(solved.depth_unit.as_ref().is_some_and(|u| u.fit.is_none()));
 }
 
 /// The finished solution of `job`'s events, which must end with it.
 fn finished_solution(events: &[Event]) -> &Solution {
     match events.last() {
-        Some(Event::Finished { solution, .. }) => solution,
+        Some(Event::Finished { solved, .. }) => &solved.solution,
         other => panic!("last event is {}", kind(other)),
     }
 }
@@ -320,13 +314,10 @@ fn reflectance_auto_fits_the_material_and_the_fit_reaches_the_ui() {
     request.params.reflectance = ReflectanceChoice::Auto;
     let job = worker.submit(request);
     let events = events_until_end(&mut worker, job);
-    let Some(Event::Finished {
-        depth_unit: Some(unit),
-        ..
-    }) = events.last()
-    else {
-        panic!("last event is {} without a fit", kind(events.last()));
+    let Some(Event::Finished { solved, .. }) = events.last() else {
+        panic!("last event is {}", kind(events.last()));
     };
+    let unit = solved.depth_unit.as_ref().expect("the unit is decided");
     let fit = unit.fit.as_ref().expect("the fit is reported");
     assert!(fit.converged, "{fit:?}");
     let solution = finished_solution(&events);
@@ -347,8 +338,8 @@ fn reflectance_auto_fits_the_material_and_the_fit_reaches_the_ui() {
         ..sfs_core::light::PointLight::CENTRED
     };
     let scene = sfs_core::scene::sombrero::sombrero_lit(48, 48, &[light]);
-    let request = SolveRequest {
-        problem: Problem {
+    let request = SolveRequest::new(
+        Problem {
             image: scene.image,
             camera: scene.camera,
             intensity_scale: 1.0,
@@ -356,23 +347,18 @@ fn reflectance_auto_fits_the_material_and_the_fit_reaches_the_ui() {
             confidence: None,
             lights: vec![light],
         },
-        params: SolverParams {
+        SolverParams {
             reflectance: ReflectanceChoice::Auto,
             ..SolverParams::default()
         },
-        estimate_scale: true,
-        known_depths: Vec::new(),
-        distance: None,
-        rig_lights: Vec::new(),
-    };
+        Method::Linearised,
+        false,
+    );
     let job = worker.submit(request);
     let events = events_until_end(&mut worker, job);
     assert!(matches!(
         events.last(),
-        Some(Event::Finished {
-            depth_unit: Some(_),
-            ..
-        })
+        Some(Event::Finished { solved, .. }) if solved.depth_unit.is_some()
     ));
     assert_fitted(finished_solution(&events));
 }
@@ -382,18 +368,18 @@ fn a_non_positive_known_depth_fails_the_job_without_a_panic() {
     let (mut worker, _) = spawn_counting();
     for distance in [0.0, -1.0, f64::NAN] {
         let (mut request, _) = known_depth_request(1.0);
-        request.known_depths[0].depth = distance;
+        request.known_distances[0].depth = distance;
         let job = worker.submit(request);
         let error = failure(events_until_end(&mut worker, job).last()).to_owned();
-        assert!(error.contains("must be positive"), "{error}");
+        assert!(error.contains("must be a positive number"), "{error}");
         assert!(!error.contains("panicked"), "{error}");
     }
-    // Off the image: refused by the search, and the worker lives on.
+    // Off the image: refused before the search, and the worker lives on.
     let (mut request, _) = known_depth_request(1.0);
-    request.known_depths[0].column_px = 640.0;
+    request.known_distances[0].column_px = 640.0;
     let job = worker.submit(request);
     let error = failure(events_until_end(&mut worker, job).last()).to_owned();
-    assert!(error.contains("not on the solved surface"), "{error}");
+    assert!(error.contains("outside the 64x64 photograph"), "{error}");
     let (request, _) = known_depth_request(1.0);
     let job = worker.submit(request);
     assert!(finished(events_until_end(&mut worker, job).last()));
@@ -443,12 +429,12 @@ fn errors_and_panics_fail_the_job_and_the_worker_lives_on() {
     let calls = Arc::new(AtomicUsize::new(0));
     let counter = Arc::clone(&calls);
     let solve_fn: SolveFn = Arc::new(
-        move |problem: &Problem, params: &SolverParams, observer: &mut dyn SolveObserver| {
+        move |job: &SolveRequest, observer: &mut dyn SolveObserver| {
             if counter.fetch_add(1, Ordering::SeqCst) == 0 {
                 // Panics inside the solve, on a rayon worker.
-                sfs_core::solver::solve(problem, params, &mut PanicOnIteration)
+                job.run(&mut PanicOnIteration)
             } else {
-                sfs_core::solver::solve(problem, params, observer)
+                job.run(observer)
             }
         },
     );

@@ -29,8 +29,7 @@ impl Panels {
             && cx
                 .session
                 .solve
-                .finished
-                .as_ref()
+                .finished()
                 .is_some_and(|s| s.albedo_fit.is_some())
         {
             // On a row of its own: a sixth tab does not fit the first.
@@ -172,7 +171,7 @@ impl Panels {
             let key = solve.completed_jobs;
             let alpha = (cx.settings.brush.overlay_opacity.clamp(0.0, 1.0) * 255.0) as u8;
             if cx.settings.brush.show_shadows {
-                let shadow = solve.finished.as_ref().and_then(|s| s.shadow.as_ref());
+                let shadow = solve.finished().and_then(|s| s.shadow.as_ref());
                 let violet = [150, 60, 220, alpha];
                 update_mask_texture(
                     ui.ctx(),
@@ -187,7 +186,7 @@ impl Panels {
                 }
             }
             if cx.settings.brush.show_contours {
-                let contours = solve.occlusion_edges.as_ref();
+                let contours = solve.occlusion_edges();
                 let orange = [255, 150, 0, alpha.max(160)];
                 update_mask_texture(
                     ui.ctx(),

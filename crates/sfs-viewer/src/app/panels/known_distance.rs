@@ -152,7 +152,7 @@ impl Panels {
             ui.weak("none: the depth scale comes from the camera file or the image");
             return;
         }
-        let fit = cx.session.solve.known_depth_fit.as_ref();
+        let fit = cx.session.solve.known_depth_fit();
         let mut remove = None;
         egui::Grid::new("known distances")
             .num_columns(3)

@@ -81,7 +81,7 @@ impl Panels {
     }
 
     fn export_menu_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
-        let has_result = cx.session.solve.finished.is_some();
+        let has_result = cx.session.solve.finished().is_some();
         let name = cx
             .session
             .document
@@ -114,6 +114,11 @@ impl Panels {
                 && let Some(path) = pick_save(&format!("{name}-reprojection.png"), "png")
             {
                 cx.actions.push(Action::Export(path, Export::Reprojection));
+            }
+            if ui.button("Export report (.json)…").clicked()
+                && let Some(path) = pick_save(&format!("{name}-report.json"), "json")
+            {
+                cx.actions.push(Action::Export(path, Export::Report));
             }
         });
         if ui.button("Save window screenshot…").clicked()

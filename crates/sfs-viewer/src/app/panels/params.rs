@@ -11,7 +11,7 @@ impl Panels {
     pub(super) fn params_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
         let defaults = SolverParams::default();
         let mut p = cx.settings.params.to_params();
-        let chosen_alpha = cx.session.solve.finished.as_ref().map(|s| s.alpha);
+        let chosen_alpha = cx.session.solve.finished().map(|s| s.alpha);
         let mut changed = false;
         let mut estimate_albedo = p.albedo == AlbedoChoice::Auto;
         if ui
@@ -33,8 +33,7 @@ impl Panels {
         if let Some(fit) = cx
             .session
             .solve
-            .finished
-            .as_ref()
+            .finished()
             .and_then(|s| s.albedo_fit.as_ref())
         {
             let text = egui::RichText::new(&fit.summary).small();

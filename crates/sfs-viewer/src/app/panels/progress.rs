@@ -51,7 +51,7 @@ impl Panels {
                              distances: each solve runs through the levels again",
                         );
                 }
-            } else if let Some(done) = &s.finished {
+            } else if let Some(done) = s.finished() {
                 ui.label(format!("done in {:.2} s", done.seconds));
             } else if let Some(done) = &s.set {
                 ui.label(format!("set done in {:.2} s", done.seconds));
@@ -78,7 +78,7 @@ impl Panels {
             .map_or("depth units", |d| d.depth_units())
             .to_owned();
         fit_line(ui, s, &units);
-        if let Some(share) = s.shadow_share {
+        if let Some(share) = s.shadow_share() {
             ui.label(format!(
                 "shadow: {:.1} % of the object taken out of the data term",
                 100.0 * share
@@ -90,13 +90,13 @@ impl Panels {
                  Mask > shadows shows them in violet.",
             );
         }
-        if let Some(s_used) = s.intensity_scale_used {
+        if let Some(s_used) = s.intensity_scale_used() {
             ui.weak(format!("intensity scale used: {s_used:.4e}"));
         }
-        if let Some(solution) = &s.finished {
+        if let Some(solution) = s.finished() {
             material_ui(ui, solution);
         }
-        if let Some(fit) = &s.known_depth_fit {
+        if let Some(fit) = s.known_depth_fit() {
             ui.label(fit_summary(fit)).on_hover_text(
                 "The intensity scale s that puts the surface at the known distances (relative \
                  least squares); residuals: (solved - given) / given at each point",
@@ -199,49 +199,20 @@ fn short_material(material: &Material) -> String {
 /// The side panel's line on a known-distance fit: the scale, each
 /// point's relative residual and how precisely the points fix the scale
 /// (unless loosely: that is a warning of its own).
-/// Every warning of the last solve: the model fit's, the depth unit's and
-/// the known distances'.
-fn solve_warnings(s: &crate::app::session::SolveState, units: &str) -> Vec<String> {
-    let mut warnings = Vec::new();
-    if let Some(w) = s.depth_unit.as_ref().and_then(|u| u.warning(units)) {
-        warnings.push(w);
-    }
-    if let Some(fit) = &s.known_depth_fit {
-        if !fit.converged {
-            warnings.push(
-                "the scale search for the known distances did not settle; the residuals say how \
-                 far off it stopped"
-                    .into(),
-            );
-        }
-        if let Some(w) = fit
-            .scale_precision
-            .and_then(|p| p.warning(fit.points.len()))
-        {
-            warnings.push(w);
-        }
-    }
-    if let Some(fit) = &s.fit {
-        warnings.extend(fit.warnings.iter().cloned());
-    }
-    warnings
-}
-
 /// The fit in one line, coloured (green: explained, no warning; orange:
 /// warnings; red: much of the image unexplained or the depth unit a
 /// guess), with the one thing to do next; the figures on hover and the
 /// warnings in a list that opens.
 fn fit_line(ui: &mut egui::Ui, s: &crate::app::session::SolveState, units: &str) {
-    let warnings = solve_warnings(s, units);
-    let Some(fit) = &s.fit else {
-        if let Some(unit) = &s.depth_unit {
+    let warnings = s.warnings();
+    let Some(fit) = s.fit() else {
+        if let Some(unit) = s.depth_unit() {
             ui.label(unit.words(units));
         }
         return;
     };
     let guess = s
-        .depth_unit
-        .as_ref()
+        .depth_unit()
         .is_some_and(|u| u.source == sfs_core::solver::depth_unit::UnitSource::Guess);
     let (colour, verdict) = if fit.poor_share > 0.3 || guess {
         (ui.visuals().error_fg_color, "poor")
@@ -250,7 +221,7 @@ fn fit_line(ui: &mut egui::Ui, s: &crate::app::session::SolveState, units: &str)
     } else {
         (ui.visuals().warn_fg_color, "fair")
     };
-    let next = if s.depth_unit.as_ref().is_some_and(|u| u.wants_distance()) {
+    let next = if s.depth_unit().is_some_and(|u| u.wants_distance()) {
         "next: give the object's distance (Known distance)"
     } else if fit.near_black_share > 0.05 || fit.poor_share > 0.15 {
         "next: paint the shadows and highlights low confidence (Mask)"
@@ -273,7 +244,7 @@ fn fit_line(ui: &mut egui::Ui, s: &crate::app::session::SolveState, units: &str)
         100.0 * fit.near_black_share,
         100.0 * fit.saturated_share
     ));
-    if let Some(unit) = &s.depth_unit {
+    if let Some(unit) = s.depth_unit() {
         ui.weak(unit.words(units));
     }
     if !warnings.is_empty() {
@@ -284,7 +255,7 @@ fn fit_line(ui: &mut egui::Ui, s: &crate::app::session::SolveState, units: &str)
         ))
         .id_salt("solve warnings")
         .show(ui, |ui| {
-            for warning in &warnings {
+            for warning in warnings {
                 ui.colored_label(ui.visuals().warn_fg_color, warning);
             }
         });

@@ -179,11 +179,7 @@ impl SetView {
             .unwrap_or_default();
         if panel == Panel2d::Albedo
             && solution.is_none()
-            && let Some(fit) = session
-                .solve
-                .finished
-                .as_ref()
-                .and_then(|s| s.albedo_fit.as_ref())
+            && let Some(fit) = session.solve.finished().and_then(|s| s.albedo_fit.as_ref())
         {
             return Some(format!(
                 "albedo (relative, white 1){}: {}",

@@ -24,8 +24,7 @@ impl Panels {
             || cx
                 .session
                 .solve
-                .finished
-                .as_ref()
+                .finished()
                 .is_some_and(|s| s.albedo_fit.is_some());
         ui.horizontal(|ui| {
             ui.checkbox(&mut v.photo_texture, "texture").on_hover_text(
