@@ -21,6 +21,27 @@ pub const MAX_ASPECT_MISMATCH: f64 = 0.01;
 /// (square pixels; their mean is used).
 pub const MAX_FOCAL_MISMATCH: f64 = 0.01;
 
+/// The names `units` may take: lengths at the scale of a camera set-up
+/// (any case).
+pub const LENGTH_UNITS: [&str; 16] = [
+    "nm",
+    "um",
+    "µm",
+    "micron",
+    "mm",
+    "millimetre",
+    "millimeter",
+    "cm",
+    "centimetre",
+    "centimeter",
+    "m",
+    "metre",
+    "meter",
+    "in",
+    "inch",
+    "ft",
+];
+
 /// One light as a camera file stores it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -225,6 +246,15 @@ impl CameraFile {
                 reason,
             })
         };
+        if let Some(units) = &self.units
+            && !LENGTH_UNITS.contains(&units.trim().to_lowercase().as_str())
+        {
+            return bad(format!(
+                "`units` {units:?} is not a unit of length of a camera set-up: give one of {} (the \
+                 unit of depth and of the lights' positions), or leave it out",
+                LENGTH_UNITS.join(", ")
+            ));
+        }
         let has_focal = self.focal.is_some() || self.cx.is_some() || self.cy.is_some();
         if let Some(k) = self.k {
             // K is [[fx, skew, cx], [0, fy, cy], [0, 0, 1]]; the model is a
@@ -567,6 +597,32 @@ mod tests {
             (k.focal_px, k.principal_x_px, k.principal_y_px),
             (80.0, 31.5, 23.5)
         );
+    }
+
+    #[test]
+    fn units_that_are_not_a_length_are_refused_naming_the_accepted_ones() {
+        let dir = tempdir().unwrap();
+        let p = dir.path().join("scene.json");
+        for (units, accepted) in [
+            ("mm", true),
+            ("Metre", true),
+            ("parsecs", false),
+            ("", false),
+        ] {
+            let file = CameraFile {
+                units: Some(units.into()),
+                ..camera()
+            };
+            write_camera(&p, &file).unwrap();
+            match read_camera(&p) {
+                Ok(read) => assert!(accepted, "{units:?} was taken: {read:?}"),
+                Err(e) => {
+                    let e = e.to_string();
+                    assert!(!accepted, "{units:?} refused: {e}");
+                    assert!(e.contains("`units`") && e.contains("mm, millimetre"), "{e}");
+                }
+            }
+        }
     }
 
     #[test]

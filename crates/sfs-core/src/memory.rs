@@ -32,25 +32,35 @@ pub const BASE_BYTES: u64 = 64 << 20;
 /// (0: no guard).
 pub const LIMIT_VARIABLE: &str = "SFS_STUDIO_MEMORY_MB";
 
-/// A job that would not fit the memory there is.
+/// A job that would not fit the memory there is, or a limit that is not one.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error(
-    "{what} would need about {} but only {} is available{}; {way_out}",
-    format_bytes(*.estimate_bytes),
-    format_bytes(*.available_bytes),
-    if *.from_variable { " (set by SFS_STUDIO_MEMORY_MB)" } else { "" }
-)]
-pub struct MemoryError {
-    /// The job, naming its size (e.g. "solving 10000x10000 pixels").
-    pub what: String,
-    /// Estimated peak.
-    pub estimate_bytes: u64,
-    /// Memory available.
-    pub available_bytes: u64,
-    /// The limit came from [`LIMIT_VARIABLE`].
-    pub from_variable: bool,
-    /// What the user can do.
-    pub way_out: String,
+pub enum MemoryError {
+    /// The job would need more than the memory allowed.
+    #[error(
+        "{what} would need about {} but only {} is available{}; {way_out}",
+        format_bytes(*.estimate_bytes),
+        format_bytes(*.available_bytes),
+        if *.from_variable { " (set by SFS_STUDIO_MEMORY_MB)" } else { "" }
+    )]
+    TooLarge {
+        /// The job, naming its size (e.g. "solving 10000x10000 pixels").
+        what: String,
+        /// Estimated peak.
+        estimate_bytes: u64,
+        /// Memory available.
+        available_bytes: u64,
+        /// The limit came from [`LIMIT_VARIABLE`].
+        from_variable: bool,
+        /// What the user can do.
+        way_out: String,
+    },
+    /// [`LIMIT_VARIABLE`] is set to something that is not a whole number of
+    /// MiB.
+    #[error(
+        "SFS_STUDIO_MEMORY_MB={0:?} is not a memory limit: give a whole number of MiB (0 turns \
+         the memory guard off) or unset it"
+    )]
+    BadLimit(String),
 }
 
 /// Estimated peak bytes of solving a photograph of `full` pixels at the
@@ -122,7 +132,7 @@ pub struct SolvePlan<'a> {
 /// the largest working size that would.
 pub fn check_solve(plan: &SolvePlan<'_>) -> Result<(), MemoryError> {
     let estimate = solve_estimate(plan.full, plan.working, plan.images, plan.pyramid_factor);
-    let (allowed, from_variable) = allowance();
+    let (allowed, from_variable) = allowance()?;
     let way_out = allowed
         .and_then(|a| largest_fitting_side(plan.full, plan.images, plan.pyramid_factor, a))
         .map_or_else(|| plan.otherwise.to_string(), |side| (plan.smaller)(side));
@@ -135,16 +145,31 @@ pub fn synth_estimate(size: (usize, usize)) -> u64 {
     BASE_BYTES.saturating_add(px.saturating_mul(SYNTH_BYTES_PER_PIXEL))
 }
 
-/// The memory a job may use: [`LIMIT_VARIABLE`] when set (`Some(None)`
-/// for 0: no guard), else what the system reports free. The flag says
-/// whether the variable decided.
-pub fn allowance() -> (Option<u64>, bool) {
-    if let Ok(text) = std::env::var(LIMIT_VARIABLE)
-        && let Ok(mib) = text.trim().parse::<u64>()
-    {
-        return ((mib > 0).then(|| mib.saturating_mul(1 << 20)), true);
+/// The memory a job may use: [`LIMIT_VARIABLE`] when set (`None` for 0:
+/// no guard), else what the system reports free. The flag says whether the
+/// variable decided.
+///
+/// # Errors
+/// [`MemoryError::BadLimit`] when the variable is set to anything but a
+/// whole number of MiB (it is never silently ignored).
+pub fn allowance() -> Result<(Option<u64>, bool), MemoryError> {
+    match std::env::var(LIMIT_VARIABLE) {
+        Ok(text) => limit_from_variable(&text).map(|limit| (limit, true)),
+        Err(std::env::VarError::NotUnicode(text)) => {
+            Err(MemoryError::BadLimit(text.to_string_lossy().into_owned()))
+        }
+        Err(std::env::VarError::NotPresent) => Ok((available(), false)),
     }
-    (available(), false)
+}
+
+/// The limit [`LIMIT_VARIABLE`]'s `text` sets, in bytes (`None`: 0, no
+/// guard).
+fn limit_from_variable(text: &str) -> Result<Option<u64>, MemoryError> {
+    let mib = text
+        .trim()
+        .parse::<u64>()
+        .map_err(|_| MemoryError::BadLimit(text.to_string()))?;
+    Ok((mib > 0).then(|| mib.saturating_mul(1 << 20)))
 }
 
 /// Memory the system can give this process now: `MemAvailable` from
@@ -219,7 +244,7 @@ fn stat_value(text: &str, key: &str) -> Option<u64> {
 /// Refuses a job whose `estimate_bytes` exceeds the allowance
 /// ([`allowance`]); `what` names the job and its size, `way_out` what to do.
 pub fn check(what: &str, estimate_bytes: u64, way_out: &str) -> Result<(), MemoryError> {
-    let (allowed, from_variable) = allowance();
+    let (allowed, from_variable) = allowance()?;
     check_against(what, estimate_bytes, allowed, from_variable, way_out)
 }
 
@@ -232,7 +257,7 @@ pub fn check_against(
     way_out: &str,
 ) -> Result<(), MemoryError> {
     match allowed {
-        Some(available_bytes) if estimate_bytes > available_bytes => Err(MemoryError {
+        Some(available_bytes) if estimate_bytes > available_bytes => Err(MemoryError::TooLarge {
             what: what.to_string(),
             estimate_bytes,
             available_bytes,
@@ -298,6 +323,19 @@ mod tests {
         assert!(solve_estimate((2000, 2000), (2000, 2000), 1, 50.0) > 2 * (large / 25));
         assert!(check_against("x", u64::MAX, None, true, "").is_ok());
         assert_eq!(synth_estimate((usize::MAX, usize::MAX)), u64::MAX);
+    }
+
+    #[test]
+    fn a_limit_that_is_not_a_whole_number_of_mib_is_refused_by_name() {
+        assert_eq!(limit_from_variable("0"), Ok(None));
+        assert_eq!(limit_from_variable(" 2 "), Ok(Some(2 << 20)));
+        for bad in ["abc", "-5", "1.5", ""] {
+            let error = limit_from_variable(bad).expect_err(bad).to_string();
+            assert!(
+                error.contains("SFS_STUDIO_MEMORY_MB") && error.contains(&format!("{bad:?}")),
+                "{error}"
+            );
+        }
     }
 
     #[test]

@@ -386,8 +386,22 @@ pub fn read_photo(path: &Path, mode: SrgbMode) -> Result<(Grid<f64>, bool, Strin
 /// Reads a mask/confidence image as values in [0, 1]: grey value divided by
 /// the maximum of its type, luminance (Rec. 709) for colour, never
 /// sRGB-decoded; alpha is ignored.
+///
+/// # Errors
+/// Besides the reading errors, a mask with transparent pixels is refused:
+/// its grey values are the mask, and a transparent pixel's grey says
+/// nothing (a cut-out's alpha would be silently ignored).
 pub fn read_mask(path: &Path) -> Result<Grid<f64>, IoError> {
-    read_image(path, false)
+    let image = decode_image(path)?;
+    if image.color().has_alpha() && image.to_luma_alpha16().pixels().any(|p| p.0[1] < u16::MAX) {
+        return Err(IoError::BadImage {
+            path: path.to_path_buf(),
+            reason: "it has transparent pixels, but a mask is read from its grey values (white = \
+                     object, black = background): save the alpha as a grey image, or flatten it"
+                .into(),
+        });
+    }
+    image_to_grey(path, image, false)
 }
 
 fn image_dims(path: &Path, width: usize, height: usize) -> Result<(u32, u32), IoError> {
@@ -544,6 +558,25 @@ pub fn write_depth_png16(path: &Path, depth: &Grid<f64>) -> Result<Option<(f64, 
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_mask_with_transparent_pixels_is_refused_and_an_opaque_one_read() {
+        let dir = tempdir().unwrap();
+        let path = dir.path().join("mask.png");
+        let mut rgba = image::RgbaImage::from_pixel(4, 3, image::Rgba([255, 255, 255, 255]));
+        rgba.save(&path).unwrap();
+        assert!(
+            read_mask(&path)
+                .unwrap()
+                .as_slice()
+                .iter()
+                .all(|&v| v > 0.99)
+        );
+        rgba.put_pixel(1, 1, image::Rgba([255, 255, 255, 0]));
+        rgba.save(&path).unwrap();
+        let e = read_mask(&path).unwrap_err().to_string();
+        assert!(e.contains("mask.png") && e.contains("transparent"), "{e}");
+    }
+
     #[test]
     fn an_8_bit_png_this_tool_wrote_is_read_as_linear() {
         // synth's noisy8.png: gAMA 1.0 says linear; sRGB-decoding it
