@@ -1,8 +1,8 @@
 //! The schemes behind one interface ([`Method`], [`solve_method`]): the
 //! estimators that run before a solve (`--albedo auto`: [`albedo_fit`],
 //! `--reflectance auto`: [`material_fit`]) and then the chosen scheme, the
-//! linearised one ([`driver`]), the explicit one ([`explicit`]) or fast
-//! marching ([`fast_marching`]). Above the solver core and the
+//! linearised one ([`driver`]), the explicit one ([`explicit`](super::explicit)) or fast
+//! marching ([`fast_marching`](super::fast_marching)). Above the solver core and the
 //! estimators, so that neither imports the other through it; re-exported
 //! as `solver::{Method, solve_method, solve}`.
 
