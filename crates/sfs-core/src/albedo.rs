@@ -29,6 +29,7 @@ use rayon::prelude::*;
 use crate::albedo_chain::{EdgePair, confirmed_by_chain};
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
+use crate::linalg::cg;
 
 /// The default edge step `tau`: the smallest change of log brightness
 /// between neighbours taken as an albedo edge (0.2: a ratio of 1.22).
@@ -656,7 +657,10 @@ impl<'a> Hierarchy<'a> {
 }
 
 /// Conjugate gradients on `stencil` from `x`, preconditioned by
-/// `precondition` (symmetric, positive); returns the iterations used.
+/// `precondition` (symmetric, positive), to a residual of
+/// `RELATIVE_TOLERANCE` times the right-hand side's (dot products summed in
+/// fixed chunks, [`DOT_CHUNK`]; at most 400 steps); returns the iterations
+/// used. The routine is [`crate::linalg::cg`]'s.
 fn conjugate_gradients(
     stencil: &Stencil,
     x: &mut [f64],
@@ -665,58 +669,32 @@ fn conjugate_gradients(
 ) -> Result<usize, Cancelled> {
     const MAX_ITERATIONS: usize = 400;
     const RELATIVE_TOLERANCE: f64 = 1e-6;
-    let n = x.len();
-    // Partial sums over fixed chunks, added in order: the same bits on
-    // every run and any number of threads.
-    let dot = |a: &[f64], b: &[f64]| {
-        a.par_chunks(DOT_CHUNK)
-            .zip(b.par_chunks(DOT_CHUNK))
-            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
-            .collect::<Vec<f64>>()
-            .iter()
-            .sum::<f64>()
-    };
-    let mut ax = vec![0.0; n];
+    let summation = cg::Summation::Chunked(DOT_CHUNK);
+    let mut ax = vec![0.0; x.len()];
     stencil.apply(x, &mut ax);
-    let mut r: Vec<f64> = stencil.rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
-    let mut z = vec![0.0; n];
-    precondition(&r, &mut z);
-    let mut d = z.clone();
-    let mut rz = dot(&r, &z);
-    let target = RELATIVE_TOLERANCE * dot(&stencil.rhs, &stencil.rhs).sqrt();
-    let mut ad = ax;
-    for iteration in 0..MAX_ITERATIONS {
-        if dot(&r, &r).sqrt() <= target {
-            return Ok(iteration);
-        }
-        if cancel.is_cancelled() {
-            return Err(Cancelled);
-        }
-        stencil.apply(&d, &mut ad);
-        let curvature = dot(&d, &ad);
-        if curvature <= 0.0 || !curvature.is_finite() {
-            return Ok(iteration);
-        }
-        let step = rz / curvature;
-        x.par_iter_mut()
-            .zip(r.par_iter_mut())
-            .zip(d.par_iter().zip(ad.par_iter()))
-            .for_each(|((x, r), (d, ad))| {
-                *x += step * d;
-                *r -= step * ad;
-            });
-        precondition(&r, &mut z);
-        let rz_next = dot(&r, &z);
-        if rz_next <= 0.0 || !rz_next.is_finite() {
-            return Ok(iteration + 1);
-        }
-        let beta = rz_next / rz;
-        rz = rz_next;
-        d.par_iter_mut()
-            .zip(z.par_iter())
-            .for_each(|(d, z)| *d = z + beta * *d);
-    }
-    Ok(MAX_ITERATIONS)
+    let r: Vec<f64> = stencil.rhs.iter().zip(&ax).map(|(b, a)| b - a).collect();
+    let target = RELATIVE_TOLERANCE * summation.dot(&stencil.rhs, &stencil.rhs).sqrt();
+    let settings = cg::Settings {
+        max_iterations: MAX_ITERATIONS,
+        summation,
+        stop: cg::Stop::BeforeStep {
+            norm: cg::Norm::Euclidean,
+            tolerance: target,
+        },
+        cancel_poll: cg::CancelPoll {
+            every: 1,
+            before_test: false,
+        },
+        rz_guard: cg::RzGuard::AfterPreconditioning,
+    };
+    cg::solve(
+        x,
+        r,
+        |v, out| stencil.apply(v, out),
+        precondition,
+        &settings,
+        cancel,
+    )
 }
 
 #[cfg(test)]

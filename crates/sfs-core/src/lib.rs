@@ -24,6 +24,7 @@ pub mod depth_smoothing;
 pub mod grid;
 pub mod io;
 pub mod light;
+pub(crate) mod linalg;
 pub mod material;
 pub mod memory;
 pub mod metrics;

@@ -5,7 +5,7 @@
 use std::fs;
 use std::path::Path;
 
-use super::IoError;
+use super::error::IoError;
 
 /// Runs `write` on a temporary file beside `path` (`.NAME.PID.partial`),
 /// flushes it to disk and renames it to `path`; on failure the temporary is
@@ -49,19 +49,19 @@ mod tests {
         let dir = tempdir().unwrap();
         let path = dir.path().join("a.txt");
         write_atomic(&path, |p| {
-            fs::write(p, "old").map_err(|e| super::super::write_error(p, e))
+            fs::write(p, "old").map_err(|e| super::super::error::write_error(p, e))
         })
         .unwrap();
         let failed = write_atomic(&path, |p| {
-            fs::write(p, "half").map_err(|e| super::super::write_error(p, e))?;
-            Err(super::super::write_error(p, "disk full"))
+            fs::write(p, "half").map_err(|e| super::super::error::write_error(p, e))?;
+            Err(super::super::error::write_error(p, "disk full"))
         });
         assert!(failed.is_err());
         assert_eq!(fs::read_to_string(&path).unwrap(), "old");
         let names: Vec<_> = fs::read_dir(dir.path()).unwrap().collect();
         assert_eq!(names.len(), 1, "the temporary is removed");
         write_atomic(&path, |p| {
-            fs::write(p, "new").map_err(|e| super::super::write_error(p, e))
+            fs::write(p, "new").map_err(|e| super::super::error::write_error(p, e))
         })
         .unwrap();
         assert_eq!(fs::read_to_string(&path).unwrap(), "new");

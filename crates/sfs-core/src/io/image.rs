@@ -9,7 +9,7 @@ use std::path::Path;
 use image::{DynamicImage, ImageBuffer, ImageError, ImageFormat, ImageReader, Luma};
 use serde::{Deserialize, Serialize};
 
-use super::{IoError, write_error};
+use super::error::{IoError, write_error};
 use crate::grid::Grid;
 
 /// Rec. 709 luminance weights for linear red, green and blue.

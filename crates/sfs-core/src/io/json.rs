@@ -5,7 +5,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::{IoError, write_error};
+use super::error::{IoError, write_error};
 
 /// Writes any serde value as pretty JSON, with a final newline.
 pub fn write_json<T: Serialize>(path: &Path, value: &T) -> Result<(), IoError> {

@@ -5,8 +5,8 @@ use std::fs;
 use std::io::{BufWriter, Write};
 use std::path::Path;
 
+use super::error::{IoError, write_error};
 use super::image::quantise;
-use super::{IoError, write_error};
 use crate::camera::Intrinsics;
 use crate::depth_mesh::DepthMesh;
 use crate::grid::Grid;

@@ -8,7 +8,7 @@ use std::path::Path;
 
 use npyz::{DType, NpyFile, NpyHeader, Order, TypeChar, WriteOptions, WriterBuilder};
 
-use super::{IoError, write_error};
+use super::error::{IoError, write_error};
 use crate::grid::Grid;
 
 /// Writes `values` (C order) as a `.npy` of `shape` in `T`, each converted

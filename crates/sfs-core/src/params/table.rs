@@ -4,7 +4,9 @@
 //! settings, the solve report and [`SolverParams::validate`] all read it, so
 //! a parameter is added in one place.
 
-use super::{Alpha, DomainMode, LinearSolver, ReflectanceChoice, SolverParams, StepControl, Units};
+use super::settings::{
+    Alpha, DomainMode, LinearSolver, ReflectanceChoice, SolverParams, StepControl, Units,
+};
 use crate::model::Derivatives;
 
 /// What values a parameter takes.

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::{CameraSpec, LightSpec, PhotoError, PhotoInput, ScaleSpec};
+use super::input::{CameraSpec, LightSpec, PhotoError, PhotoInput, ScaleSpec};
 use crate::camera::Intrinsics;
 use crate::camera_file::{self, CameraFile};
 use crate::light::PointLight;

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::PhotoError;
+use super::input::PhotoError;
 
 /// What a set folder holds.
 #[derive(Clone, Debug, PartialEq)]

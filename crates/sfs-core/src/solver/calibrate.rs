@@ -84,7 +84,7 @@ fn trial(
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<(f64, f64), SolveError> {
-    let solution = super::solve(problem, params, &mut Forward(observer))?;
+    let solution = super::method::solve(problem, params, &mut Forward(observer))?;
     let mut depths = solution.depth.finite_values();
     let middle = depths.len() / 2;
     let depth = if depths.is_empty() {
@@ -97,7 +97,7 @@ fn trial(
 
 /// Estimates `s` for a problem whose lights are off the optical centre (see
 /// the module docs). The object distance is searched from the nearest the
-/// lights allow ([`super::prepare::nearest_object_depth`], at least half the
+/// lights allow ([`super::plane_start::nearest_object_depth`], at least half the
 /// farthest light's distance from the camera) to 20 times that distance
 /// (beyond, every light looks centred):
 /// nine trials spaced evenly in `log Z`, then golden sections around the
@@ -128,7 +128,7 @@ pub fn estimate_intensity_scale(
         .iter()
         .map(|l| DVec3::from_array(l.position).length())
         .fold(0.0, f64::max);
-    let nearest = super::prepare::nearest_object_depth(&problem.lights).max(0.5 * reach);
+    let nearest = super::plane_start::nearest_object_depth(&problem.lights).max(0.5 * reach);
     let (lo, hi) = (nearest.ln(), (20.0 * reach).ln());
     let mut trials = Vec::new();
     let mut evaluate = |log_z: f64, trials: &mut Vec<(f64, f64, f64)>| -> Result<f64, SolveError> {
@@ -673,13 +673,13 @@ const KNOWN_DEPTH_SEARCH_SIDE: usize = 256;
 fn search_scale(
     problem: &mut Problem,
     params: &SolverParams,
-    method: &super::Method,
+    method: &super::method::Method,
     target: &DistanceTarget,
     (max_solves, tolerance): (usize, f64),
     slope_hint: f64,
     observer: &mut dyn SolveObserver,
-) -> Result<(ScaleSearch, super::Solution, f64), SolveError> {
-    let mut best_solution = super::solve_method(problem, params, method, observer)?;
+) -> Result<(ScaleSearch, super::problem::Solution, f64), SolveError> {
+    let mut best_solution = super::method::solve_method(problem, params, method, observer)?;
     let mut solves = 1;
     let mut k = target.factor(&best_solution.depth)?;
     let mut tried = vec![(problem.intensity_scale.ln(), k.ln())];
@@ -713,7 +713,7 @@ fn search_scale(
             target.check_reach((log_s - log_k / slope).exp())?;
         }
         problem.intensity_scale = next;
-        let solution = super::solve_method(problem, params, method, observer)?;
+        let solution = super::method::solve_method(problem, params, method, observer)?;
         solves += 1;
         k = target.factor(&solution.depth)?;
         tried.push((problem.intensity_scale.ln(), k.ln()));
@@ -803,10 +803,10 @@ fn search_params(
 pub fn solve_with_known_depths(
     problem: &mut Problem,
     params: &SolverParams,
-    method: &super::Method,
+    method: &super::method::Method,
     points: &[KnownDepth],
     observer: &mut dyn SolveObserver,
-) -> Result<(super::Solution, KnownDepthFit), SolveError> {
+) -> Result<(super::problem::Solution, KnownDepthFit), SolveError> {
     solve_meeting(
         problem,
         params,
@@ -845,10 +845,10 @@ pub fn solve_with_known_depths(
 pub fn solve_meeting(
     problem: &mut Problem,
     params: &SolverParams,
-    method: &super::Method,
+    method: &super::method::Method,
     target: &DistanceTarget,
     observer: &mut dyn SolveObserver,
-) -> Result<(super::Solution, KnownDepthFit), SolveError> {
+) -> Result<(super::problem::Solution, KnownDepthFit), SolveError> {
     target.check()?;
     let params = &search_params(problem, params, target);
     let (mut solution, fit) = search_target(problem, params, method, target, observer)?;
@@ -899,10 +899,10 @@ pub fn solve_meeting(
 fn search_target(
     problem: &mut Problem,
     params: &SolverParams,
-    method: &super::Method,
+    method: &super::method::Method,
     target: &DistanceTarget,
     observer: &mut dyn SolveObserver,
-) -> Result<(super::Solution, KnownDepthFit), SolveError> {
+) -> Result<(super::problem::Solution, KnownDepthFit), SolveError> {
     // `auto` searches as Lambert (what it stands for: the fit only
     // reports) and compares the materials once, at the scale found.
     let resolved = params.without_fit();
@@ -939,13 +939,13 @@ fn search_target(
         }
     }
     let (search, mut solution) = if problem.light_is_centred() {
-        let mut solution = super::solve_method(problem, params, method, observer)?;
+        let mut solution = super::method::solve_method(problem, params, method, observer)?;
         let mut solves = 1;
         let k = target.factor(&solution.depth)?;
         if (k - 1.0).abs() >= KNOWN_DEPTH_TOLERANCE {
             target.check_reach(problem.intensity_scale * k * k)?;
             problem.intensity_scale *= k * k;
-            solution = super::solve_method(problem, params, method, observer)?;
+            solution = super::method::solve_method(problem, params, method, observer)?;
             solves += 1;
         }
         // Exact up to round-off: the last factor is applied to the depth.

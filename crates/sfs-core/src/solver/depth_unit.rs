@@ -315,7 +315,7 @@ fn aim_of(problem: &Problem, cues: &DistanceCues) -> Option<Aim> {
 pub fn solve_photograph(
     problem: &mut Problem,
     params: &SolverParams,
-    method: &super::Method,
+    method: &super::method::Method,
     cues: &DistanceCues,
     observer: &mut dyn SolveObserver,
 ) -> Result<(Solution, DepthUnit), SolveError> {
@@ -367,7 +367,7 @@ pub fn solve_photograph(
             UnitSource::CentredLight
         };
         unit.precision = 0.0;
-        super::solve_method(problem, params, method, observer)?
+        super::method::solve_method(problem, params, method, observer)?
     } else {
         let shading = calibrate::estimate_intensity_scale(problem, params, observer)?;
         let axis = || {
@@ -382,7 +382,7 @@ pub fn solve_photograph(
             unit.source = UnitSource::Shading;
             unit.cue_distance = shading.depth;
             unit.precision = SHADING_PRECISION;
-            super::solve_method(problem, params, method, observer)?
+            super::method::solve_method(problem, params, method, observer)?
         } else if let Some(aim) = aim {
             let (solution, fit) = meet(problem, DistanceTarget::Median(aim.point[2]), observer)?;
             unit.source = UnitSource::RigAim;
@@ -401,7 +401,7 @@ pub fn solve_photograph(
             problem.intensity_scale = shading.intensity_scale;
             unit.source = UnitSource::Guess;
             unit.cue_distance = shading.depth;
-            super::solve_method(problem, params, method, observer)?
+            super::method::solve_method(problem, params, method, observer)?
         };
         unit.shading = Some(shading);
         solution

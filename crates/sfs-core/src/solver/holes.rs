@@ -15,6 +15,7 @@ use rayon::prelude::*;
 
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
+use crate::linalg::cg;
 
 /// Pixels below this confidence count as a hole: their data term weighs less
 /// than the smoothness that continues their neighbours.
@@ -265,7 +266,9 @@ fn gradient_at(depth: &Grid<f64>, domain: &Grid<bool>, q: usize) -> (f64, f64) {
 /// Minimises the thin-plate energy over the `unknown` pixels of `depth` by
 /// conjugate gradients preconditioned with the diagonal, from the current
 /// values, for at most `iterations` steps or until the residual is below
-/// [`RELATIVE_TOLERANCE`] of `scale` (polls `cancel` every few steps).
+/// [`RELATIVE_TOLERANCE`] of `scale` (polls `cancel` every few steps). The
+/// routine is [`crate::linalg::cg`]'s, on the unknown pixels gathered into
+/// one vector (dot products summed serially, in order).
 fn conjugate_gradients(
     depth: &mut Grid<f64>,
     domain: &Grid<bool>,
@@ -283,28 +286,15 @@ fn conjugate_gradients(
         residual[k] = -gradient;
         diagonal[k] = d;
     }
-    let precondition = |r: &[f64], d: &[f64]| -> Vec<f64> {
-        r.iter()
-            .zip(d)
-            .map(|(r, d)| if *d > 0.0 { r / d } else { 0.0 })
-            .collect()
+    let precondition = |r: &[f64], z: &mut [f64]| {
+        for ((z, r), d) in z.iter_mut().zip(r).zip(&diagonal) {
+            *z = if *d > 0.0 { r / d } else { 0.0 };
+        }
     };
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(a, b)| a * b).sum::<f64>();
-    let tolerance = RELATIVE_TOLERANCE * scale.max(f64::MIN_POSITIVE);
-    let mut preconditioned = precondition(&residual, &diagonal);
-    let mut direction = preconditioned.clone();
-    let mut rho = dot(&residual, &preconditioned);
     // The direction on the full grid (zero on known pixels and off the
     // domain), so that the operator is the gradient's own stencil.
     let mut spread = Grid::filled(w, h, 0.0);
-    let mut product = vec![0.0; n];
-    for step in 0..iterations {
-        if step % 16 == 0 {
-            cancel.check()?;
-        }
-        if residual.iter().fold(0.0f64, |m, r| m.max(r.abs())) <= tolerance || rho <= 0.0 {
-            break;
-        }
+    let apply = |direction: &[f64], product: &mut [f64]| {
         for (k, &q) in unknown.iter().enumerate() {
             spread.as_mut_slice()[q] = direction[k];
         }
@@ -314,24 +304,27 @@ fn conjugate_gradients(
             .zip(unknown.par_iter())
             .with_min_len(4096)
             .for_each(|(p, &q)| *p = gradient_at(&spread, domain, q).0);
-        let curvature = dot(&direction, &product);
-        if curvature <= 0.0 || !curvature.is_finite() {
-            break;
-        }
-        let length = rho / curvature;
-        for (k, &q) in unknown.iter().enumerate() {
-            depth.as_mut_slice()[q] += length * direction[k];
-            residual[k] -= length * product[k];
-        }
-        preconditioned = precondition(&residual, &diagonal);
-        let next = dot(&residual, &preconditioned);
-        let beta = next / rho;
-        rho = next;
-        for (d, p) in direction.iter_mut().zip(&preconditioned) {
-            *d = p + beta * *d;
-        }
+    };
+    let settings = cg::Settings {
+        max_iterations: iterations,
+        summation: cg::Summation::Serial,
+        stop: cg::Stop::BeforeStep {
+            norm: cg::Norm::Max,
+            tolerance: RELATIVE_TOLERANCE * scale.max(f64::MIN_POSITIVE),
+        },
+        cancel_poll: cg::CancelPoll {
+            every: 16,
+            before_test: true,
+        },
+        rz_guard: cg::RzGuard::BeforeStep,
+    };
+    let mut x: Vec<f64> = unknown.iter().map(|&q| depth.as_slice()[q]).collect();
+    let result = cg::solve(&mut x, residual, apply, precondition, &settings, cancel);
+    // The steps taken stand even when cancelled, as they did in place.
+    for (&q, z) in unknown.iter().zip(&x) {
+        depth.as_mut_slice()[q] = *z;
     }
-    Ok(())
+    result.map(|_| ())
 }
 
 #[cfg(test)]

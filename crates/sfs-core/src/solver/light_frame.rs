@@ -120,7 +120,7 @@ const PLANE_SAMPLES: usize = 4096;
 /// trusted pixels of `level` (the full image; `guess` centres the plane's
 /// scan).
 pub(crate) fn serves(
-    problem: &super::Problem,
+    problem: &super::problem::Problem,
     level: &super::pyramid::PyramidLevel,
     guess: f64,
     material: crate::material::Material,
@@ -146,11 +146,11 @@ pub(crate) fn serves(
     if pixels.is_empty() {
         return false;
     }
-    let depth = super::prepare::plane_fit(
+    let depth = super::plane_start::plane_fit(
         &pixels,
         &problem.model(material),
         guess,
-        super::prepare::nearest_object_depth(&problem.lights),
+        super::plane_start::nearest_object_depth(&problem.lights),
     );
     let camera = problem.camera;
     let (mut sum, mut count) = (DVec3::ZERO, 0usize);

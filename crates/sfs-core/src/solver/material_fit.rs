@@ -19,8 +19,6 @@
 
 use std::time::Instant;
 
-use serde::Serialize;
-
 use super::problem::{Problem, SolveError, SolveObserver};
 use super::working::{Forward, relative_residual, working_copy};
 use crate::material::Material;
@@ -29,41 +27,7 @@ use crate::params::SolverParams;
 /// Longest side of the working copy the candidates are solved on, pixels.
 pub const FIT_SIDE: usize = 128;
 
-/// One candidate of the fit.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct MaterialTrial {
-    /// The material solved.
-    pub material: Material,
-    /// The solve's final energy on the working copy (relative to the
-    /// best candidate's: 1 for the best).
-    pub relative_energy: f64,
-    /// `sqrt(sum c (I - R)^2 / sum c I^2)` of that solve.
-    pub relative_residual: f64,
-}
-
-/// What `--reflectance auto` found.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct MaterialFit {
-    /// The material the solve used: Lambert (the fit reports, it does not
-    /// decide; see the module).
-    pub material: Material,
-    /// The candidate with the lowest energy on the working copy.
-    pub best: Material,
-    /// Whether the image determined the material: false (see the module;
-    /// kept in the report so that no reader takes `best` for a finding).
-    pub determined: bool,
-    /// How much lower the best candidate's energy is than Lambert's, as a
-    /// share (0: Lambert is best).
-    pub energy_gain: f64,
-    /// Every candidate, best first.
-    pub trials: Vec<MaterialTrial>,
-    /// Side of the working copy, pixels.
-    pub working_side: usize,
-    /// Seconds the fit took.
-    pub seconds: f64,
-    /// The finding in plain words.
-    pub summary: String,
-}
+pub use super::fits::{MaterialFit, MaterialTrial};
 
 /// The candidates: Lambert, Oren-Nayar over its roughness and Blinn-Phong
 /// over its weight and shininess.

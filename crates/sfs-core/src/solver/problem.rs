@@ -228,10 +228,10 @@ pub struct Solution {
     pub material: Material,
     /// With `--reflectance auto`, how the material was fitted; `None`
     /// when it was given.
-    pub material_fit: Option<super::material_fit::MaterialFit>,
+    pub material_fit: Option<super::fits::MaterialFit>,
     /// With `--albedo auto`, the estimated albedo and whether the solve
     /// used it ([`super::albedo_fit`]); `None` otherwise.
-    pub albedo_fit: Option<super::albedo_fit::AlbedoFit>,
+    pub albedo_fit: Option<super::fits::AlbedoFit>,
 }
 
 fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {

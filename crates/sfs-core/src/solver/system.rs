@@ -7,6 +7,7 @@
 //! iteration with the current `Psi'`. Both are assembled by gathering, so rows
 //! are built in parallel without write conflicts.
 
+mod layout;
 mod rows;
 
 use rayon::prelude::*;
@@ -17,54 +18,12 @@ use crate::model::{Derivatives, Reflectance};
 
 use super::problem::rows_per_task;
 use super::pyramid::PyramidLevel;
+pub use layout::{FORWARD, HALO, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES, STENCIL};
+use layout::{MASK_PLANES, SMOOTH_KZ, SMOOTH_PLANES};
 use rows::{
     DataRowInputs, DataRowOutputs, MIN_DATA_BLOCK_ROWS, RowInputs, SHARED_FORWARD, WeightInputs,
     assemble_row, data_row, image_row_blocks, linearise_row, weight_row,
 };
-
-/// Offsets `(dx, dy)` of the 17-point stencil; entry 0 is the pixel itself,
-/// entry 1 its left neighbour (the one SOR has just updated), the rest grouped
-/// by row so the sweep can address each row with one pointer.
-pub const STENCIL: [(isize, isize); 17] = [
-    (0, 0),
-    (-1, 0),
-    (-2, -2),
-    (0, -2),
-    (2, -2),
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-2, 0),
-    (1, 0),
-    (2, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-    (-2, 2),
-    (0, 2),
-    (2, 2),
-];
-
-/// Offsets of the 5-point slots `[centre, left, right, up, down]`.
-const SLOT_OFFSET: [(isize, isize); 5] = [(0, 0), (-1, 0), (1, 0), (0, -1), (0, 1)];
-
-/// Halo (rows/columns) around the padded vectors so that stencil reads never
-/// leave them.
-pub const HALO: usize = 2;
-
-/// Offsets of the 8 *forward* stencil entries (after the pixel in row-major
-/// order). The matrix is symmetric: the coefficient of a backward offset `-o`
-/// in row `q` is the forward coefficient `o` stored with the pixel `q - o`.
-pub const FORWARD: [(isize, isize); 8] = [
-    (1, 0),
-    (2, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-    (-2, 2),
-    (0, 2),
-    (2, 2),
-];
 
 /// One row of the full system (40 bytes): the diagonal, the right-hand side
 /// and the forward half of the off-diagonals. Stored in f32 to halve the
@@ -86,23 +45,6 @@ pub struct SystemRow {
     /// Right-hand side.
     pub rhs: f32,
 }
-
-/// Planes per padded row of [`LinearSystem::coefficients`]: the 8 forward
-/// coefficients, then `1 / diagonal`, then the right-hand side.
-pub const PLANES: usize = 10;
-/// Plane of `1 / diagonal` in a row block.
-pub const PLANE_INVERSE_DIAGONAL: usize = 8;
-/// Plane of the right-hand side in a row block.
-pub const PLANE_RHS: usize = 9;
-
-/// Planes per padded row of [`LinearSystem::smooth`].
-const SMOOTH_PLANES: usize = 6;
-/// First of the three `[xx, yy, xy]` planes of each kind in a smoothness row
-/// block.
-const SMOOTH_KZ: usize = 0;
-const SMOOTH_WEIGHT: usize = 3;
-/// Planes per padded row of [`LinearSystem::masks`]: `[xx, yy, xy]`.
-const MASK_PLANES: usize = 3;
 
 /// The linear system of one level with its work buffers.
 pub struct LinearSystem {

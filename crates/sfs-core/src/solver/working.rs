@@ -43,7 +43,7 @@ impl SolveObserver for Forward<'_> {
 
 /// How well a trial solve explains its image: `sqrt(sum c (I - R)^2 /
 /// sum c I^2)` over the solved pixels (finite depth), `c` the confidence.
-pub(crate) fn relative_residual(problem: &Problem, solution: &super::Solution) -> f64 {
+pub(crate) fn relative_residual(problem: &Problem, solution: &super::problem::Solution) -> f64 {
     let (mut num, mut den) = (0.0, 0.0);
     for q in 0..problem.image.len() {
         if !solution.depth.as_slice()[q].is_finite() {

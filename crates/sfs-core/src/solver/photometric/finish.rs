@@ -5,11 +5,10 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use super::level::{LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, USED};
 use super::level::{Level, MAX_PHOTOS, Observation, Shared};
-use super::{
-    LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, PhotoResult,
-    PhotometricProblem, PhotometricSolution, USED, depth_grid,
-};
+use super::run::depth_grid;
+use super::set::{PhotoResult, PhotometricProblem, PhotometricSolution};
 use crate::grid::Grid;
 use crate::model::Energy;
 use crate::solver::problem::{LevelReport, SolveError, depth_divergence};

@@ -3,8 +3,8 @@
 
 use rayon::prelude::*;
 
-use super::depth_grid;
 use super::level::{Level, MAX_PHOTOS, Observation, Scales, Shared};
+use super::run::depth_grid;
 use crate::light::PointLight;
 
 /// Cast shadows are traced on a copy of the surface at most this many

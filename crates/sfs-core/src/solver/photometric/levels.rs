@@ -2,8 +2,8 @@
 //! averaging, a per-pixel value brought to a finer level, and the
 //! brightness and noise measured on the finest.
 
-use super::PhotometricProblem;
 use super::level::Level;
+use super::set::PhotometricProblem;
 use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
 use crate::resample::{resize_area, scale_intrinsics};

@@ -9,6 +9,7 @@
 use rayon::prelude::*;
 
 use crate::cancel::{Cancel, Cancelled};
+use crate::linalg::cg;
 
 /// One pixel's quadratic form in `v = (zeta_x, zeta_y, zeta)`:
 /// `v^T T v - 2 v^T h` (the linearised data term).
@@ -383,22 +384,14 @@ impl Operator<'_> {
     }
 }
 
-/// `a . b`, summed in fixed chunks in a fixed order: the same bits on
+/// Dot products summed in fixed chunks in a fixed order: the same bits on
 /// every run, whatever the threads do.
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    const CHUNK: usize = 8192;
-    let partial: Vec<f64> = a
-        .par_chunks(CHUNK)
-        .zip(b.par_chunks(CHUNK))
-        .map(|(x, y)| x.iter().zip(y).map(|(x, y)| x * y).sum::<f64>())
-        .collect();
-    partial.iter().sum()
-}
+const SUMMATION: cg::Summation = cg::Summation::Chunked(8192);
 
 /// Solves `A x = b` by Jacobi-preconditioned conjugate gradients from `x`
 /// (warm start) until the residual falls below `tolerance` times the
 /// initial one or `max_iterations` pass; polls `cancel` every iteration.
-/// Returns the iterations run.
+/// Returns the iterations run. The routine is [`crate::linalg::cg`]'s.
 pub(super) fn conjugate_gradients(
     operator: &Operator<'_>,
     b: &[f64],
@@ -413,50 +406,36 @@ pub(super) fn conjugate_gradients(
     let mut scratch = vec![[0.0; 3]; n];
     let mut ax = vec![0.0; n];
     operator.apply(x, &mut scratch, &mut ax);
-    let mut r: Vec<f64> = (0..n)
+    let r: Vec<f64> = (0..n)
         .map(|p| if domain[p] { b[p] - ax[p] } else { 0.0 })
         .collect();
-    let mut z: Vec<f64> = r.iter().zip(&diagonal).map(|(r, d)| r / d).collect();
-    let mut d = z.clone();
-    let mut rz = dot(&r, &z);
-    let r0 = dot(&r, &r).sqrt();
-    if !r0.is_finite() || r0 <= 0.0 {
-        return Ok(0);
-    }
-    let mut ad = vec![0.0; n];
-    for iteration in 0..max_iterations {
-        cancel.check()?;
-        operator.apply(&d, &mut scratch, &mut ad);
-        let dad = dot(&d, &ad);
-        if !dad.is_finite() || dad <= 0.0 {
-            return Ok(iteration);
-        }
-        let step = rz / dad;
-        x.par_iter_mut()
-            .with_min_len(8192)
-            .zip(r.par_iter_mut())
-            .zip(d.par_iter().zip(ad.par_iter()))
-            .for_each(|((x, r), (d, ad))| {
-                *x += step * d;
-                *r -= step * ad;
-            });
-        let norm = dot(&r, &r).sqrt();
-        if norm <= tolerance * r0 {
-            return Ok(iteration + 1);
-        }
+    let precondition = |r: &[f64], z: &mut [f64]| {
         z.par_iter_mut()
             .with_min_len(8192)
             .zip(r.par_iter().zip(diagonal.par_iter()))
             .for_each(|(z, (r, d))| *z = r / d);
-        let rz_next = dot(&r, &z);
-        let beta = rz_next / rz;
-        rz = rz_next;
-        d.par_iter_mut()
-            .with_min_len(8192)
-            .zip(z.par_iter())
-            .for_each(|(d, z)| *d = z + beta * *d);
-    }
-    Ok(max_iterations)
+    };
+    let settings = cg::Settings {
+        max_iterations,
+        summation: SUMMATION,
+        stop: cg::Stop::AfterStepRelative {
+            norm: cg::Norm::Euclidean,
+            tolerance,
+        },
+        cancel_poll: cg::CancelPoll {
+            every: 1,
+            before_test: true,
+        },
+        rz_guard: cg::RzGuard::None,
+    };
+    cg::solve(
+        x,
+        r,
+        |v, out| operator.apply(v, &mut scratch, out),
+        precondition,
+        &settings,
+        cancel,
+    )
 }
 
 #[cfg(test)]

@@ -29,6 +29,8 @@ mod left_out;
 mod level;
 mod levels;
 mod linear;
+mod run;
+mod set;
 mod start;
 
 use std::time::Instant;
@@ -36,11 +38,7 @@ use std::time::Instant;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::problem::{
-    IterationReport, LevelReport, LevelResult, SolveError, SolveObserver, check_cancelled,
-};
-use crate::camera::Intrinsics;
-use crate::cancel::Cancel;
+use super::problem::{LevelReport, LevelResult, SolveError, SolveObserver, check_cancelled};
 use crate::grid::Grid;
 use crate::light::PointLight;
 use crate::model::{Energy, LevelGeometry};
@@ -48,150 +46,14 @@ use finish::{FinishInfo, check_finite, finish};
 use left_out::{CastShadows, auto_robust_scale, cast_for, cast_shadows};
 use level::{Level, MAX_PHOTOS, Observation, Scales, Shared};
 use levels::{coarsen, finest_level, noise_sigma, reference_brightness, upsample};
-use linear::{Operator, Stencil, conjugate_gradients};
+use run::{FINE_SIDE, LevelRun, depth_grid, run_level};
 use start::choose_start;
 
 pub use compare::{
     SingleComparison, compare_single, depth_normals, depth_range, positive_quantile,
 };
 pub use level::{LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, USED};
-
-/// One photograph of a set, lit by its own light.
-#[derive(Clone, Debug)]
-pub struct SetPhoto {
-    /// Its name (the file), for messages and reports.
-    pub name: String,
-    /// Linear values (ambient frame, vignetting subtracted or divided out).
-    pub image: Grid<f64>,
-    /// Its light, camera frame, units of depth; the intensity is relative.
-    pub light: PointLight,
-    /// Where it was saturated (left out).
-    pub saturated: Option<Grid<bool>>,
-    /// Its own confidence in [0, 1] (a per-photograph mask), combined with
-    /// the set's.
-    pub confidence: Option<Grid<f64>>,
-}
-
-/// A photometric-stereo problem.
-#[derive(Clone, Debug)]
-pub struct PhotometricProblem {
-    /// The photographs, all of one size.
-    pub photos: Vec<SetPhoto>,
-    /// Intrinsics at the photographs' size.
-    pub camera: Intrinsics,
-    /// Pixels that see the object (`None`: every pixel).
-    pub object_mask: Option<Grid<bool>>,
-    /// Confidence for every photograph, in [0, 1].
-    pub confidence: Option<Grid<f64>>,
-    /// Whether the lights' intensities were measured; if not, each
-    /// photograph's intensity is estimated (semi-calibrated).
-    pub intensities_known: bool,
-    /// The intensity scale `s`, when known: the albedo is then absolute;
-    /// otherwise it is `s rho` (relative).
-    pub intensity_scale: Option<f64>,
-}
-
-/// The scheme's settings; the defaults are what a user gets.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PhotometricParams {
-    /// Smoothness weight (relative: the second derivatives of the log-depth
-    /// times `f^2`); `None`: automatic from the photographs' noise.
-    pub alpha: Option<f64>,
-    /// Charbonnier `lambda` of the smoothness, in the same units.
-    pub lambda: f64,
-    /// The Cauchy scale of the residuals relative to the brightness;
-    /// `None`: automatic (from the residuals' median).
-    pub robust_scale: Option<f64>,
-    /// Leave out observations in the current surface's cast shadows.
-    pub cast_shadows: bool,
-    /// Most linearisations per level.
-    pub iterations: usize,
-    /// Distance of the object along the optical axis to start from;
-    /// `None`: searched.
-    pub initial_depth: Option<f64>,
-    /// Smallest side of the coarsest level, pixels.
-    pub min_side: usize,
-}
-
-impl Default for PhotometricParams {
-    fn default() -> Self {
-        Self {
-            alpha: None,
-            lambda: 10.0,
-            robust_scale: None,
-            cast_shadows: true,
-            iterations: 30,
-            initial_depth: None,
-            min_side: 16,
-        }
-    }
-}
-
-/// One photograph's fit.
-#[derive(Clone, Debug, serde::Serialize)]
-pub struct PhotoResult {
-    /// The photograph.
-    pub name: String,
-    /// Its intensity (given, or estimated and normalised to a geometric
-    /// mean of 1 over the set).
-    pub intensity: f64,
-    /// Relative residual `||prediction - I|| / ||I||` over its used
-    /// observations.
-    pub relative_residual: f64,
-    /// Share of the object's observations used.
-    pub used_share: f64,
-    /// Share left out as attached or cast shadow.
-    pub shadow_share: f64,
-    /// Share left out as untrusted (confidence 0, its own mask, saturated).
-    pub untrusted_share: f64,
-    /// Share the robust estimator gave less than half their weight.
-    pub robust_share: f64,
-    /// `I - prediction` per pixel (as a single solve's residual); NaN off
-    /// the object.
-    #[serde(skip)]
-    pub residual: Grid<f64>,
-    /// Why each observation was left out ([`USED`], [`LEFT_OUT_SHADOW`], ...).
-    #[serde(skip)]
-    pub left_out: Grid<u8>,
-}
-
-/// The result of a photometric-stereo solve.
-#[derive(Clone, Debug)]
-pub struct PhotometricSolution {
-    /// Depth along the optical axis, units of the lights; NaN off the object.
-    pub depth: Grid<f64>,
-    /// Unit normals of the solved surface (camera frame, towards the
-    /// camera); NaN off the object.
-    pub normals: Grid<[f64; 3]>,
-    /// Albedo per pixel: absolute with a known intensity scale, else
-    /// `s rho`; NaN off the object or where no photograph says anything.
-    pub albedo: Grid<f64>,
-    /// Whether the albedo is relative (`s rho`, the scale unknown).
-    pub albedo_relative: bool,
-    /// Each photograph's fit.
-    pub photos: Vec<PhotoResult>,
-    /// Whether the intensities were estimated (semi-calibrated).
-    pub intensities_estimated: bool,
-    /// The smoothness weight used.
-    pub alpha: f64,
-    /// The Cauchy scale used at the end, relative to the brightness.
-    pub robust_scale: f64,
-    /// The reference brightness (median of the trusted object values).
-    pub brightness: f64,
-    /// The distance the solve started from, and every distance tried at
-    /// the coarsest level with its energy per pixel.
-    pub initial_depth: f64,
-    /// The distances tried `(distance, energy per pixel)`.
-    pub distances_tried: Vec<(f64, f64)>,
-    /// Final energy (data over the brightness squared; smoothness; total).
-    pub energy: Energy,
-    /// Levels, coarsest first.
-    pub levels: Vec<LevelReport>,
-    /// Linearisations over all levels.
-    pub iterations: usize,
-    /// Wall time, seconds.
-    pub seconds: f64,
-}
+pub use set::{PhotoResult, PhotometricParams, PhotometricProblem, PhotometricSolution, SetPhoto};
 
 /// Checks the set: at least two photographs of one size, each with a valid
 /// light, no two lights at the same place, masks of the photographs' size.
@@ -541,27 +403,10 @@ fn unlit_photograph(level: &Level, sigma: f64, brightness: f64) -> Option<(usize
         })
 }
 
-/// Most conjugate-gradient iterations per linearisation: coarse levels,
-/// fine levels (inexact steps: each fine level refines what the coarser
-/// ones found, and its next linearisation goes on; on a 768 px render 60
-/// instead of 300 costs 0.0003 of RSE and halves the time).
-const CG_ITERATIONS: usize = 300;
-const CG_ITERATIONS_FINE: usize = 60;
-/// Their relative tolerance on the fine levels (which refine) and on the
-/// coarse ones (which find the shape and the distance; the distance is a
-/// slow mode of the system, resolved only by a tight solve).
-const CG_TOLERANCE_FINE: f64 = 1e-3;
-const CG_TOLERANCE_COARSE: f64 = 1e-6;
 /// Automatic smoothness: `ALPHA_FLOOR + ALPHA_NOISE * (sigma / I_ref)^2`.
 const ALPHA_FLOOR: f64 = 1e-7;
 const ALPHA_NOISE: f64 = 1e-4;
-/// A level stops once a linearisation lowers the energy by less than this
-/// share (fine levels, coarse levels).
-const STOP_FINE: f64 = 1e-3;
-const STOP_COARSE: f64 = 1e-4;
-/// Levels larger than this (longest side, pixels) refine what the coarser
-/// ones found, in at most [`FINE_ITERATIONS`] linearisations.
-const FINE_SIDE: usize = 300;
+/// Linearisations at most on a level above [`FINE_SIDE`].
 const FINE_ITERATIONS: usize = 4;
 /// Semi-calibrated: rounds of (shape, intensities) per coarse level.
 const INTENSITY_ROUNDS: usize = 4;
@@ -786,194 +631,6 @@ pub fn solve_photometric(
     );
     check_finite(&solution)?;
     Ok(solution)
-}
-
-/// How a level runs: its most linearisations, and whether the distance
-/// along the rays is searched after each step (the coarsest level, where
-/// the start may be far off; elsewhere the linearisation moves it).
-#[derive(Clone, Copy)]
-struct LevelRun {
-    max_iterations: usize,
-    search_distance: bool,
-    /// Reported after each linearisation as this level of that many, the
-    /// solve having started then (`None`: a trial, not reported).
-    report: Option<(usize, usize, Instant)>,
-}
-
-/// Runs the linearisations of one level from `zeta` (and `m`, the albedo
-/// factor), with the intensities refitted when asked. Returns the final
-/// energy, the energy after each step and the steps run.
-#[allow(clippy::too_many_arguments)]
-fn run_level(
-    level: &Level,
-    lights: &[PointLight],
-    intensities: &mut Vec<f64>,
-    estimate_intensities: bool,
-    cast: &[Vec<bool>],
-    scales: Scales,
-    zeta: &mut Vec<f64>,
-    m: &mut Vec<f64>,
-    how: LevelRun,
-    observer: &mut dyn SolveObserver,
-) -> Result<(Energy, Vec<f64>, usize), SolveError> {
-    let pixels = level.domain.iter().filter(|&&d| d).count().max(1);
-    let fine = level.width.max(level.height) > FINE_SIDE;
-    // The distance search looks at about 20 000 pixels.
-    let stride = (pixels / 20_000).max(1);
-    let mut energies = Vec::new();
-    let mut run = 0;
-    let mut before: Option<Energy> = None;
-    loop {
-        check_cancelled(observer)?;
-        let shared = Shared::new(lights, intensities, cast, scales);
-        // The energy of the surface as it stands comes with its
-        // linearisation.
-        let (forms, m_now, data) = level.linearise(&shared, zeta, m);
-        *m = m_now;
-        let smoothness = level.smoothness_weights(&shared, zeta);
-        let now = Energy {
-            data,
-            smoothness: smoothness.energy,
-            total: data + scales.alpha * smoothness.energy,
-        };
-        if let Some(previous) = before {
-            energies.push(now.total);
-            let relative = (previous.total - now.total) / now.total.abs().max(1e-300);
-            if relative < if fine { STOP_FINE } else { STOP_COARSE } {
-                before = Some(now);
-                break;
-            }
-        }
-        before = Some(now);
-        if run >= how.max_iterations {
-            break;
-        }
-        let stencil = Stencil::assemble(&forms, &level.domain, level.width);
-        let mean_diagonal = forms
-            .iter()
-            .zip(&level.domain)
-            .filter(|(_, d)| **d)
-            .map(|(f, _)| f.t[0] + f.t[3])
-            .sum::<f64>()
-            / pixels as f64;
-        let tau = 1e-6 * mean_diagonal.max(1e-300);
-        let rhs: Vec<f64> = stencil
-            .rhs
-            .iter()
-            .zip(zeta.iter())
-            .map(|(b, z)| b + tau * z)
-            .collect();
-        let operator = Operator {
-            stencil: &stencil,
-            smoothness: &smoothness.weights,
-            tau,
-            domain: &level.domain,
-            width: level.width,
-        };
-        let mut next = zeta.clone();
-        let cancelled = || observer.is_cancelled();
-        conjugate_gradients(
-            &operator,
-            &rhs,
-            &mut next,
-            if fine {
-                CG_TOLERANCE_FINE
-            } else {
-                CG_TOLERANCE_COARSE
-            },
-            if fine {
-                CG_ITERATIONS_FINE
-            } else {
-                CG_ITERATIONS
-            },
-            Cancel::new(&cancelled),
-        )?;
-        if how.search_distance {
-            // The distance along the rays: a golden-section search on the
-            // constant of zeta.
-            let shift = golden_section(
-                |c| level.shifted_data(&shared, &next, c, stride),
-                -0.3,
-                0.3,
-                24,
-            );
-            for (z, d) in next.iter_mut().zip(&level.domain) {
-                if *d {
-                    *z += shift;
-                }
-            }
-        }
-        if let Some((index, levels, started)) = how.report {
-            let max_step = next
-                .iter()
-                .zip(zeta.iter())
-                .zip(&level.domain)
-                .filter(|(_, d)| **d)
-                .map(|((a, b), _)| (a - b).abs())
-                .fold(0.0, f64::max);
-            observer.on_iteration(&IterationReport {
-                level: index,
-                levels,
-                width: level.width,
-                height: level.height,
-                iteration: run,
-                energy: now,
-                max_step,
-                elapsed: started.elapsed(),
-            });
-        }
-        *zeta = next;
-        if estimate_intensities {
-            *intensities = level.refit_intensities(&shared, zeta, m);
-        }
-        run += 1;
-    }
-    let last = before.unwrap_or(Energy {
-        data: 0.0,
-        smoothness: 0.0,
-        total: 0.0,
-    });
-    Ok((last, energies, run))
-}
-
-/// The minimiser of `f` on `[lo, hi]` by golden-section search
-/// (`evaluations` evaluations); the end points are candidates too.
-fn golden_section(f: impl Fn(f64) -> f64, lo: f64, hi: f64, evaluations: usize) -> f64 {
-    let ratio = (5f64.sqrt() - 1.0) / 2.0;
-    let (mut a, mut b) = (lo, hi);
-    let mut c = b - ratio * (b - a);
-    let mut d = a + ratio * (b - a);
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..evaluations {
-        if fc < fd {
-            b = d;
-            d = c;
-            fd = fc;
-            c = b - ratio * (b - a);
-            fc = f(c);
-        } else {
-            a = c;
-            c = d;
-            fc = fd;
-            d = a + ratio * (b - a);
-            fd = f(d);
-        }
-    }
-    let middle = 0.5 * (a + b);
-    let f0 = f(0.0);
-    if f(middle) <= f0 { middle } else { 0.0 }
-}
-
-/// `exp(zeta)` on the domain, NaN elsewhere.
-fn depth_grid(level: &Level, zeta: &[f64]) -> Grid<f64> {
-    Grid::from_fn(level.width, level.height, |c, r| {
-        let p = r * level.width + c;
-        if level.domain[p] {
-            zeta[p].exp()
-        } else {
-            f64::NAN
-        }
-    })
 }
 
 /// The mean over the photographs of the predicted values (the level

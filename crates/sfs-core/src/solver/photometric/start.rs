@@ -5,7 +5,8 @@ use glam::DVec3;
 
 use super::level::{Level, Scales};
 use super::levels::upsample;
-use super::{LevelRun, PhotometricParams, run_level};
+use super::run::{LevelRun, run_level};
+use super::set::PhotometricParams;
 use crate::light::PointLight;
 use crate::model::Energy;
 use crate::solver::problem::{SolveError, SolveObserver};

@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::{
+use super::layout::{
     FORWARD, HALO, PLANE_INVERSE_DIAGONAL, SLOT_OFFSET, SMOOTH_KZ, SMOOTH_PLANES, SMOOTH_WEIGHT,
 };
 use crate::grid::{Confidence, Grid, Weights};

@@ -2,6 +2,7 @@
 //! the data part across blocks of rows, stashed depths, the norms, and the weights'
 //! and the kept entries' bookkeeping.
 
+use super::layout::SLOT_OFFSET;
 use super::rows::{BACKWARD, KEPT_ENTRY};
 use super::*;
 

@@ -1,0 +1,149 @@
+//! A photometric-stereo set as the solver takes it and what it returns:
+//! [`PhotometricProblem`] (its [`SetPhoto`]s), [`PhotometricParams`],
+//! [`PhotometricSolution`] (a [`PhotoResult`] per photograph). Plain data
+//! below the solve and its children; re-exported from the folder's module.
+//! Uses `camera`, `grid`, `light`, `model`.
+
+use crate::camera::Intrinsics;
+use crate::grid::Grid;
+use crate::light::PointLight;
+use crate::model::Energy;
+use crate::solver::problem::LevelReport;
+
+/// One photograph of a set, lit by its own light.
+#[derive(Clone, Debug)]
+pub struct SetPhoto {
+    /// Its name (the file), for messages and reports.
+    pub name: String,
+    /// Linear values (ambient frame, vignetting subtracted or divided out).
+    pub image: Grid<f64>,
+    /// Its light, camera frame, units of depth; the intensity is relative.
+    pub light: PointLight,
+    /// Where it was saturated (left out).
+    pub saturated: Option<Grid<bool>>,
+    /// Its own confidence in [0, 1] (a per-photograph mask), combined with
+    /// the set's.
+    pub confidence: Option<Grid<f64>>,
+}
+
+/// A photometric-stereo problem.
+#[derive(Clone, Debug)]
+pub struct PhotometricProblem {
+    /// The photographs, all of one size.
+    pub photos: Vec<SetPhoto>,
+    /// Intrinsics at the photographs' size.
+    pub camera: Intrinsics,
+    /// Pixels that see the object (`None`: every pixel).
+    pub object_mask: Option<Grid<bool>>,
+    /// Confidence for every photograph, in [0, 1].
+    pub confidence: Option<Grid<f64>>,
+    /// Whether the lights' intensities were measured; if not, each
+    /// photograph's intensity is estimated (semi-calibrated).
+    pub intensities_known: bool,
+    /// The intensity scale `s`, when known: the albedo is then absolute;
+    /// otherwise it is `s rho` (relative).
+    pub intensity_scale: Option<f64>,
+}
+
+/// The scheme's settings; the defaults are what a user gets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PhotometricParams {
+    /// Smoothness weight (relative: the second derivatives of the log-depth
+    /// times `f^2`); `None`: automatic from the photographs' noise.
+    pub alpha: Option<f64>,
+    /// Charbonnier `lambda` of the smoothness, in the same units.
+    pub lambda: f64,
+    /// The Cauchy scale of the residuals relative to the brightness;
+    /// `None`: automatic (from the residuals' median).
+    pub robust_scale: Option<f64>,
+    /// Leave out observations in the current surface's cast shadows.
+    pub cast_shadows: bool,
+    /// Most linearisations per level.
+    pub iterations: usize,
+    /// Distance of the object along the optical axis to start from;
+    /// `None`: searched.
+    pub initial_depth: Option<f64>,
+    /// Smallest side of the coarsest level, pixels.
+    pub min_side: usize,
+}
+
+impl Default for PhotometricParams {
+    fn default() -> Self {
+        Self {
+            alpha: None,
+            lambda: 10.0,
+            robust_scale: None,
+            cast_shadows: true,
+            iterations: 30,
+            initial_depth: None,
+            min_side: 16,
+        }
+    }
+}
+
+/// One photograph's fit.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct PhotoResult {
+    /// The photograph.
+    pub name: String,
+    /// Its intensity (given, or estimated and normalised to a geometric
+    /// mean of 1 over the set).
+    pub intensity: f64,
+    /// Relative residual `||prediction - I|| / ||I||` over its used
+    /// observations.
+    pub relative_residual: f64,
+    /// Share of the object's observations used.
+    pub used_share: f64,
+    /// Share left out as attached or cast shadow.
+    pub shadow_share: f64,
+    /// Share left out as untrusted (confidence 0, its own mask, saturated).
+    pub untrusted_share: f64,
+    /// Share the robust estimator gave less than half their weight.
+    pub robust_share: f64,
+    /// `I - prediction` per pixel (as a single solve's residual); NaN off
+    /// the object.
+    #[serde(skip)]
+    pub residual: Grid<f64>,
+    /// Why each observation was left out ([`USED`](super::level::USED),
+    /// [`LEFT_OUT_SHADOW`](super::level::LEFT_OUT_SHADOW), ...).
+    #[serde(skip)]
+    pub left_out: Grid<u8>,
+}
+
+/// The result of a photometric-stereo solve.
+#[derive(Clone, Debug)]
+pub struct PhotometricSolution {
+    /// Depth along the optical axis, units of the lights; NaN off the object.
+    pub depth: Grid<f64>,
+    /// Unit normals of the solved surface (camera frame, towards the
+    /// camera); NaN off the object.
+    pub normals: Grid<[f64; 3]>,
+    /// Albedo per pixel: absolute with a known intensity scale, else
+    /// `s rho`; NaN off the object or where no photograph says anything.
+    pub albedo: Grid<f64>,
+    /// Whether the albedo is relative (`s rho`, the scale unknown).
+    pub albedo_relative: bool,
+    /// Each photograph's fit.
+    pub photos: Vec<PhotoResult>,
+    /// Whether the intensities were estimated (semi-calibrated).
+    pub intensities_estimated: bool,
+    /// The smoothness weight used.
+    pub alpha: f64,
+    /// The Cauchy scale used at the end, relative to the brightness.
+    pub robust_scale: f64,
+    /// The reference brightness (median of the trusted object values).
+    pub brightness: f64,
+    /// The distance the solve started from, and every distance tried at
+    /// the coarsest level with its energy per pixel.
+    pub initial_depth: f64,
+    /// The distances tried `(distance, energy per pixel)`.
+    pub distances_tried: Vec<(f64, f64)>,
+    /// Final energy (data over the brightness squared; smoothness; total).
+    pub energy: Energy,
+    /// Levels, coarsest first.
+    pub levels: Vec<LevelReport>,
+    /// Linearisations over all levels.
+    pub iterations: usize,
+    /// Wall time, seconds.
+    pub seconds: f64,
+}
