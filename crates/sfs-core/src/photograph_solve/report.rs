@@ -3,7 +3,6 @@
 
 use serde::Serialize;
 
-use super::SolvedPhotograph;
 use crate::photo::{PhotoFit, PhotoReport};
 use crate::solver::albedo_fit::AlbedoFit;
 use crate::solver::depth_unit::DepthUnit;
@@ -90,43 +89,4 @@ pub struct SolveReport<'a> {
     pub rse: Option<f64>,
     /// Relative image error against a ground truth's image.
     pub rie: Option<f64>,
-}
-
-impl SolvedPhotograph {
-    /// The report of this solve; `errors`: `(rse, rie)` against a ground
-    /// truth where the front has one.
-    pub fn report(&self, errors: Option<(f64, f64)>) -> SolveReport<'_> {
-        let solution = &self.solution;
-        SolveReport {
-            input: &self.input,
-            depth_unit: self.depth_unit.as_ref(),
-            notes: &self.notes,
-            parameters: self.parameters_json(),
-            material: solution.material,
-            material_fit: solution.material_fit.as_ref(),
-            albedo_fit: solution.albedo_fit.as_ref(),
-            alpha_used: solution.alpha,
-            alpha_px: solution.alpha_px,
-            lambda_px: solution.lambda_px,
-            scales: &solution.scales,
-            initial_depth: solution.initial_depth,
-            levels: &solution.levels,
-            phases: &solution.phases,
-            final_energy: &solution.final_energy,
-            seconds: solution.seconds,
-            model_fit: &self.fit,
-            model_fit_per_photo: &self.fit_per_photo,
-            shadow_share: self.shadow_share,
-            unused_options: &self.unused_options,
-            warnings: &self.warnings,
-            depth16_png_range: crate::io::depth_range(&solution.depth).map(
-                |(near_white, far_black)| DepthRange {
-                    near_white,
-                    far_black,
-                },
-            ),
-            rse: errors.map(|e| e.0),
-            rie: errors.map(|e| e.1),
-        }
-    }
 }
