@@ -1,4 +1,4 @@
-//! `bench --part holes`: what the defaults make of what the image cannot
+//! `sfs-bench --part holes`: what the defaults make of what the image cannot
 //! tell. Each scene at 256x256 (quick: 128x128), clean and at noise sigma 20,
 //! with four holes of confidence 0 (a disc, a horizontal band, the
 //! silhouette band, random blobs over 20 % of the object), against the same

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
-use super::super::figures::Figure;
+use super::figures::Figure;
 use super::paper_figures;
 use super::report::{self, Conditions, Curve, Report, Row, SpeedUp};
 use super::{
@@ -111,7 +111,7 @@ impl Runner {
         }
     }
 
-    /// Runs `job` on `bench`: its time (pre- and post-processing included,
+    /// Runs `job` on `sfs-bench`: its time (pre- and post-processing included,
     /// the RSE recording excluded), peak memory, errors and curve.
     fn run(&self, bench: &BenchScene, job: Job<'_>) -> Result<Outcome> {
         let scene = &bench.scene;
@@ -398,7 +398,7 @@ impl Gathered {
     }
 }
 
-/// The clean image of `bench`: every method, the speed-up at equal RSE,
+/// The clean image of `sfs-bench`: every method, the speed-up at equal RSE,
 /// the RSE-over-time curves and their figure, and Fig. 4 for the
 /// high-resolution scene.
 fn clean_image(runner: &Runner, bench: &BenchScene, out: &Path, got: &mut Gathered) -> Result<()> {
@@ -439,7 +439,7 @@ fn clean_image(runner: &Runner, bench: &BenchScene, out: &Path, got: &mut Gather
     Ok(())
 }
 
-/// The noisy image of `bench`: every method, the speed-up at equal RSE, then
+/// The noisy image of `sfs-bench`: every method, the speed-up at equal RSE, then
 /// the linearised method and fast marching with pre- and post-processing.
 fn noisy_image(runner: &Runner, bench: &BenchScene, got: &mut Gathered) -> Result<()> {
     let noisy = &bench.noisy;

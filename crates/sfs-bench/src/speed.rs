@@ -1,4 +1,4 @@
-//! `bench --part speed`: time, peak memory, bytes per pixel, RSE and the
+//! `sfs-bench --part speed`: time, peak memory, bytes per pixel, RSE and the
 //! RSE-over-time curve of the defaults at the paper's size, at 1920x1080
 //! and (with `--large`) at 18 megapixels, side by side with fast marching
 //! and the paper's fixed schedule (constant start, whole pyramid) in the
@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use super::super::figures::{self, Figure, LogLogPlot, Series};
+use super::figures::{self, Figure, LogLogPlot, Series};
 use super::{BenchArgs, CurveRecorder, reset_peak_memory};
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;

@@ -1,4 +1,4 @@
-//! `bench --part shadows`: what the defaults make of shadows. Each scene at
+//! `sfs-bench --part shadows`: what the defaults make of shadows. Each scene at
 //! 256x256 (quick: 128x128), clean and at noise sigma 20, lit by one light
 //! 30 and 45 degrees off the axis
 //! (seen from the object's centre, at the centre's distance), the scale `s`

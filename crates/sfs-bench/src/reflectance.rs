@@ -1,4 +1,4 @@
-//! `bench --part reflectance`: each scene rendered as Lambert, Oren-Nayar
+//! `sfs-bench --part reflectance`: each scene rendered as Lambert, Oren-Nayar
 //! (roughness 0.2, 0.4) and Blinn-Phong (k_s 0.3, shininess 10, 30), solved
 //! at the defaults with the matched model, as Lambertian and with
 //! `--reflectance auto`; and the shared face photograph solved with each

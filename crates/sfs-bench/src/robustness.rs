@@ -1,4 +1,4 @@
-//! The robustness table of `bench`: the default settings (alpha auto,
+//! The robustness table of `sfs-bench`: the default settings (alpha auto,
 //! relative units, fast-marching start) on every scene at several sizes,
 //! noise levels and exposures, beside the best alpha of a sweep over four
 //! decades, the solve started from the true depth and fast marching alone;

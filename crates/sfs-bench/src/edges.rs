@@ -1,4 +1,4 @@
-//! `bench --part edges`: what the energy prefers at occlusion edges. For
+//! `sfs-bench --part edges`: what the energy prefers at occlusion edges. For
 //! each scene (Sombrero, Bunny, Dragon, Suzanne) at the robustness table's
 //! sizes (64 and 256 pixels, Suzanne twice as wide; the Dragon also at
 //! 1080x1920), clean and at noise sigma 20, it measures the default solve,

@@ -1,4 +1,4 @@
-//! `bench --part ps`: near-light photometric stereo at the defaults. Renders
+//! `sfs-bench --part ps`: near-light photometric stereo at the defaults. Renders
 //! (the Sombrero and the meshes, a patch albedo painted on, 3, 4 and 8 LEDs
 //! 10 to 45 degrees off the line to the object with mu = 1, cast shadows,
 //! noise sigma 0 and 5) measured against their truth; the invariances

@@ -1,4 +1,4 @@
-//! The lights table of `bench`: each scene rendered with its light at the
+//! The lights table of `sfs-bench`: each scene rendered with its light at the
 //! optical centre and with lights beside the lens (a flash, an anisotropic
 //! LED, a ring of four), solved at the defaults with the lights where they
 //! are (s known; s from one known distance; s estimated), and with the light

@@ -1,22 +1,27 @@
-//! `sfs-studio bench`: the paper's experiments side by side in one run. It
-//! renders the scenes, runs every method on them (clean, noisy, with pre- and
-//! post-processing), and writes `report.md`, `report.json` and the figures.
-//! This module holds the arguments, the settings and what the parts share
-//! (the scene filter, the RSE-over-time recorder, the peak-memory reset);
-//! `run` runs the paper's experiments, `report` writes them, `paper_figures`
-//! draws them; `robustness`, `lights` and `speed` are the other parts.
+//! `sfs-bench`: the paper's experiments side by side in one run (`cargo run
+//! -p sfs-bench --release -- --out DIR`). It renders the scenes, runs every
+//! method on them (clean, noisy, with pre- and post-processing), and writes
+//! `report.md`, `report.json` and the figures. This file holds the
+//! arguments, the settings and what the parts share (the scene filter, the
+//! RSE-over-time recorder, the peak-memory reset); `run` runs the paper's
+//! experiments, `report` writes them, `paper_figures` draws them with
+//! `figures`; `robustness`, `lights`, `speed` and the others are the other
+//! parts.
+#![deny(missing_docs)]
 
 use sfs_core::cancel::{Cancel, Uncancelled};
 use std::path::PathBuf;
+use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use clap::Args;
+use clap::Parser;
 
 mod albedo;
 mod corpus;
 mod edges;
 mod face;
+mod figures;
 mod holes;
 mod lights;
 mod markdown;
@@ -33,16 +38,18 @@ use sfs_core::grid::Grid;
 use sfs_core::metrics;
 use sfs_core::solver::{LevelResult, SolveObserver, pyramid};
 
-/// Arguments of `bench`.
-#[derive(Debug, Args)]
+/// The paper's experiments side by side: every method on the test scenes,
+/// clean and noisy; writes report.md, report.json and figures.
+#[derive(Debug, Parser)]
+#[command(name = "sfs-bench", version, long_about = None)]
 pub struct BenchArgs {
     /// Folder with stanford-bunny.obj, dragon.obj and suzanne.obj; mesh
     /// scenes whose file is missing are skipped (and listed in the report).
-    #[arg(long, default_value = "../shared/meshes", value_parser = super::parse_path)]
+    #[arg(long, default_value = "../shared/meshes")]
     pub meshes: PathBuf,
     /// Folder with the real photographs (`near_ps_human1/`), for
     /// `--part reflectance`; skipped (and listed) when missing.
-    #[arg(long, default_value = "../shared/real", value_parser = super::parse_path)]
+    #[arg(long, default_value = "../shared/real")]
     pub real: PathBuf,
     /// A few minutes in all: every scene at a quarter of its size per side,
     /// a 5 s budget for the explicit scheme.
@@ -89,11 +96,11 @@ pub struct BenchArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Output folder (created if needed).
-    #[arg(long, value_parser = super::parse_path)]
+    #[arg(long)]
     pub out: PathBuf,
 }
 
-/// `bench --part`.
+/// `sfs-bench --part`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Part {
     /// Everything.
@@ -252,8 +259,31 @@ fn check(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
+fn main() -> ExitCode {
+    let args = match BenchArgs::try_parse() {
+        Ok(args) => args,
+        // --help and --version are successes; a usage error exits 1, as
+        // every other error (clap renders it with its own prefix).
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 /// Runs the benchmark and writes the report.
-pub fn run(args: &BenchArgs) -> Result<()> {
+fn run(args: &BenchArgs) -> Result<()> {
     let started = Instant::now();
     check(args)?;
     std::fs::create_dir_all(&args.out)

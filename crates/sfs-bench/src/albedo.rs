@@ -1,4 +1,4 @@
-//! `bench --part albedo`: shape and albedo from one photograph. Each scene
+//! `sfs-bench --part albedo`: shape and albedo from one photograph. Each scene
 //! (Sombrero, Bunny, Dragon, Suzanne; 256 px, Suzanne twice as wide; quick:
 //! 64 px) is rendered with the light at the optical centre and with a flash
 //! beside the lens, times each albedo pattern of `synth --ps-leds`
