@@ -32,6 +32,7 @@ mod reflectance;
 mod report;
 mod robustness;
 mod run;
+mod scenes;
 mod shadows;
 mod speed;
 use sfs_core::grid::Grid;
@@ -288,37 +289,23 @@ fn run(args: &BenchArgs) -> Result<()> {
     check(args)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
-    let written = if args.part == Part::Speed {
-        speed::run(args, args.large)?;
-        args.out.join("speed.md")
-    } else if args.part == Part::Holes {
-        holes::run(args)?;
-        args.out.join("holes.md")
-    } else if args.part == Part::Reflectance {
-        reflectance::run(args)?;
-        args.out.join("reflectance.md")
-    } else if args.part == Part::Ps {
-        ps::run(args)?;
-        args.out.join("ps.md")
-    } else if args.part == Part::Albedo {
-        albedo::run(args)?;
-        args.out.join("albedo.md")
-    } else if args.part == Part::Edges {
-        edges::run(args)?;
-        args.out.join("edges.md")
-    } else if args.part == Part::Corpus {
-        corpus::run(args)?;
-        args.out.join("corpus.md")
-    } else if args.part == Part::Real {
-        real::run(args)?;
-        args.out.join("real.md")
-    } else if args.part == Part::Shadows {
-        shadows::run(args)?;
-        args.out.join("shadows.md")
-    } else {
-        run::run(args, started)?;
-        args.out.join("report.md")
-    };
+    // Each part writes `<name>.md` (the paper's parts: report.md) beside
+    // its JSON.
+    let name = match args.part {
+        Part::Speed => speed::run(args, args.large).map(|_| "speed"),
+        Part::Holes => holes::run(args).map(|_| "holes"),
+        Part::Reflectance => reflectance::run(args).map(|()| "reflectance"),
+        Part::Ps => ps::run(args).map(|()| "ps"),
+        Part::Albedo => albedo::run(args).map(|()| "albedo"),
+        Part::Edges => edges::run(args).map(|_| "edges"),
+        Part::Corpus => corpus::run(args).map(|()| "corpus"),
+        Part::Real => real::run(args).map(|()| "real"),
+        Part::Shadows => shadows::run(args).map(|_| "shadows"),
+        Part::All | Part::Paper | Part::Robustness | Part::Lights => {
+            run::run(args, started).map(|()| "report")
+        }
+    }?;
+    let written = args.out.join(format!("{name}.md"));
     eprintln!(
         "wrote {} ({:.0} s)",
         written.display(),

@@ -113,7 +113,7 @@ fn renderer(args: &BenchArgs, name: &str, side: usize) -> Result<Option<(Rendere
             format!("{side}x{side}"),
         )));
     }
-    let Some(file) = super::robustness::mesh_file(name)? else {
+    let Some(file) = super::scenes::mesh_file(name)? else {
         return Ok(None);
     };
     let path = args.meshes.join(file);

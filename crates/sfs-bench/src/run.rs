@@ -12,6 +12,7 @@ use anyhow::{Context, Result};
 use super::figures::Figure;
 use super::paper_figures;
 use super::report::{self, Conditions, Curve, Report, Row, SpeedUp};
+use super::scenes::problem;
 use super::{
     ALPHA_CLEAN, ALPHA_NOISY, BenchArgs, CurveRecorder, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, Part,
     TV_ITERATIONS, lights, reset_peak_memory, robustness, wanted,
@@ -203,12 +204,8 @@ fn solve_timed(bench: &BenchScene, job: Job<'_>, name: &str) -> Result<Solved> {
         job.image.clone()
     };
     let problem = Problem {
-        image: input,
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
         confidence: job.confidence,
-        lights: Vec::new(),
+        ..problem(scene, input)
     };
     let mut recorder = CurveRecorder {
         truth: &scene.depth_gt,

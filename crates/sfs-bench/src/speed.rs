@@ -130,7 +130,7 @@ impl SolveObserver for Cancel {
 }
 
 fn problem(scene: &Scene) -> Problem {
-    super::robustness::problem(scene, scene.image.clone())
+    super::scenes::problem(scene, scene.image.clone())
 }
 
 /// The scenes: name, size.
@@ -351,7 +351,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
     .with_fixed_schedule();
     let fm = Method::FastMarching(FastMarchingParams::default());
     for (name, size) in cases(args, large) {
-        let scene = match super::robustness::render(name, &args.meshes, size.0, size.1) {
+        let scene = match super::scenes::render(name, &args.meshes, size.0, size.1) {
             Ok(scene) => scene,
             Err(e) => {
                 skipped.push(format!("{name} {}x{}: {e:#}", size.0, size.1));
