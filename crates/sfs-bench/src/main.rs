@@ -19,6 +19,7 @@ use clap::Parser;
 
 mod albedo;
 mod corpus;
+mod depth_smoothing;
 mod edges;
 mod face;
 mod figures;

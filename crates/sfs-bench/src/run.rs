@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
+use super::depth_smoothing;
 use super::figures::Figure;
 use super::paper_figures;
 use super::report::{self, Conditions, Curve, Report, Row, SpeedUp};
@@ -17,7 +18,6 @@ use super::{
     ALPHA_CLEAN, ALPHA_NOISY, BenchArgs, CurveRecorder, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, Part,
     TV_ITERATIONS, lights, reset_peak_memory, robustness, wanted,
 };
-use sfs_core::depth_smoothing;
 use sfs_core::grid::Grid;
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
