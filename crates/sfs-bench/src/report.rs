@@ -595,7 +595,7 @@ mod tests {
     #[test]
     fn report_md_sets_each_solve_beside_the_paper_and_json_keeps_the_rows() {
         let report = Report {
-            command: "sfs-studio bench --quick".into(),
+            command: "sfs-bench --quick".into(),
             quick: true,
             machine: Machine {
                 cores: 2,
