@@ -1,6 +1,8 @@
-//! The command line: `synth`, `solve`, `eval`, `bench` and `view` (the
-//! viewer, which also opens when no subcommand is given), parsed with clap. Errors are `anyhow` chains that name the file or
-//! parameter at fault; nothing here panics on user input.
+//! The command line: `synth`, `solve`, `eval` and `view` (the viewer, which
+//! also opens when no subcommand is given), parsed with clap. The benchmarks
+//! are a binary of their own (crate sfs-bench); a hidden `bench` points
+//! there. Errors are `anyhow` chains that name the file or parameter at
+//! fault; nothing here panics on user input.
 
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -8,9 +10,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-mod bench;
 mod eval;
-mod figures;
 mod lights;
 mod outputs;
 mod params;
@@ -20,7 +20,6 @@ mod synth;
 #[cfg(feature = "gui")]
 mod view;
 
-pub use bench::BenchArgs;
 pub use eval::EvalArgs;
 pub use lights::LightArgs;
 pub use params::ParamArgs;
@@ -53,9 +52,13 @@ pub enum Command {
     Solve(Box<SolveArgs>),
     /// Compare a depth map with a synthetic scene's ground truth (prints JSON).
     Eval(EvalArgs),
-    /// The paper's experiments side by side: every method on the test
-    /// scenes, clean and noisy; writes report.md, report.json and figures.
-    Bench(BenchArgs),
+    /// Moved to its own binary: refused with a message that names it.
+    #[command(hide = true, disable_help_flag = true)]
+    Bench {
+        /// Whatever followed `bench`, repeated in the message.
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
     /// Open the viewer on an image.
     #[cfg(feature = "gui")]
     View(ViewArgs),
@@ -83,7 +86,7 @@ pub fn run(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> Resul
         Some(Command::Solve(args)) if args.photometric_stereo => photometric::run(&args),
         Some(Command::Solve(args)) => solve::run(&args),
         Some(Command::Eval(args)) => eval::run(&args),
-        Some(Command::Bench(args)) => bench::run(&args),
+        Some(Command::Bench { args }) => Err(CliUsage(bench_moved(&args)).into()),
         #[cfg(feature = "gui")]
         Some(Command::View(args)) => view::run(&args),
         #[cfg(feature = "gui")]
@@ -93,6 +96,28 @@ pub fn run(args: impl IntoIterator<Item = impl Into<OsString> + Clone>) -> Resul
             "this build has no viewer (feature `gui`); use a subcommand, see --help"
         )),
     }
+}
+
+/// What `sfs-studio bench ARGS` says: the benchmarks are the sfs-bench
+/// binary, run from the repository with the same arguments.
+fn bench_moved(args: &[String]) -> String {
+    let mut command = String::from("cargo run -p sfs-bench --release --");
+    for arg in args {
+        command.push(' ');
+        if arg.is_empty() || arg.contains(char::is_whitespace) {
+            command.push_str(&format!("'{arg}'"));
+        } else {
+            command.push_str(arg);
+        }
+    }
+    if args.is_empty() {
+        command.push_str(" --out DIR");
+    }
+    format!(
+        "error: the benchmarks are no longer part of sfs-studio; they are the sfs-bench \
+         binary of the workspace. From the repository run\n\n    {command}\n\n\
+         (`cargo run -p sfs-bench --release -- --help` lists the options)\n"
+    )
 }
 
 /// A usage error from clap, already rendered.

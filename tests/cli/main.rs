@@ -4,7 +4,6 @@
 //!
 //! One test binary (one link): a module per command, the helpers in `common`.
 
-mod bench;
 mod common;
 mod depth_unit;
 #[cfg(feature = "gui")]

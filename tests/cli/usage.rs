@@ -40,16 +40,6 @@ fn help_of_every_subcommand() {
             &["--size", "--noise", "--seed", "--inpaint-disc", "--out"][..],
         ),
         ("eval", &["--depth", "--gt"][..]),
-        (
-            "bench",
-            &[
-                "--meshes",
-                "--quick",
-                "--scenes",
-                "--explicit-seconds",
-                "--out",
-            ][..],
-        ),
     ] {
         let out = sfs([sub, "--help"]);
         assert_success(&out, &format!("{sub} --help"));
@@ -64,8 +54,37 @@ fn help_of_every_subcommand() {
     let out = sfs(["--help"]);
     assert_success(&out, "--help");
     let text = stdout(&out);
-    for sub in ["synth", "solve", "eval", "bench"] {
+    for sub in ["synth", "solve", "eval"] {
         assert!(text.contains(sub), "--help does not list {sub}:\n{text}");
+    }
+    assert!(!text.contains("bench"), "--help lists bench:\n{text}");
+}
+
+/// The benchmarks are the sfs-bench binary: `sfs-studio bench` (with any
+/// arguments, `--help` too) fails, says where they went and repeats its
+/// arguments in the command to run.
+#[test]
+fn bench_points_to_the_sfs_bench_binary() {
+    for (args, command) in [
+        (
+            &["bench"][..],
+            "cargo run -p sfs-bench --release -- --out DIR",
+        ),
+        (
+            &["bench", "--part", "robustness", "--out", "r"][..],
+            "cargo run -p sfs-bench --release -- --part robustness --out r",
+        ),
+        (
+            &["bench", "--help"][..],
+            "cargo run -p sfs-bench --release -- --help",
+        ),
+    ] {
+        let out = sfs(args);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        let err = stderr(&out);
+        assert!(err.contains("sfs-bench"), "{err}");
+        assert!(err.contains(command), "{args:?}: {err}");
+        assert!(stdout(&out).is_empty(), "{}", stdout(&out));
     }
 }
 

@@ -20,7 +20,6 @@ pub mod cancel;
 pub mod colour;
 pub mod denoise;
 pub mod depth_mesh;
-pub mod depth_smoothing;
 pub mod grid;
 pub mod io;
 pub mod light;

@@ -1,22 +1,28 @@
-//! `sfs-studio bench`: the paper's experiments side by side in one run. It
-//! renders the scenes, runs every method on them (clean, noisy, with pre- and
-//! post-processing), and writes `report.md`, `report.json` and the figures.
-//! This module holds the arguments, the settings and what the parts share
-//! (the scene filter, the RSE-over-time recorder, the peak-memory reset);
-//! `run` runs the paper's experiments, `report` writes them, `paper_figures`
-//! draws them; `robustness`, `lights` and `speed` are the other parts.
+//! `sfs-bench`: the paper's experiments side by side in one run (`cargo run
+//! -p sfs-bench --release -- --out DIR`). It renders the scenes, runs every
+//! method on them (clean, noisy, with pre- and post-processing), and writes
+//! `report.md`, `report.json` and the figures. This file holds the
+//! arguments, the settings and what the parts share (the scene filter, the
+//! RSE-over-time recorder, the peak-memory reset); `run` runs the paper's
+//! experiments, `report` writes them, `paper_figures` draws them with
+//! `figures`; `robustness`, `lights`, `speed` and the others are the other
+//! parts.
+#![deny(missing_docs)]
 
 use sfs_core::cancel::{Cancel, Uncancelled};
 use std::path::PathBuf;
+use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use clap::Args;
+use clap::Parser;
 
 mod albedo;
 mod corpus;
+mod depth_smoothing;
 mod edges;
 mod face;
+mod figures;
 mod holes;
 mod lights;
 mod markdown;
@@ -27,22 +33,25 @@ mod reflectance;
 mod report;
 mod robustness;
 mod run;
+mod scenes;
 mod shadows;
 mod speed;
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
 use sfs_core::solver::{LevelResult, SolveObserver, pyramid};
 
-/// Arguments of `bench`.
-#[derive(Debug, Args)]
+/// The paper's experiments side by side: every method on the test scenes,
+/// clean and noisy; writes report.md, report.json and figures.
+#[derive(Debug, Parser)]
+#[command(name = "sfs-bench", version, long_about = None)]
 pub struct BenchArgs {
     /// Folder with stanford-bunny.obj, dragon.obj and suzanne.obj; mesh
     /// scenes whose file is missing are skipped (and listed in the report).
-    #[arg(long, default_value = "../shared/meshes", value_parser = super::parse_path)]
+    #[arg(long, default_value = "../shared/meshes")]
     pub meshes: PathBuf,
     /// Folder with the real photographs (`near_ps_human1/`), for
     /// `--part reflectance`; skipped (and listed) when missing.
-    #[arg(long, default_value = "../shared/real", value_parser = super::parse_path)]
+    #[arg(long, default_value = "../shared/real")]
     pub real: PathBuf,
     /// A few minutes in all: every scene at a quarter of its size per side,
     /// a 5 s budget for the explicit scheme.
@@ -89,11 +98,11 @@ pub struct BenchArgs {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Output folder (created if needed).
-    #[arg(long, value_parser = super::parse_path)]
+    #[arg(long)]
     pub out: PathBuf,
 }
 
-/// `bench --part`.
+/// `sfs-bench --part`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Part {
     /// Everything.
@@ -252,43 +261,52 @@ fn check(args: &BenchArgs) -> Result<()> {
     Ok(())
 }
 
+fn main() -> ExitCode {
+    let args = match BenchArgs::try_parse() {
+        Ok(args) => args,
+        // --help and --version are successes; a usage error exits 1, as
+        // every other error (clap renders it with its own prefix).
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::FAILURE
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    match run(&args) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(error) => {
+            eprintln!("error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 /// Runs the benchmark and writes the report.
-pub fn run(args: &BenchArgs) -> Result<()> {
+fn run(args: &BenchArgs) -> Result<()> {
     let started = Instant::now();
     check(args)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create output folder {}", args.out.display()))?;
-    let written = if args.part == Part::Speed {
-        speed::run(args, args.large)?;
-        args.out.join("speed.md")
-    } else if args.part == Part::Holes {
-        holes::run(args)?;
-        args.out.join("holes.md")
-    } else if args.part == Part::Reflectance {
-        reflectance::run(args)?;
-        args.out.join("reflectance.md")
-    } else if args.part == Part::Ps {
-        ps::run(args)?;
-        args.out.join("ps.md")
-    } else if args.part == Part::Albedo {
-        albedo::run(args)?;
-        args.out.join("albedo.md")
-    } else if args.part == Part::Edges {
-        edges::run(args)?;
-        args.out.join("edges.md")
-    } else if args.part == Part::Corpus {
-        corpus::run(args)?;
-        args.out.join("corpus.md")
-    } else if args.part == Part::Real {
-        real::run(args)?;
-        args.out.join("real.md")
-    } else if args.part == Part::Shadows {
-        shadows::run(args)?;
-        args.out.join("shadows.md")
-    } else {
-        run::run(args, started)?;
-        args.out.join("report.md")
-    };
+    // Each part writes `<name>.md` (the paper's parts: report.md) beside
+    // its JSON.
+    let name = match args.part {
+        Part::Speed => speed::run(args, args.large).map(|_| "speed"),
+        Part::Holes => holes::run(args).map(|_| "holes"),
+        Part::Reflectance => reflectance::run(args).map(|()| "reflectance"),
+        Part::Ps => ps::run(args).map(|()| "ps"),
+        Part::Albedo => albedo::run(args).map(|()| "albedo"),
+        Part::Edges => edges::run(args).map(|_| "edges"),
+        Part::Corpus => corpus::run(args).map(|()| "corpus"),
+        Part::Real => real::run(args).map(|()| "real"),
+        Part::Shadows => shadows::run(args).map(|_| "shadows"),
+        Part::All | Part::Paper | Part::Robustness | Part::Lights => {
+            run::run(args, started).map(|()| "report")
+        }
+    }?;
+    let written = args.out.join(format!("{name}.md"));
     eprintln!(
         "wrote {} ({:.0} s)",
         written.display(),

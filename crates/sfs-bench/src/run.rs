@@ -9,14 +9,15 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
-use super::super::figures::Figure;
+use super::depth_smoothing;
+use super::figures::Figure;
 use super::paper_figures;
 use super::report::{self, Conditions, Curve, Report, Row, SpeedUp};
+use super::scenes::problem;
 use super::{
     ALPHA_CLEAN, ALPHA_NOISY, BenchArgs, CurveRecorder, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, Part,
     TV_ITERATIONS, lights, reset_peak_memory, robustness, wanted,
 };
-use sfs_core::depth_smoothing;
 use sfs_core::grid::Grid;
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
@@ -111,7 +112,7 @@ impl Runner {
         }
     }
 
-    /// Runs `job` on `bench`: its time (pre- and post-processing included,
+    /// Runs `job` on `sfs-bench`: its time (pre- and post-processing included,
     /// the RSE recording excluded), peak memory, errors and curve.
     fn run(&self, bench: &BenchScene, job: Job<'_>) -> Result<Outcome> {
         let scene = &bench.scene;
@@ -203,12 +204,8 @@ fn solve_timed(bench: &BenchScene, job: Job<'_>, name: &str) -> Result<Solved> {
         job.image.clone()
     };
     let problem = Problem {
-        image: input,
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
         confidence: job.confidence,
-        lights: Vec::new(),
+        ..problem(scene, input)
     };
     let mut recorder = CurveRecorder {
         truth: &scene.depth_gt,
@@ -398,7 +395,7 @@ impl Gathered {
     }
 }
 
-/// The clean image of `bench`: every method, the speed-up at equal RSE,
+/// The clean image of `sfs-bench`: every method, the speed-up at equal RSE,
 /// the RSE-over-time curves and their figure, and Fig. 4 for the
 /// high-resolution scene.
 fn clean_image(runner: &Runner, bench: &BenchScene, out: &Path, got: &mut Gathered) -> Result<()> {
@@ -439,7 +436,7 @@ fn clean_image(runner: &Runner, bench: &BenchScene, out: &Path, got: &mut Gather
     Ok(())
 }
 
-/// The noisy image of `bench`: every method, the speed-up at equal RSE, then
+/// The noisy image of `sfs-bench`: every method, the speed-up at equal RSE, then
 /// the linearised method and fast marching with pre- and post-processing.
 fn noisy_image(runner: &Runner, bench: &BenchScene, got: &mut Gathered) -> Result<()> {
     let noisy = &bench.noisy;

@@ -2,8 +2,9 @@
 //! and written as PNG: panel grids (images side by side, each under its
 //! title, in grey or the colour map) and log-log line plots with gridlines,
 //! tick labels, axis names, a title and a legend. Text is set in DejaVu Sans
-//! (`assets/fonts`), compiled in and registered with `plotters` once, so no
-//! system font is needed; report.md and speed.md carry the captions.
+//! (`crates/sfs-bench/assets/fonts`), compiled in and registered with
+//! `plotters` once, so no system font is needed; report.md and speed.md
+//! carry the captions.
 
 use std::path::Path;
 use std::sync::OnceLock;
@@ -20,7 +21,7 @@ use sfs_core::grid::Grid;
 /// The family name the figures' font is registered under.
 const FONT: &str = "sans-serif";
 /// DejaVu Sans 2.37 (licence: `assets/fonts/LICENSE-DejaVu.txt`).
-static DEJAVU_SANS: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+static DEJAVU_SANS: &[u8] = include_bytes!("../assets/fonts/DejaVuSans.ttf");
 /// Panels' titles, tick labels and legends, pixels.
 const SMALL_TEXT: f64 = 14.0;
 /// Axis names, pixels.

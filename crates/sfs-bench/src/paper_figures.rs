@@ -1,10 +1,10 @@
 //! The figures of report.md, from what the paper part's solves gave: RSE
 //! over time per scene and Figs. 2-4 (the panels, their titles and shading);
-//! `cli::figures` draws them.
+//! `figures` draws them.
 
 use anyhow::Result;
 
-use super::super::figures::{self, Figure, LogLogPlot, Panel, Series, Shade};
+use super::figures::{self, Figure, LogLogPlot, Panel, Series, Shade};
 use sfs_core::grid::Grid;
 use sfs_core::scene::Scene;
 

@@ -1,4 +1,4 @@
-//! `bench --part albedo`: shape and albedo from one photograph. Each scene
+//! `sfs-bench --part albedo`: shape and albedo from one photograph. Each scene
 //! (Sombrero, Bunny, Dragon, Suzanne; 256 px, Suzanne twice as wide; quick:
 //! 64 px) is rendered with the light at the optical centre and with a flash
 //! beside the lens, times each albedo pattern of `synth --ps-leds`
@@ -27,18 +27,18 @@ use sfs_core::light::PointLight;
 use sfs_core::metrics;
 use sfs_core::params::{AlbedoChoice, SolverParams};
 use sfs_core::photo;
+use sfs_core::scene::Scene;
 use sfs_core::scene::photometric::{albedo_error, albedo_pattern, albedo_with_cell_error};
-use sfs_core::scene::{self, Scene};
 use sfs_core::solver::albedo_fit::divide_out;
 use sfs_core::solver::calibrate::solve_with_known_depths;
 use sfs_core::solver::photometric::{SingleComparison, compare_single};
 use sfs_core::solver::{Method, Problem, Solution, solve};
 
 use super::lights::render;
-use super::robustness::problem;
+use super::scenes::{noisy, problem, timed_solve};
 use super::{BenchArgs, wanted};
 
-/// Seed of the noise.
+/// Seed of the true albedo's cell errors.
 const SEED: u64 = 1;
 /// The noise of the noisy rows, on the 0..255 scale.
 const NOISE: f64 = 5.0;
@@ -193,18 +193,12 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                 let truth = truth.map(|a| a / top);
                 let clean = scene.image.zip_map(&truth, |i, a| i * a);
                 for noise in [0.0, NOISE] {
-                    let image = if noise > 0.0 {
-                        scene::add_noise(&clean, noise, SEED)
-                    } else {
-                        clean.clone()
-                    };
+                    let image = noisy(&clean, noise);
                     let divided = image.zip_map(&truth, |i, a| i / a);
                     let rse = |solution: &Solution| metrics::rse(&solution.depth, &scene.depth_gt);
                     let plain = solve(&problem_of(&scene, image.clone(), &lights), &one, &mut ())?;
-                    let started = Instant::now();
-                    let estimated =
-                        solve(&problem_of(&scene, image.clone(), &lights), &auto, &mut ())?;
-                    let seconds = started.elapsed().as_secs_f64();
+                    let (estimated, seconds) =
+                        timed_solve(&problem_of(&scene, image.clone(), &lights), &auto, name)?;
                     let given = solve(&problem_of(&scene, divided, &lights), &one, &mut ())?;
                     // Divided by the truth, a clean render is the uniform
                     // render whatever the pattern: its error is solved once.

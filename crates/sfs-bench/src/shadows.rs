@@ -1,4 +1,4 @@
-//! `bench --part shadows`: what the defaults make of shadows. Each scene at
+//! `sfs-bench --part shadows`: what the defaults make of shadows. Each scene at
 //! 256x256 (quick: 128x128), clean and at noise sigma 20, lit by one light
 //! 30 and 45 degrees off the axis
 //! (seen from the object's centre, at the centre's distance), the scale `s`
@@ -12,7 +12,6 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -21,14 +20,13 @@ use sfs_core::grid::Grid;
 use sfs_core::light::PointLight;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
-use sfs_core::scene::{self, Scene, mesh, shadow, sombrero};
-use sfs_core::solver::{Problem, Solution, solve};
+use sfs_core::scene::{Scene, mesh, shadow, sombrero};
+use sfs_core::solver::{Problem, Solution};
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::scenes::{self, noisy, timed_solve};
 use super::{BenchArgs, wanted};
 
-/// Seed of the noise.
-const SEED: u64 = 1;
 /// Automatic handling within this factor of the hand mask.
 const HAND_MASK_FACTOR: f64 = 1.1;
 /// And within this factor of the scene without shadows.
@@ -92,7 +90,7 @@ fn render(
     light: &PointLight,
     shadows: bool,
 ) -> Result<(Scene, Option<Grid<bool>>)> {
-    let file = super::robustness::mesh_file(name)?;
+    let file = scenes::mesh_file(name)?;
     let loaded = match file {
         Some(file) => {
             let path = meshes.join(file);
@@ -122,30 +120,18 @@ fn render(
     }
 }
 
+/// The problem of `scene` under its own lights with noise of `noise` and
+/// `confidence`.
 fn problem(scene: &Scene, noise: f64, confidence: Option<Grid<f64>>) -> Problem {
-    let image = match noise > 0.0 {
-        true => scene::add_noise(&scene.image, noise, SEED),
-        false => scene.image.clone(),
-    };
     Problem {
-        image,
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
         confidence,
         lights: scene.lights.clone(),
+        ..scenes::problem(scene, noisy(&scene.image, noise))
     }
 }
 
 fn solved(problem: &Problem, what: &str) -> Result<(Solution, f64)> {
-    solved_with(problem, &SolverParams::default(), what)
-}
-
-fn solved_with(problem: &Problem, params: &SolverParams, what: &str) -> Result<(Solution, f64)> {
-    let start = Instant::now();
-    let solution = solve(problem, params, &mut ())
-        .with_context(|| format!("default solve of {what} failed"))?;
-    Ok((solution, start.elapsed().as_secs_f64()))
+    timed_solve(problem, &SolverParams::default(), what)
 }
 
 /// Share of object pixels whose depth leaves the truth's range widened by
@@ -184,7 +170,7 @@ fn row(name: &str, meshes: &Path, side: usize, angle_deg: f64, noise: f64) -> Re
         shadow_bound: true,
         ..SolverParams::default()
     };
-    let (bounded, _) = solved_with(&problem(&with, noise, None), &bounded_params, name)?;
+    let (bounded, _) = timed_solve(&problem(&with, noise, None), &bounded_params, name)?;
     let rse_shadows = rse(&auto, &with)?;
     let rse_hand_mask = rse(&masked, &with)?;
     let rse_no_shadows = rse(&plain, &without)?;

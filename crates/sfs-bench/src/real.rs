@@ -1,4 +1,4 @@
-//! `bench --part real`: the guard of the photograph path. Every shared LED
+//! `sfs-bench --part real`: the guard of the photograph path. Every shared LED
 //! photograph of the face solved as the README's command solves it (the
 //! defaults: the depth unit decided by the tool), with `--distance` 10 %
 //! off the truth either way, and with `--known-depth` at the nose; each

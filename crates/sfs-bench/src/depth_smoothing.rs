@@ -1,11 +1,14 @@
-//! Post-processing usable with any method (the paper's Table 2): smoothing
-//! of a depth map with the second-order Charbonnier regulariser of the
-//! energy. The pre-processing (TV denoising) is in [`crate::denoise`].
+//! The paper's post-processing (its Table 2, the `+post` rows), usable
+//! with any method: smoothing of a depth map with the second-order
+//! Charbonnier regulariser of the energy. The pre-processing (TV denoising)
+//! is `sfs_core::denoise`. Only the benchmark uses it: the tool's own solves
+//! never post-process.
 
-use crate::grid::Grid;
-use crate::model::Reflectance;
-use crate::params::{Alpha, DomainMode, InitialDepth, SolverParams, StepControl, Units};
-use crate::solver::{Problem, SolveError, solve_with_model};
+use sfs_core::camera::Intrinsics;
+use sfs_core::grid::Grid;
+use sfs_core::model::{PixelRay, Reflectance};
+use sfs_core::params::{Alpha, DomainMode, InitialDepth, SolverParams, StepControl, Units};
+use sfs_core::solver::{Problem, SolveError, solve_with_model};
 
 /// The identity "reflectance" `R = z / scale`: with it the linearised solver
 /// minimises `sum ((z0 - z) / scale)^2 + alpha sum Psi(S^2)`.
@@ -14,13 +17,13 @@ struct DepthFidelity {
 }
 
 impl Reflectance for DepthFidelity {
-    fn radiance(&self, _ray: &crate::model::PixelRay, depth: f64, _gx: f64, _gy: f64) -> f64 {
+    fn radiance(&self, _ray: &PixelRay, depth: f64, _gx: f64, _gy: f64) -> f64 {
         depth / self.scale
     }
 
     fn radiance_with_partials(
         &self,
-        _ray: &crate::model::PixelRay,
+        _ray: &PixelRay,
         depth: f64,
         _gx: f64,
         _gy: f64,
@@ -39,7 +42,7 @@ impl Reflectance for DepthFidelity {
 /// The solver's, e.g. when no pixel has a finite depth.
 pub fn smooth_depth(
     depth: &Grid<f64>,
-    camera: crate::camera::Intrinsics,
+    camera: Intrinsics,
     weight: f64,
     params: &SolverParams,
 ) -> Result<Grid<f64>, SolveError> {
@@ -90,8 +93,7 @@ pub fn smooth_depth(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::Intrinsics;
-    use crate::scene::{add_noise, sombrero::sombrero};
+    use sfs_core::scene::{add_noise, sombrero::sombrero};
 
     #[test]
     fn depth_smoothing_removes_noise_and_keeps_the_shape() {
@@ -104,8 +106,8 @@ mod tests {
             &SolverParams::default(),
         )
         .expect("smoothing");
-        let before = crate::metrics::rse(&noisy, &scene.depth_gt).expect("sizes");
-        let after = crate::metrics::rse(&smoothed, &scene.depth_gt).expect("sizes");
+        let before = sfs_core::metrics::rse(&noisy, &scene.depth_gt).expect("sizes");
+        let after = sfs_core::metrics::rse(&smoothed, &scene.depth_gt).expect("sizes");
         eprintln!("smoothing: RSE {before} -> {after}");
         assert!(after < 0.6 * before, "RSE {before} -> {after}");
     }

@@ -1,7 +1,7 @@
 //! The figures of docs/results.md and docs/speed.md: accuracy and speed on the test scenes, in one
 //! release run, side by side with the paper's numbers.
 //!
-//!     cargo bench --bench paper_scenes -- [--meshes ../shared/meshes] [--quick]
+//!     cargo bench -p sfs-bench --bench paper_scenes -- [--meshes DIR] [--quick]
 //!
 //! `--quick` skips the 1920x1080 solve and the noisy seeds. Speed is measured
 //! here, never asserted in tests.

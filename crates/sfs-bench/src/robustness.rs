@@ -1,4 +1,4 @@
-//! The robustness table of `bench`: the default settings (alpha auto,
+//! The robustness table of `sfs-bench`: the default settings (alpha auto,
 //! relative units, fast-marching start) on every scene at several sizes,
 //! noise levels and exposures, beside the best alpha of a sweep over four
 //! decades, the solve started from the true depth and fast marching alone;
@@ -6,7 +6,6 @@
 
 use std::fmt::Write as _;
 use std::path::Path;
-use std::time::Instant;
 
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -14,8 +13,10 @@ use serde::Serialize;
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
 use sfs_core::params::{Alpha, InitialDepth, SolverParams};
-use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero};
-use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
+use sfs_core::scene::Scene;
+use sfs_core::solver::{FastMarchingParams, solve, solve_fast_marching};
+
+use super::scenes::{noisy, problem, render, timed_solve};
 
 /// One scene at one size, noise level and exposure.
 #[derive(Clone, Debug, Serialize)]
@@ -71,65 +72,8 @@ pub struct Robustness {
     pub sizes: Vec<SizeRow>,
 }
 
-/// Seed of the noise.
-const SEED: u64 = 1;
 /// The dimmed exposure.
 const DIM: f64 = 0.1;
-
-/// The scene `name` rendered at `width` x `height`.
-pub(super) fn render(name: &str, meshes: &Path, width: usize, height: usize) -> Result<Scene> {
-    let Some(file) = mesh_file(name)? else {
-        return Ok(sombrero(width, height));
-    };
-    let path = meshes.join(file);
-    mesh::load_obj(&path)
-        .and_then(|m| mesh::render(&m, width, height, &mesh::Placement::default(), name))
-        .with_context(|| format!("{name}: {}", path.display()))
-}
-
-/// [`render`], or `None` with the scene's name added to `skipped` (and
-/// said) where a mesh scene cannot be rendered (its file is missing or
-/// broken); the analytic Sombrero's failure is an error.
-pub(super) fn render_or_skip(
-    name: &str,
-    meshes: &Path,
-    width: usize,
-    height: usize,
-    skipped: &mut Vec<String>,
-) -> Result<Option<Scene>> {
-    match render(name, meshes, width, height) {
-        Ok(scene) => Ok(Some(scene)),
-        Err(e) if name != "sombrero" => {
-            eprintln!("  skipped {name}: {e:#}");
-            skipped.push(name.to_string());
-            Ok(None)
-        }
-        Err(e) => Err(e),
-    }
-}
-
-/// The mesh file of the bench's scene `name` in the meshes folder (`None`
-/// for the analytic Sombrero).
-pub(super) fn mesh_file(name: &str) -> Result<Option<&'static str>> {
-    Ok(Some(match name {
-        "sombrero" => return Ok(None),
-        "bunny" => "stanford-bunny.obj",
-        "dragon" => "dragon.obj",
-        "suzanne" => "suzanne.obj",
-        other => anyhow::bail!("no scene called {other}"),
-    }))
-}
-
-pub(super) fn problem(scene: &Scene, image: Grid<f64>) -> Problem {
-    Problem {
-        image,
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
-        confidence: None,
-        lights: Vec::new(),
-    }
-}
 
 /// RSE of `depth` times `factor` against the scene's truth.
 fn rse(depth: &Grid<f64>, factor: f64, scene: &Scene) -> Result<f64> {
@@ -146,18 +90,11 @@ fn row(
 ) -> Result<RobustnessRow> {
     let (w, h) = scene.image.size();
     eprintln!("  robustness {name} {w}x{h} noise {noise} exposure {exposure}");
-    let image = if noise > 0.0 {
-        scene::add_noise(&scene.image, noise, SEED)
-    } else {
-        scene.image.clone()
-    };
+    let image = noisy(&scene.image, noise);
     let problem = problem(scene, image.map(|v| v * exposure));
     let back = exposure.sqrt();
     let defaults = SolverParams::default();
-    let start = Instant::now();
-    let solution = solve(&problem, &defaults, &mut ())
-        .with_context(|| format!("default solve of {name} failed"))?;
-    let seconds = start.elapsed().as_secs_f64();
+    let (solution, seconds) = timed_solve(&problem, &defaults, name)?;
     let default_rse = rse(&solution.depth, back, scene)?;
     let chosen_alpha = solution.alpha;
     let mut best = (default_rse, chosen_alpha);
@@ -256,18 +193,16 @@ pub fn run(
                 break;
             };
             eprintln!("  size {name} {w}x{h}");
-            let start = Instant::now();
-            let solution = solve(
+            let (solution, seconds) = timed_solve(
                 &problem(&scene, scene.image.clone()),
                 &SolverParams::default(),
-                &mut (),
-            )
-            .with_context(|| format!("default solve of {name} at {w}x{h} failed"))?;
+                &format!("{name} at {w}x{h}"),
+            )?;
             out.sizes.push(SizeRow {
                 scene: name.into(),
                 size: format!("{w}x{h}"),
                 rse: rse(&solution.depth, 1.0, &scene)?,
-                seconds: start.elapsed().as_secs_f64(),
+                seconds,
             });
         }
     }

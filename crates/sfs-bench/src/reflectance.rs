@@ -1,4 +1,4 @@
-//! `bench --part reflectance`: each scene rendered as Lambert, Oren-Nayar
+//! `sfs-bench --part reflectance`: each scene rendered as Lambert, Oren-Nayar
 //! (roughness 0.2, 0.4) and Blinn-Phong (k_s 0.3, shininess 10, 30), solved
 //! at the defaults with the matched model, as Lambertian and with
 //! `--reflectance auto`; and the shared face photograph solved with each
@@ -16,9 +16,10 @@ use sfs_core::material::Material;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::scene::{Scene, mesh, sombrero::sombrero_shaded};
+use sfs_core::solver::Method;
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
-use sfs_core::solver::{Method, Solution, solve};
 
+use super::scenes::{problem, timed_solve};
 use super::{BenchArgs, wanted};
 
 /// One scene of one material solved with one model.
@@ -100,7 +101,7 @@ fn materials() -> Vec<Material> {
 /// names them) with `material`.
 fn render(name: &str, meshes: &Path, size: (usize, usize), material: Material) -> Result<Scene> {
     let (w, h) = size;
-    let Some(file) = super::robustness::mesh_file(name)? else {
+    let Some(file) = super::scenes::mesh_file(name)? else {
         return Ok(sombrero_shaded(w, h, &[], material));
     };
     let path = meshes.join(file);
@@ -114,15 +115,6 @@ fn render(name: &str, meshes: &Path, size: (usize, usize), material: Material) -
         material,
         name,
     )?)
-}
-
-/// Solves `scene` (its light at the optical centre) with `params`: the
-/// solution and its seconds.
-fn solved(scene: &Scene, params: &SolverParams) -> Result<(Solution, f64)> {
-    let problem = super::robustness::problem(scene, scene.image.clone());
-    let started = Instant::now();
-    let solution = solve(&problem, params, &mut ())?;
-    Ok((solution, started.elapsed().as_secs_f64()))
 }
 
 /// Runs the part and writes reflectance.md and reflectance.json.
@@ -165,7 +157,8 @@ pub fn run(args: &BenchArgs) -> Result<()> {
                         ..SolverParams::default()
                     },
                 };
-                let (solution, seconds) = solved(&scene, &params)?;
+                let (solution, seconds) =
+                    timed_solve(&problem(&scene, scene.image.clone()), &params, name)?;
                 let rse = metrics::rse(&solution.depth, &scene.depth_gt)?;
                 let model = sfs_core::light::LightModel::with_material(
                     scene.intensity_scale,

@@ -1,4 +1,4 @@
-//! The lights table of `bench`: each scene rendered with its light at the
+//! The lights table of `sfs-bench`: each scene rendered with its light at the
 //! optical centre and with lights beside the lens (a flash, an anisotropic
 //! LED, a ring of four), solved at the defaults with the lights where they
 //! are (s known; s from one known distance; s estimated), and with the light
@@ -20,6 +20,8 @@ use sfs_core::solver::calibrate::{
     KnownDepth, SCALE_TOLERANCE, estimate_intensity_scale, solve_with_known_depths,
 };
 use sfs_core::solver::{Method, Problem, solve};
+
+use super::scenes::problem;
 
 /// One scene under one light set-up.
 #[derive(Clone, Debug, Serialize)]
@@ -92,7 +94,7 @@ pub(super) fn render(
     side: usize,
     lights: &[PointLight],
 ) -> Result<Scene> {
-    let Some(file) = super::robustness::mesh_file(name)? else {
+    let Some(file) = super::scenes::mesh_file(name)? else {
         return Ok(sombrero_lit(side, side, lights));
     };
     let path = meshes.join(file);
@@ -149,12 +151,8 @@ pub fn run(
                 }
             };
             let problem = Problem {
-                image: scene.image.clone(),
-                camera: scene.camera,
-                intensity_scale: scene.intensity_scale,
-                object_mask: Some(scene.object_mask.clone()),
-                confidence: None,
                 lights: lights.clone(),
+                ..problem(&scene, scene.image.clone())
             };
             let (rse, seconds) = rse_of(&problem, &params, &scene)?;
             let mut row = LightRow {

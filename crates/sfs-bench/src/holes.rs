@@ -1,4 +1,4 @@
-//! `bench --part holes`: what the defaults make of what the image cannot
+//! `sfs-bench --part holes`: what the defaults make of what the image cannot
 //! tell. Each scene at 256x256 (quick: 128x128), clean and at noise sigma 20,
 //! with four holes of confidence 0 (a disc, a horizontal band, the
 //! silhouette band, random blobs over 20 % of the object), against the same
@@ -8,22 +8,21 @@
 //! Writes `holes.md` and `holes.json`.
 
 use std::fmt::Write as _;
-use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use serde::Serialize;
 
 use sfs_core::grid::Grid;
 use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene};
-use sfs_core::solver::{Problem, solve};
+use sfs_core::solver::Problem;
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
-use super::robustness::{problem, render_or_skip};
+use super::scenes::{noisy, problem, render_or_skip, timed_solve};
 use super::{BenchArgs, wanted};
 
-/// Seed of the noise and of the blobs.
+/// Seed of the blobs.
 const SEED: u64 = 1;
 /// How much worse than the reference a hole may come back.
 const TARGET_FACTOR: f64 = 1.2;
@@ -81,10 +80,7 @@ fn holes(scene: &Scene) -> Vec<(&'static str, Grid<f64>)> {
 
 /// RSE of a solve at the defaults.
 fn default_rse(problem: &Problem, scene: &Scene, what: &str) -> Result<(f64, f64)> {
-    let start = Instant::now();
-    let solution = solve(problem, &SolverParams::default(), &mut ())
-        .with_context(|| format!("default solve of {what} failed"))?;
-    let seconds = start.elapsed().as_secs_f64();
+    let (solution, seconds) = timed_solve(problem, &SolverParams::default(), what)?;
     Ok((metrics::rse(&solution.depth, &scene.depth_gt)?, seconds))
 }
 
@@ -94,11 +90,7 @@ fn scene_rows(name: &str, scene: &Scene) -> Result<Vec<HoleRow>> {
     let object_pixels = scene.object_mask.as_slice().iter().filter(|&&o| o).count();
     let mut rows = Vec::new();
     for noise in [0.0, 20.0] {
-        let image = if noise > 0.0 {
-            scene::add_noise(&scene.image, noise, SEED)
-        } else {
-            scene.image.clone()
-        };
+        let image = noisy(&scene.image, noise);
         let plain = problem(scene, image.clone());
         let (rse_no_hole, _) = default_rse(&plain, scene, name)?;
         for (hole, confidence) in holes(scene) {

@@ -1,4 +1,4 @@
-//! `bench --part ps`: near-light photometric stereo at the defaults. Renders
+//! `sfs-bench --part ps`: near-light photometric stereo at the defaults. Renders
 //! (the Sombrero and the meshes, a patch albedo painted on, 3, 4 and 8 LEDs
 //! 10 to 45 degrees off the line to the object with mu = 1, cast shadows,
 //! noise sigma 0 and 5) measured against their truth; the invariances
@@ -113,7 +113,7 @@ fn renderer(args: &BenchArgs, name: &str, side: usize) -> Result<Option<(Rendere
             format!("{side}x{side}"),
         )));
     }
-    let Some(file) = super::robustness::mesh_file(name)? else {
+    let Some(file) = super::scenes::mesh_file(name)? else {
         return Ok(None);
     };
     let path = args.meshes.join(file);

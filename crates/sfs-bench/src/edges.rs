@@ -1,4 +1,4 @@
-//! `bench --part edges`: what the energy prefers at occlusion edges. For
+//! `sfs-bench --part edges`: what the energy prefers at occlusion edges. For
 //! each scene (Sombrero, Bunny, Dragon, Suzanne) at the robustness table's
 //! sizes (64 and 256 pixels, Suzanne twice as wide; the Dragon also at
 //! 1080x1920), clean and at noise sigma 20, it measures the default solve,
@@ -16,7 +16,6 @@
 //! `edges.md` and `edges.json`.
 
 use std::fmt::Write as _;
-use std::time::Instant;
 
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -27,15 +26,13 @@ use sfs_core::metrics;
 use sfs_core::model::{self, LevelGeometry, Reflectance};
 use sfs_core::model_fit;
 use sfs_core::params::{InitialDepth, SolverParams};
-use sfs_core::scene::{self, Scene};
+use sfs_core::scene::Scene;
 use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
-use super::robustness::{problem, render_or_skip};
+use super::scenes::{noisy, problem, render_or_skip, timed_solve};
 use super::{BenchArgs, wanted};
 
-/// Seed of the noise.
-const SEED: u64 = 1;
 /// A depth jump between neighbours: steeper than this tangent (about 87
 /// degrees) in the true depth, `|dz| / z * f / h`.
 const JUMP_TANGENT: f64 = 20.0;
@@ -239,17 +236,9 @@ fn data_energy(problem: &Problem, depth: &Grid<f64>, how: Differences) -> f64 {
 fn row(name: &str, scene: &Scene, noise: f64) -> Result<EdgeRow> {
     let (w, h) = scene.image.size();
     eprintln!("  edges {name} {w}x{h} noise {noise}");
-    let image = if noise > 0.0 {
-        scene::add_noise(&scene.image, noise, SEED)
-    } else {
-        scene.image.clone()
-    };
-    let problem = problem(scene, image);
+    let problem = problem(scene, noisy(&scene.image, noise));
     let defaults = SolverParams::default();
-    let start = Instant::now();
-    let answer = solve(&problem, &defaults, &mut ())
-        .with_context(|| format!("default solve of {name} failed"))?;
-    let seconds = start.elapsed().as_secs_f64();
+    let (answer, seconds) = timed_solve(&problem, &defaults, name)?;
     let truth_start = solve(
         &problem,
         &SolverParams {

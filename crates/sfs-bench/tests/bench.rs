@@ -1,21 +1,91 @@
-//! `bench` on tiny configurations: each part's report and its checks, and a
-//! bad budget refused.
+//! End-to-end tests of the `sfs-bench` binary on tiny configurations: each
+//! part's report and its checks, `--help`, and bad options refused.
 
 use std::collections::BTreeSet;
+use std::ffi::OsStr;
 use std::fs;
 use std::path::Path;
+use std::process::{Command, Output};
 
+use serde_json::Value;
 use tempfile::tempdir;
 
-use crate::common::{assert_success, read_json, s, sfs, stderr};
+/// The binary under test.
+const BIN: &str = env!("CARGO_BIN_EXE_sfs-bench");
+/// The workspace's root: the runs start there, as `cargo run -p sfs-bench`
+/// from the repository does, so the default `../shared` folders resolve.
+const WORKSPACE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
-/// Runs `bench --quick ARGS --out OUT` and asserts it succeeded.
+/// Runs the binary with `args` from the workspace's root.
+fn sfs<I, S>(args: I) -> Output
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<OsStr>,
+{
+    Command::new(BIN)
+        .args(args)
+        .current_dir(WORKSPACE)
+        .output()
+        .expect("cannot start the sfs-bench binary")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn stdout(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Asserts a run succeeded, showing its output otherwise.
+#[track_caller]
+fn assert_success(out: &Output, what: &str) {
+    assert!(
+        out.status.success(),
+        "{what} failed with {}\nstdout:\n{}\nstderr:\n{}",
+        out.status,
+        stdout(out),
+        stderr(out)
+    );
+}
+
+/// Paths as strings, for argument lists.
+fn s(path: &Path) -> String {
+    path.to_str().expect("temporary paths are UTF-8").to_owned()
+}
+
+fn read_json(path: &Path) -> Value {
+    let text =
+        fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
+}
+
+/// Runs `sfs-bench --quick ARGS --out OUT` and asserts it succeeded.
 #[track_caller]
 fn bench_quick(out: &Path, args: &[&str]) {
-    let mut all: Vec<String> = vec!["bench".into(), "--quick".into()];
+    let mut all: Vec<String> = vec!["--quick".into()];
     all.extend(args.iter().map(|a| a.to_string()));
     all.extend(["--out".into(), s(out)]);
-    assert_success(&sfs(&all), &format!("bench {}", args.join(" ")));
+    assert_success(&sfs(&all), &format!("sfs-bench {}", args.join(" ")));
+}
+
+#[test]
+fn help_lists_the_options() {
+    let out = sfs(["--help"]);
+    assert_success(&out, "--help");
+    let text = stdout(&out);
+    for option in [
+        "--meshes",
+        "--quick",
+        "--scenes",
+        "--explicit-seconds",
+        "--out",
+    ] {
+        assert!(
+            text.contains(option),
+            "`sfs-bench --help` does not mention {option}:\n{text}"
+        );
+    }
 }
 
 /// `bench --part albedo --quick` on the Sombrero: every light, pattern and
@@ -57,7 +127,7 @@ fn bench_albedo_solves_each_render_three_ways() {
 
 #[test]
 fn bench_edges_compares_the_truth_with_the_answer_and_finds_contours() {
-    let meshes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes");
+    let meshes = Path::new(WORKSPACE).join("../shared/meshes");
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("edges");
     bench_quick(
@@ -267,7 +337,7 @@ fn bench_quick_on_a_tiny_configuration_writes_a_report_that_parses() {
 fn bench_rejects_a_bad_budget_and_writes_nothing() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("bench");
-    let run = sfs(["bench", "--explicit-seconds", "0", "--out", &s(&out)]);
+    let run = sfs(["--explicit-seconds", "0", "--out", &s(&out)]);
     assert!(!run.status.success());
     assert!(
         stderr(&run).contains("--explicit-seconds"),
@@ -290,7 +360,7 @@ fn bench_refuses_an_option_its_part_does_not_use() {
         ("corpus", "--large", None),
         ("albedo", "--large", None),
     ] {
-        let mut args = vec!["bench", "--part", part, option];
+        let mut args = vec!["--part", part, option];
         args.extend(value);
         let out_arg = s(&out);
         args.extend(["--out", out_arg.as_str()]);

@@ -9,7 +9,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use super::super::figures;
+use super::figures;
 use super::markdown::{table_head, write_markdown};
 use super::{
     ALPHA_CLEAN, ALPHA_NOISY, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, TV_ITERATIONS, lights,
@@ -595,7 +595,7 @@ mod tests {
     #[test]
     fn report_md_sets_each_solve_beside_the_paper_and_json_keeps_the_rows() {
         let report = Report {
-            command: "sfs-studio bench --quick".into(),
+            command: "sfs-bench --quick".into(),
             quick: true,
             machine: Machine {
                 cores: 2,

@@ -1,4 +1,4 @@
-//! `bench --part speed`: time, peak memory, bytes per pixel, RSE and the
+//! `sfs-bench --part speed`: time, peak memory, bytes per pixel, RSE and the
 //! RSE-over-time curve of the defaults at the paper's size, at 1920x1080
 //! and (with `--large`) at 18 megapixels, side by side with fast marching
 //! and the paper's fixed schedule (constant start, whole pyramid) in the
@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use super::super::figures::{self, Figure, LogLogPlot, Series};
+use super::figures::{self, Figure, LogLogPlot, Series};
 use super::{BenchArgs, CurveRecorder, reset_peak_memory};
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
@@ -130,7 +130,7 @@ impl SolveObserver for Cancel {
 }
 
 fn problem(scene: &Scene) -> Problem {
-    super::robustness::problem(scene, scene.image.clone())
+    super::scenes::problem(scene, scene.image.clone())
 }
 
 /// The scenes: name, size.
@@ -351,7 +351,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
     .with_fixed_schedule();
     let fm = Method::FastMarching(FastMarchingParams::default());
     for (name, size) in cases(args, large) {
-        let scene = match super::robustness::render(name, &args.meshes, size.0, size.1) {
+        let scene = match super::scenes::render(name, &args.meshes, size.0, size.1) {
             Ok(scene) => scene,
             Err(e) => {
                 skipped.push(format!("{name} {}x{}: {e:#}", size.0, size.1));

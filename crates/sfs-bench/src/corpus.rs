@@ -1,4 +1,4 @@
-//! `bench --part corpus`: the rates of the tool's automatic decisions (the
+//! `sfs-bench --part corpus`: the rates of the tool's automatic decisions (the
 //! depth unit and the albedo) over a randomized corpus of uniform-albedo
 //! renders: the Sombrero, the three meshes and the shared face's shape
 //! (the tool's own seven-photograph reconstruction, shaded as a depth map),
