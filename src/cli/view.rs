@@ -6,7 +6,7 @@ use anyhow::{Result, anyhow};
 use clap::Args;
 
 use sfs_core::photo::Vignetting;
-use sfs_viewer::app::{Panel2d, ViewerOptions};
+use sfs_viewer::app::{OpenOptions, Panel2d, ViewerOptions};
 
 /// Options of `sfs-studio view`.
 #[derive(Debug, Args)]
@@ -106,16 +106,19 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         set_images: args.images.iter().skip(1).cloned().collect(),
         panel: args.panel,
         albedo_texture: args.albedo_texture,
-        camera: args.camera.clone(),
-        mask: args.mask.clone(),
-        ambient: args.ambient.clone(),
-        vignetting: Vignetting::from_option(args.vignetting.as_deref()),
-        albedo: args.albedo.clone(),
-        confidence: args.confidence.clone(),
-        srgb: match args.srgb {
-            super::solve::SrgbArg::On => Some(true),
-            super::solve::SrgbArg::Off => Some(false),
-            super::solve::SrgbArg::Auto => None,
+        open: OpenOptions {
+            camera: args.camera.clone(),
+            mask: args.mask.clone(),
+            ambient: args.ambient.clone(),
+            vignetting: Vignetting::from_option(args.vignetting.as_deref()),
+            albedo: args.albedo.clone(),
+            confidence: args.confidence.clone(),
+            srgb: match args.srgb {
+                super::solve::SrgbArg::On => Some(true),
+                super::solve::SrgbArg::Off => Some(false),
+                super::solve::SrgbArg::Auto => None,
+            },
+            ..OpenOptions::default()
         },
         alpha,
         max_side: args.max_side,
