@@ -6,17 +6,15 @@
 
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-const BIN: &str = env!("CARGO_BIN_EXE_sfs-studio");
+// The CLI tests' helpers: the binary, its runs, the files a solve writes.
+#[allow(dead_code)]
+#[path = "cli/common.rs"]
+mod common;
 
-fn run(args: &[&str]) -> Output {
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("start sfs-studio")
-}
+use common::{BIN, SOLVE_FILES, assert_success, entries as names, sfs as run};
 
 fn spawn(args: &[&str]) -> Child {
     Command::new(BIN)
@@ -25,19 +23,6 @@ fn spawn(args: &[&str]) -> Child {
         .stderr(Stdio::piped())
         .spawn()
         .expect("start sfs-studio")
-}
-
-fn names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = fs::read_dir(dir)
-        .map(|entries| {
-            entries
-                .flatten()
-                .map(|e| e.file_name().to_string_lossy().into_owned())
-                .collect()
-        })
-        .unwrap_or_default();
-    names.sort();
-    names
 }
 
 fn staging_folders(dir: &Path) -> usize {
@@ -60,10 +45,26 @@ fn wait_for_staging(dir: &Path, child: &mut Child) {
     }
 }
 
+/// A temporary folder holding [`scene`], and the scene's image and camera.
+fn scene_in_temp() -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let (image, camera) = scene(tmp.path());
+    (tmp, image, camera)
+}
+
+/// Sends `signal` (`-INT`, `-TERM`) to `child`; whether `kill` succeeded.
+fn send(signal: &str, child: &Child) -> bool {
+    Command::new("kill")
+        .args([signal, &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success()
+}
+
 /// A scene large enough that its solve takes a while (about a second).
 fn scene(tmp: &Path) -> (PathBuf, PathBuf) {
     let dir = tmp.join("scene");
-    let out = run(&[
+    let out = run([
         "synth",
         "sombrero",
         "--size",
@@ -71,11 +72,7 @@ fn scene(tmp: &Path) -> (PathBuf, PathBuf) {
         "--out",
         dir.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out, "synth");
     (dir.join("image16.png"), dir.join("scene.json"))
 }
 
@@ -91,28 +88,26 @@ fn solve_args<'a>(image: &'a Path, camera: &'a Path, out: &'a Path) -> Vec<&'a s
     ]
 }
 
-const SOLVE_OUTPUTS: [&str; 11] = [
-    ".sfs-studio-outputs",
-    "albedo.npy",
-    "albedo.png",
-    "depth.npy",
-    "depth16.png",
-    "input_linear.png",
-    "mesh.ply",
-    "occlusion_edges.png",
-    "report.json",
-    "reprojection.png",
-    "residual.png",
-];
+/// Starts `solve` of `image` into `out` and waits until it is staging.
+fn start_solve(image: &Path, camera: &Path, out: &Path) -> Child {
+    let mut child = spawn(&solve_args(image, camera, out));
+    wait_for_staging(out, &mut child);
+    child
+}
+
+/// The files a solve writes, sorted as [`names`] lists them.
+fn solve_outputs() -> Vec<String> {
+    let mut files: Vec<String> = SOLVE_FILES.iter().map(|f| f.to_string()).collect();
+    files.sort();
+    files
+}
 
 #[test]
 fn a_second_run_into_a_busy_folder_is_refused_and_the_first_is_whole() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (image, camera) = scene(tmp.path());
+    let (tmp, image, camera) = scene_in_temp();
     let out = tmp.path().join("out");
-    let mut first = spawn(&solve_args(&image, &camera, &out));
-    wait_for_staging(&out, &mut first);
-    let second = run(&solve_args(&image, &camera, &out));
+    let mut first = start_solve(&image, &camera, &out);
+    let second = run(solve_args(&image, &camera, &out));
     assert!(!second.status.success());
     let message = String::from_utf8_lossy(&second.stderr);
     assert!(
@@ -121,23 +116,17 @@ fn a_second_run_into_a_busy_folder_is_refused_and_the_first_is_whole() {
     );
     let status = first.wait().unwrap();
     assert!(status.success());
-    assert_eq!(names(&out), SOLVE_OUTPUTS);
+    assert_eq!(names(&out), solve_outputs());
 }
 
 #[test]
 fn an_interrupted_run_leaves_nothing() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (image, camera) = scene(tmp.path());
+    let (tmp, image, camera) = scene_in_temp();
     for signal in ["-INT", "-TERM"] {
         // Into a new folder: it is gone again.
         let out = tmp.path().join(format!("new{signal}"));
-        let mut child = spawn(&solve_args(&image, &camera, &out));
-        wait_for_staging(&out, &mut child);
-        let kill = Command::new("kill")
-            .args([signal, &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(kill.success());
+        let mut child = start_solve(&image, &camera, &out);
+        assert!(send(signal, &child));
         let status = child.wait().unwrap();
         assert_eq!(status.code(), Some(130), "{signal}");
         assert!(!out.exists(), "{signal}: {:?}", names(&out));
@@ -146,42 +135,31 @@ fn an_interrupted_run_leaves_nothing() {
     let out = tmp.path().join("kept");
     assert!(run(&solve_args(&image, &camera, &out)).status.success());
     let before = fs::read(out.join("depth.npy")).unwrap();
-    let mut child = spawn(&solve_args(&image, &camera, &out));
-    wait_for_staging(&out, &mut child);
-    Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
+    let mut child = start_solve(&image, &camera, &out);
+    send("-INT", &child);
     assert_eq!(child.wait().unwrap().code(), Some(130));
-    assert_eq!(names(&out), SOLVE_OUTPUTS);
+    assert_eq!(names(&out), solve_outputs());
     assert_eq!(fs::read(out.join("depth.npy")).unwrap(), before);
 }
 
 #[test]
 fn a_killed_run_is_cleaned_up_by_the_next() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (image, camera) = scene(tmp.path());
+    let (tmp, image, camera) = scene_in_temp();
     let out = tmp.path().join("out");
-    let mut child = spawn(&solve_args(&image, &camera, &out));
-    wait_for_staging(&out, &mut child);
+    let mut child = start_solve(&image, &camera, &out);
     child.kill().unwrap(); // SIGKILL: nothing runs
     child.wait().unwrap();
     assert_eq!(staging_folders(&out), 1);
     let mut args = solve_args(&image, &camera, &out);
     args.extend(["--max-side", "200"]);
     let next = run(&args);
-    assert!(
-        next.status.success(),
-        "{}",
-        String::from_utf8_lossy(&next.stderr)
-    );
-    assert_eq!(names(&out), SOLVE_OUTPUTS);
+    assert_success(&next, "solve");
+    assert_eq!(names(&out), solve_outputs());
 }
 
 #[test]
 fn a_bad_destination_is_refused_before_solving() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (image, camera) = scene(tmp.path());
+    let (tmp, image, camera) = scene_in_temp();
     let file = tmp.path().join("a-file");
     fs::write(&file, "x").unwrap();
     for out in [file.clone(), file.join("below")] {
@@ -205,7 +183,7 @@ fn synth_into_a_reused_folder_leaves_no_stale_files() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("scene");
     let o = out.to_str().unwrap();
-    let first = run(&[
+    let first = run([
         "synth",
         "sombrero",
         "--size",
@@ -220,7 +198,7 @@ fn synth_into_a_reused_folder_leaves_no_stale_files() {
     assert!(first.status.success());
     assert!(out.join("noisy8.png").exists() && out.join("confidence.png").exists());
     fs::write(out.join("notes.txt"), "mine").unwrap();
-    let second = run(&["synth", "sombrero", "--size", "32x32", "--out", o]);
+    let second = run(["synth", "sombrero", "--size", "32x32", "--out", o]);
     assert!(second.status.success());
     assert_eq!(
         names(&out),
@@ -240,20 +218,28 @@ fn synth_into_a_reused_folder_leaves_no_stale_files() {
 fn oversized_jobs_are_refused_with_the_estimate_and_the_way_out() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("big");
-    let result = Command::new(BIN)
-        .args([
+    // Runs `args` with `mb` MiB of memory allowed: it must fail, and its
+    // message is returned.
+    let refused = |args: &[&str], mb: &str| {
+        let result = Command::new(BIN)
+            .args(args)
+            .env("SFS_STUDIO_MEMORY_MB", mb)
+            .output()
+            .unwrap();
+        assert!(!result.status.success());
+        String::from_utf8_lossy(&result.stderr).into_owned()
+    };
+    let message = refused(
+        &[
             "synth",
             "sombrero",
             "--size",
             "8000x8000",
             "--out",
             out.to_str().unwrap(),
-        ])
-        .env("SFS_STUDIO_MEMORY_MB", "500")
-        .output()
-        .unwrap();
-    assert!(!result.status.success());
-    let message = String::from_utf8_lossy(&result.stderr);
+        ],
+        "500",
+    );
     assert!(
         message.contains("8000x8000") && message.contains("500 MiB") && message.contains("--size"),
         "{message}"
@@ -261,13 +247,7 @@ fn oversized_jobs_are_refused_with_the_estimate_and_the_way_out() {
     assert!(!out.exists());
     // A solve names the working size that would fit.
     let (image, camera) = scene(tmp.path());
-    let result = Command::new(BIN)
-        .args(solve_args(&image, &camera, &out))
-        .env("SFS_STUDIO_MEMORY_MB", "150")
-        .output()
-        .unwrap();
-    assert!(!result.status.success());
-    let message = String::from_utf8_lossy(&result.stderr);
+    let message = refused(&solve_args(&image, &camera, &out), "150");
     assert!(
         message.contains("640x640") && message.contains("--max-side"),
         "{message}"
@@ -277,8 +257,7 @@ fn oversized_jobs_are_refused_with_the_estimate_and_the_way_out() {
 
 #[test]
 fn an_input_named_like_an_output_is_never_removed() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (image, camera) = scene(tmp.path());
+    let (tmp, image, camera) = scene_in_temp();
     let out = tmp.path().join("out");
     let mut args = solve_args(&image, &camera, &out);
     args.extend(["--auto-confidence"]);
@@ -289,11 +268,7 @@ fn an_input_named_like_an_output_is_never_removed() {
     let mut args = solve_args(&image, &camera, &out);
     args.extend(["--confidence", confidence.to_str().unwrap()]);
     let result = run(&args);
-    assert!(
-        result.status.success(),
-        "{}",
-        String::from_utf8_lossy(&result.stderr)
-    );
+    assert_success(&result, "solve");
     assert!(
         confidence.exists(),
         "an input was removed as a stale output"
@@ -302,8 +277,7 @@ fn an_input_named_like_an_output_is_never_removed() {
 
 #[test]
 fn a_grey_float32_tiff_solves() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (image, camera) = scene(tmp.path());
+    let (tmp, image, camera) = scene_in_temp();
     let grid = sfs_core::io::read_image(&image, false).unwrap();
     let path = tmp.path().join("float.tif");
     let values: Vec<f32> = grid.as_slice().iter().map(|&v| v as f32).collect();
@@ -319,10 +293,6 @@ fn a_grey_float32_tiff_solves() {
     let mut args = solve_args(&path, &camera, &out);
     args.extend(["--max-side", "160"]);
     let result = run(&args);
-    assert!(
-        result.status.success(),
-        "{}",
-        String::from_utf8_lossy(&result.stderr)
-    );
+    assert_success(&result, "solve");
     assert!(out.join("depth.npy").exists());
 }

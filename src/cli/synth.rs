@@ -194,10 +194,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             .collect(),
         ..CameraFile::new(scene.camera, w, h)
     };
-    sfs_core::camera_file::write_camera(&stage.path("scene.json"), &camera)?;
-    stage
-        .commit()
-        .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    finish(stage, &camera, &args.out)?;
     eprintln!(
         "wrote {} ({w}x{h}, f = {:.1} px, s = {:.4}) to {}",
         scene.name,
@@ -205,6 +202,16 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         scene.intensity_scale,
         args.out.display()
     );
+    Ok(())
+}
+
+/// Writes `camera` as the staged folder's scene.json and moves the staged
+/// files into `out`.
+fn finish(mut stage: crate::output::OutputStage, camera: &CameraFile, out: &Path) -> Result<()> {
+    sfs_core::camera_file::write_camera(&stage.path("scene.json"), camera)?;
+    stage
+        .commit()
+        .with_context(|| format!("cannot finish writing {}", out.display()))?;
     Ok(())
 }
 
@@ -282,10 +289,7 @@ fn run_set(args: &SynthArgs) -> Result<()> {
         lights: entries,
         ..CameraFile::new(set.camera, width, height)
     };
-    sfs_core::camera_file::write_camera(&stage.path("scene.json"), &camera)?;
-    stage
-        .commit()
-        .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
+    finish(stage, &camera, &args.out)?;
     eprintln!(
         "wrote a set of {count} photographs of {} ({width}x{height}, f = {:.1} px, {} albedo) \
          to {}",

@@ -6,7 +6,7 @@ use anyhow::{Result, anyhow};
 use clap::Args;
 
 use sfs_core::photo::Vignetting;
-use sfs_viewer::app::{Panel2d, ViewerOptions};
+use sfs_viewer::app::{OpenOptions, Panel2d, ViewerOptions};
 
 /// Options of `sfs-studio view`.
 #[derive(Debug, Args)]
@@ -106,16 +106,19 @@ pub fn run(args: &ViewArgs) -> Result<()> {
         set_images: args.images.iter().skip(1).cloned().collect(),
         panel: args.panel,
         albedo_texture: args.albedo_texture,
-        camera: args.camera.clone(),
-        mask: args.mask.clone(),
-        ambient: args.ambient.clone(),
-        vignetting: Vignetting::from_option(args.vignetting.as_deref()),
-        albedo: args.albedo.clone(),
-        confidence: args.confidence.clone(),
-        srgb: match args.srgb {
-            super::solve::SrgbArg::On => Some(true),
-            super::solve::SrgbArg::Off => Some(false),
-            super::solve::SrgbArg::Auto => None,
+        open: OpenOptions {
+            camera: args.camera.clone(),
+            mask: args.mask.clone(),
+            ambient: args.ambient.clone(),
+            vignetting: Vignetting::from_option(args.vignetting.as_deref()),
+            albedo: args.albedo.clone(),
+            confidence: args.confidence.clone(),
+            srgb: match args.srgb {
+                super::solve::SrgbArg::On => Some(true),
+                super::solve::SrgbArg::Off => Some(false),
+                super::solve::SrgbArg::Auto => None,
+            },
+            ..OpenOptions::default()
         },
         alpha,
         max_side: args.max_side,
@@ -215,6 +218,29 @@ mod tests {
         assert_eq!(trust(a), trust(b), "confidence");
     }
 
+    /// The problems `solve IMAGE --camera CAMERA --mask MASK EXTRA
+    /// --max-side SIDE --out DIR/out` and the viewer (opening `IMAGE` with
+    /// `options` at that working size) build.
+    fn both_problems(
+        image: &Path,
+        [camera, mask]: [&Path; 2],
+        extra: &[&str],
+        max_side: usize,
+        options: OpenOptions,
+        dir: &Path,
+    ) -> (Problem, Problem) {
+        let out = dir.join("out");
+        let side = max_side.to_string();
+        let mut args = vec![text(image), "--camera", text(camera), "--mask", text(mask)];
+        args.extend_from_slice(extra);
+        args.extend(["--max-side", &side, "--out", text(&out)]);
+        let options = OpenOptions {
+            max_side: Some(max_side),
+            ..options
+        };
+        (cli_problem(&args), viewer_problem(image, &options))
+    }
+
     fn viewer_problem(image: &Path, options: &OpenOptions) -> Problem {
         Document::open(image, options)
             .unwrap_or_else(|e| panic!("{e:#}"))
@@ -254,31 +280,18 @@ mod tests {
         sfs_core::io::write_png16(&ambient, &Grid::filled(256, 256, 0.02))
             .unwrap_or_else(|e| panic!("{e}"));
         let image = sample.join("image16.png");
-        let out = dir.path().join("out");
-        let cli = cli_problem(&[
-            text(&image),
-            "--camera",
-            text(&sample.join("scene.json")),
-            "--mask",
-            text(&sample.join("mask.png")),
-            "--ambient",
-            text(&ambient),
-            "--vignetting",
-            "cos4",
-            "--max-side",
-            "200",
-            "--out",
-            text(&out),
-        ]);
         // The viewer finds scene.json and mask.png beside the image.
-        let viewer = viewer_problem(
+        let (cli, viewer) = both_problems(
             &image,
-            &OpenOptions {
-                max_side: Some(200),
+            [&sample.join("scene.json"), &sample.join("mask.png")],
+            &["--ambient", text(&ambient), "--vignetting", "cos4"],
+            200,
+            OpenOptions {
                 ambient: Some(ambient.clone()),
                 vignetting: Vignetting::Cos4,
                 ..OpenOptions::default()
             },
+            dir.path(),
         );
         assert_eq!(cli.image.size(), (200, 200));
         assert!(cli.object_mask.is_some());
@@ -294,29 +307,18 @@ mod tests {
             face.display()
         );
         let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-        let out = dir.path().join("out");
         let image = face.join("led4.png");
         let ambient = face.join("ambient.png");
-        let cli = cli_problem(&[
-            text(&image),
-            "--camera",
-            text(&face.join("calibration.json")),
-            "--mask",
-            text(&face.join("mask.png")),
-            "--ambient",
-            text(&ambient),
-            "--max-side",
-            "300",
-            "--out",
-            text(&out),
-        ]);
-        let viewer = viewer_problem(
+        let (cli, viewer) = both_problems(
             &image,
-            &OpenOptions {
-                max_side: Some(300),
-                ambient: Some(ambient),
+            [&face.join("calibration.json"), &face.join("mask.png")],
+            &["--ambient", text(&ambient)],
+            300,
+            OpenOptions {
+                ambient: Some(ambient.clone()),
                 ..OpenOptions::default()
             },
+            dir.path(),
         );
         assert_eq!(cli.lights.len(), 1, "LED 4 alone");
         assert_same(&cli, &viewer);
@@ -335,27 +337,16 @@ mod tests {
         });
         sfs_core::io::write_png8(&confidence, &disc).unwrap_or_else(|e| panic!("{e}"));
         let image = sample.join("image16.png");
-        let out = dir.path().join("out");
-        let cli = cli_problem(&[
-            text(&image),
-            "--camera",
-            text(&sample.join("scene.json")),
-            "--mask",
-            text(&sample.join("mask.png")),
-            "--confidence",
-            text(&confidence),
-            "--max-side",
-            "200",
-            "--out",
-            text(&out),
-        ]);
-        let viewer = viewer_problem(
+        let (cli, viewer) = both_problems(
             &image,
-            &OpenOptions {
-                max_side: Some(200),
+            [&sample.join("scene.json"), &sample.join("mask.png")],
+            &["--confidence", text(&confidence)],
+            200,
+            OpenOptions {
                 confidence: Some(confidence.clone()),
                 ..OpenOptions::default()
             },
+            dir.path(),
         );
         let held = |p: &Problem| {
             p.confidence

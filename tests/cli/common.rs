@@ -265,3 +265,48 @@ pub(crate) fn solve_scene_args(
     args.extend(["--out".into(), s(out)]);
     args
 }
+
+/// [`synth_into`] with the arguments written as one command line (words
+/// split at spaces): `synth_line(dir, "sombrero --size 64x64")`.
+#[track_caller]
+pub(crate) fn synth_line(dir: &Path, line: &str) -> PathBuf {
+    synth_into(dir, &line.split_whitespace().collect::<Vec<_>>())
+}
+
+/// The depth `synth` wrote as the truth into `scene`.
+pub(crate) fn truth_depth(scene: &Path) -> sfs_core::grid::Grid<f64> {
+    sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy")
+}
+
+/// `solve --photometric-stereo SET/led01.png .. SET/ledNN.png` (`photos`
+/// of them, as `synth --ps-leds` names them) `--camera SET/scene.json`,
+/// then `extra`, then `--out OUT`.
+pub(crate) fn set_solve_args(set: &Path, photos: usize, extra: &[&str], out: &Path) -> Vec<String> {
+    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+    args.extend((1..=photos).map(|k| s(&set.join(format!("led{k:02}.png")))));
+    args.extend(["--camera".into(), s(&set.join("scene.json"))]);
+    args.extend(extra.iter().map(|a| a.to_string()));
+    args.extend(["--out".into(), s(out)]);
+    args
+}
+
+/// A temporary folder with [`synth_line`]`(DIR/name, line)` written in it:
+/// the folder and the scene's folder.
+#[track_caller]
+pub(crate) fn synth_in_temp(name: &str, line: &str) -> (TempDir, PathBuf) {
+    let dir = tempdir().expect("temp dir");
+    let scene = synth_line(&dir.path().join(name), line);
+    (dir, scene)
+}
+
+/// Asserts the run's stderr contains `text`, showing it otherwise.
+#[track_caller]
+pub(crate) fn assert_said(out: &Output, text: &str) {
+    let said = stderr(out);
+    assert!(said.contains(text), "{said}");
+}
+
+/// `words` as owned strings, for an argument list.
+pub(crate) fn strings(words: &[&str]) -> Vec<String> {
+    words.iter().map(|w| w.to_string()).collect()
+}

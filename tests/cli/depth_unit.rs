@@ -1,11 +1,30 @@
 //! The depth unit of a solve: known distances, the object's distance and a
 //! rig's aim, each reported in plain words.
 
+use std::path::Path;
+use std::process::Output;
+
 use tempfile::tempdir;
 
 use crate::common::{
-    assert_refused, assert_success, read_json, solve_scene, solve_scene_args, stderr, synth_into,
+    assert_refused, assert_said, assert_success, read_json, solve_scene, solve_scene_args, stderr,
+    synth_in_temp, synth_into, truth_depth,
 };
+
+/// `solve SCENE/IMAGE` with its camera file, the intensity scale unknown
+/// (`--intensity-scale auto`) and `extra`, into `out`.
+fn solve_auto(scene: &Path, image: &str, out: &Path, extra: &[&str]) -> Output {
+    let mut args = vec!["--intensity-scale", "auto"];
+    args.extend(extra);
+    solve_scene(scene, image, out, &args)
+}
+
+/// The object's distance the solve met, from its report.
+fn solved_distance(report: &serde_json::Value) -> f64 {
+    report["depth_unit"]["solved_distance"]
+        .as_f64()
+        .expect("the solved distance")
+}
 
 /// With a light beside the lens: without a known distance the solve says
 /// plainly that the image does not determine the depth unit (and the
@@ -13,14 +32,10 @@ use crate::common::{
 /// report lists each one's residual, and the first lands within 0.5 %.
 #[test]
 fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
-    let dir = tempdir().expect("temp dir");
-    let scene = synth_into(
-        &dir.path().join("scene"),
-        &["sombrero", "--size", "64x64", "--light", "0.5,0,0"],
-    );
-    let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
+    let (dir, scene) = synth_in_temp("scene", "sombrero --size 64x64 --light 0.5,0,0");
+    let truth = truth_depth(&scene);
     let out = dir.path().join("auto");
-    let run = solve_scene(&scene, "image16.png", &out, &["--intensity-scale", "auto"]);
+    let run = solve_auto(&scene, "image16.png", &out, &[]);
     assert_success(&run, "solve with s auto");
     let report = read_json(&out.join("report.json"));
     let determined = report["depth_unit"]["shading"]["well_determined"]
@@ -38,13 +53,11 @@ fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
     assert_eq!(warned, !determined, "{}", stderr(&run));
     let out = dir.path().join("known");
     let (a, b) = (*truth.at(32, 32), *truth.at(20, 40));
-    let run = solve_scene(
+    let run = solve_auto(
         &scene,
         "image16.png",
         &out,
         &[
-            "--intensity-scale",
-            "auto",
             "--known-depth",
             &format!("32,32,{a}"),
             "--known-depth",
@@ -61,7 +74,7 @@ fn known_distances_are_reported_and_an_undetermined_scale_is_said() {
         let residual = point["relative_residual"].as_f64().expect("a residual");
         assert!(residual.abs() < 0.02, "{point}");
     }
-    assert!(stderr(&run).contains("given"), "{}", stderr(&run));
+    assert_said(&run, "given");
     assert!(report["depth_unit"]["shading"].is_null());
     assert_eq!(report["depth_unit"]["source"], "known_depths");
 }
@@ -80,37 +93,26 @@ fn an_object_distance_sets_the_depth_unit() {
             args.extend(["--light", light]);
         }
         let scene = synth_into(&dir.path().join(name), &args);
-        let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
+        let truth = truth_depth(&scene);
         let median = sfs_core::solver::calibrate::median_depth(&truth);
         let out = dir.path().join(format!("{name}-out"));
         let given = 1.2 * median;
-        let run = solve_scene(
+        let run = solve_auto(
             &scene,
             "image16.png",
             &out,
-            &[
-                "--intensity-scale",
-                "auto",
-                "--distance",
-                &given.to_string(),
-            ],
+            &["--distance", &given.to_string()],
         );
         assert_success(&run, "solve with --distance");
         let report = read_json(&out.join("report.json"));
         assert_eq!(report["depth_unit"]["source"], "distance", "{report}");
-        let solved = report["depth_unit"]["solved_distance"]
-            .as_f64()
-            .expect("the solved distance");
+        let solved = solved_distance(&report);
         let tolerance = if light.is_some() { 0.021 } else { 1e-9 };
         assert!(
             (solved / given - 1.0).abs() < tolerance,
             "{name}: solved {solved}, given {given}"
         );
-        assert!(
-            stderr(&run).contains("depth unit from the given object distance"),
-            "{}",
-            stderr(&run)
-        );
+        assert_said(&run, "depth unit from the given object distance");
     }
     let scene = dir.path().join("centred");
     let out = dir.path().join("refused");
@@ -139,12 +141,8 @@ fn an_object_distance_sets_the_depth_unit() {
 /// it promises, and says so.
 #[test]
 fn a_rig_s_aim_sets_the_depth_unit_at_the_defaults() {
-    let dir = tempdir().expect("temp dir");
-    let scene = synth_into(
-        &dir.path().join("set"),
-        &["sombrero", "--size", "64x64", "--ps-leds", "4"],
-    );
-    let truth = sfs_core::io::read_npy(&scene.join("depth_gt.npy")).expect("depth_gt.npy");
+    let (dir, scene) = synth_in_temp("set", "sombrero --size 64x64 --ps-leds 4");
+    let truth = truth_depth(&scene);
     let median = sfs_core::solver::calibrate::median_depth(&truth);
     let camera = read_json(&scene.join("scene.json"));
     let first = camera["lights"][0]["image"]
@@ -152,20 +150,14 @@ fn a_rig_s_aim_sets_the_depth_unit_at_the_defaults() {
         .expect("the first light's image")
         .to_owned();
     let out = dir.path().join("one");
-    let run = solve_scene(&scene, &first, &out, &["--intensity-scale", "auto"]);
+    let run = solve_auto(&scene, &first, &out, &[]);
     assert_success(&run, "solve one LED's photograph, its scale unknown");
     let report = read_json(&out.join("report.json"));
     assert_eq!(report["depth_unit"]["source"], "rig_aim", "{report}");
-    let solved = report["depth_unit"]["solved_distance"]
-        .as_f64()
-        .expect("the solved distance");
+    let solved = solved_distance(&report);
     assert!(
         (solved / median - 1.0).abs() < 0.25,
         "solved {solved}, true {median}"
     );
-    assert!(
-        stderr(&run).contains("depth unit from the LEDs' aim point (4 lights)"),
-        "{}",
-        stderr(&run)
-    );
+    assert_said(&run, "depth unit from the LEDs' aim point (4 lights)");
 }

@@ -11,7 +11,7 @@ use serde_json::Value;
 use sfs_viewer::app::{Export, ViewerApp, ViewerOptions};
 use tempfile::tempdir;
 
-use crate::common::{assert_success, read_json, s, sfs, synth_into};
+use crate::common::{assert_success, read_json, s, solve_scene, synth_into};
 
 /// What adding the same numbers in another order may change, relative.
 const SUM_ORDER: f64 = 1e-12;
@@ -101,18 +101,8 @@ fn the_cli_and_the_viewer_report_the_same_solve() {
         let scene = synth_into(&dir.path().join(name), &args);
         let image = scene.join("image16.png");
         let out = dir.path().join(format!("{name}-cli"));
-        let run = sfs([
-            "solve".to_string(),
-            s(&image),
-            "--camera".into(),
-            s(&scene.join("scene.json")),
-            "--mask".into(),
-            s(&scene.join("mask.png")),
-            "--gt".into(),
-            s(&scene),
-            "--out".into(),
-            s(&out),
-        ]);
+        let (mask, gt) = (s(&scene.join("mask.png")), s(&scene));
+        let run = solve_scene(&scene, "image16.png", &out, &["--mask", &mask, "--gt", &gt]);
         assert_success(&run, "solve");
         let cli = read_json(&out.join("report.json"));
         let viewer = viewer_report(

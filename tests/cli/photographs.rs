@@ -7,7 +7,8 @@ use serde_json::Value;
 use tempfile::tempdir;
 
 use crate::common::{
-    assert_success, entries, expect_failure, read_json, s, sfs, stderr, synth_into,
+    assert_success, entries, expect_failure, read_json, s, set_solve_args, sfs, stderr,
+    synth_in_temp,
 };
 
 /// Two photographs of the Sombrero, each under a light of its own that a
@@ -109,11 +110,7 @@ fn two_photographs_get_a_model_fit_each() {
 /// refused naming the file, with nothing written.
 #[test]
 fn photometric_stereo_end_to_end() {
-    let dir = tempdir().expect("temp dir");
-    let set = synth_into(
-        &dir.path().join("set"),
-        &["sombrero", "--size", "48x48", "--ps-leds", "4"],
-    );
+    let (dir, set) = synth_in_temp("set", "sombrero --size 48x48 --ps-leds 4");
     let files = entries(&set);
     for name in [
         "led01.png",
@@ -130,20 +127,16 @@ fn photometric_stereo_end_to_end() {
         .map(|k| s(&set.join(format!("led{k:02}.png"))))
         .collect();
     let solved = dir.path().join("solved");
-    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    args.extend(images.iter().cloned());
-    args.extend([
-        "--camera".into(),
-        s(&set.join("scene.json")),
-        "--mask".into(),
-        s(&set.join("mask.png")),
-        "--gt".into(),
-        s(&set),
-        "--compare-single".into(),
-        "led02.png".into(),
-        "--out".into(),
-        s(&solved),
-    ]);
+    let (mask, gt) = (s(&set.join("mask.png")), s(&set));
+    let extra = [
+        "--mask",
+        &mask,
+        "--gt",
+        &gt,
+        "--compare-single",
+        "led02.png",
+    ];
+    let args = set_solve_args(&set, 4, &extra, &solved);
     let out = sfs(&args);
     assert_success(&out, "solve --photometric-stereo");
     let written = entries(&solved);
@@ -180,49 +173,25 @@ fn photometric_stereo_end_to_end() {
 
     // Bad sets: the message names what is wrong, nothing is written.
     let bad = dir.path().join("bad");
-    let mut one: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    one.push(images[0].clone());
-    one.extend([
-        "--camera".into(),
-        s(&set.join("scene.json")),
-        "--out".into(),
-        s(&bad),
-    ]);
+    let one = set_solve_args(&set, 1, &[], &bad);
     expect_failure(&one, &bad, &["at least 2 photographs"]);
-    let mut twice: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    twice.extend(images[..2].iter().cloned());
-    twice.extend([
-        "--focal".into(),
-        "48".into(),
-        "--light".into(),
-        "0.1,0,0".into(),
-        "--light".into(),
-        "0.1,0,0".into(),
-        "--out".into(),
-        s(&bad),
-    ]);
+    // The first `n` photographs, the focal length and `lights` given on
+    // the command line.
+    let lit = |n: usize, lights: &[&str]| {
+        let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
+        args.extend(images[..n].iter().cloned());
+        args.extend(["--focal".into(), "48".into()]);
+        for light in lights {
+            args.extend(["--light".into(), light.to_string()]);
+        }
+        args.extend(["--out".into(), s(&bad)]);
+        args
+    };
+    let twice = lit(2, &["0.1,0,0", "0.1,0,0"]);
     expect_failure(&twice, &bad, &["led01.png", "led02.png", "same light"]);
-    let mut counts: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    counts.extend(images[..3].iter().cloned());
-    counts.extend([
-        "--focal".into(),
-        "48".into(),
-        "--light".into(),
-        "0.1,0,0".into(),
-        "--out".into(),
-        s(&bad),
-    ]);
+    let counts = lit(3, &["0.1,0,0"]);
     expect_failure(&counts, &bad, &["3 photographs but 1 lights"]);
-    let mut unknown: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    unknown.extend(images.iter().cloned());
-    unknown.extend([
-        "--camera".into(),
-        s(&set.join("scene.json")),
-        "--photo-confidence".into(),
-        "led09.png=x.png".into(),
-        "--out".into(),
-        s(&bad),
-    ]);
+    let unknown = set_solve_args(&set, 4, &["--photo-confidence", "led09.png=x.png"], &bad);
     expect_failure(&unknown, &bad, &["led09.png", "not one of the photographs"]);
 }
 
@@ -233,24 +202,10 @@ fn photometric_stereo_end_to_end() {
 /// `cx = 1e6` taken without a word).
 #[test]
 fn a_repeated_or_black_photograph_and_an_absurd_principal_point_are_refused() {
-    let dir = tempdir().expect("temp dir");
-    let set = synth_into(
-        &dir.path().join("set"),
-        &["sombrero", "--size", "48x48", "--ps-leds", "4"],
-    );
+    let (dir, set) = synth_in_temp("set", "sombrero --size 48x48 --ps-leds 4");
     let bad = dir.path().join("bad");
     let set_args = |folder: &std::path::Path| {
-        let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-        args.extend((1..=4).map(|k| s(&folder.join(format!("led{k:02}.png")))));
-        args.extend([
-            "--camera".into(),
-            s(&folder.join("scene.json")),
-            "--mask".into(),
-            s(&folder.join("mask.png")),
-            "--out".into(),
-            s(&bad),
-        ]);
-        args
+        set_solve_args(folder, 4, &["--mask", &s(&folder.join("mask.png"))], &bad)
     };
     let variant = |name: &str| {
         let folder = dir.path().join(name);
@@ -321,23 +276,10 @@ fn a_repeated_or_black_photograph_and_an_absurd_principal_point_are_refused() {
 /// gave (issue 48, item 12).
 #[test]
 fn a_ground_truth_folder_is_checked_before_the_solve() {
-    let dir = tempdir().expect("temp dir");
-    let set = synth_into(
-        &dir.path().join("set"),
-        &["sombrero", "--size", "32x32", "--ps-leds", "3"],
-    );
+    let (dir, set) = synth_in_temp("set", "sombrero --size 32x32 --ps-leds 3");
     let bad = dir.path().join("bad");
     let missing = dir.path().join("no-such-folder");
-    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    args.extend((1..=3).map(|k| s(&set.join(format!("led{k:02}.png")))));
-    args.extend([
-        "--camera".into(),
-        s(&set.join("scene.json")),
-        "--gt".into(),
-        s(&missing),
-        "--out".into(),
-        s(&bad),
-    ]);
+    let args = set_solve_args(&set, 3, &["--gt", &s(&missing)], &bad);
     let err = expect_failure(&args, &bad, &["--gt", "no-such-folder", "no such folder"]);
     assert!(!err.contains("cannot solve"), "{err}");
     // One photograph against a set's folder: it has no image16.png.

@@ -6,8 +6,8 @@ use serde_json::Value;
 use tempfile::tempdir;
 
 use crate::common::{
-    Fixture, assert_success, expect_failure, read_json, s, sfs, solve_scene, stderr, stdout,
-    synth_into,
+    Fixture, assert_said, assert_success, expect_failure, read_json, s, set_solve_args, sfs,
+    solve_scene, solve_scene_args, stderr, stdout, synth_in_temp, synth_into, synth_line,
 };
 
 #[test]
@@ -123,19 +123,9 @@ fn solve_picks_the_method_and_chains_one_into_another() {
 #[test]
 fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
     let tmp = tempdir().unwrap();
-    let scene = synth_into(
+    let scene = synth_line(
         &tmp.path().join("lit"),
-        &[
-            "sombrero",
-            "--size",
-            "64x64",
-            "--light",
-            "0.5,-0.4,0",
-            "--light-dir",
-            "-0.2,0.2,1",
-            "--light-mu",
-            "1",
-        ],
+        "sombrero --size 64x64 --light 0.5,-0.4,0 --light-dir -0.2,0.2,1 --light-mu 1",
     );
     let camera = read_json(&scene.join("scene.json"));
     assert_eq!(camera["lights"][0]["mu"], 1.0);
@@ -162,11 +152,7 @@ fn off_centre_light_is_solved_back_and_ignoring_it_costs() {
         &["--method", "fast-marching", "-q"],
     );
     assert!(!out.status.success());
-    assert!(
-        stderr(&out).contains("optical centre only"),
-        "{}",
-        stderr(&out)
-    );
+    assert_said(&out, "optical centre only");
 }
 
 /// `--max-side` solves at a working size: outputs at that size, the report
@@ -247,14 +233,14 @@ fn calibration_for_another_size_is_scaled() {
 #[test]
 fn a_dark_image_gets_a_plain_warning() {
     let tmp = tempdir().unwrap();
-    let scene = synth_into(&tmp.path().join("dark"), &["sombrero", "--size", "32x32"]);
+    let scene = synth_line(&tmp.path().join("dark"), "sombrero --size 32x32");
     let image = sfs_core::io::read_image(&scene.join("image16.png"), false).unwrap();
     let dark = tmp.path().join("dark.png");
     sfs_core::io::write_png16(&dark, &image.map(|v| v * 0.0008)).unwrap();
     let r = tmp.path().join("r");
     let out = sfs(["solve", &s(&dark), "--focal", "32", "--out", &s(&r)]);
     assert_success(&out, "solve a dark image");
-    assert!(stderr(&out).contains("too dark"), "{}", stderr(&out));
+    assert_said(&out, "too dark");
     let report = read_json(&r.join("report.json"));
     let warnings = report["warnings"].as_array().unwrap();
     assert!(
@@ -279,20 +265,9 @@ fn a_dark_image_gets_a_plain_warning() {
 
 #[test]
 fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
-    let dir = tempdir().expect("temp dir");
-    let scene = synth_into(
-        &dir.path().join("glossy"),
-        &[
-            "sombrero",
-            "--size",
-            "64x64",
-            "--reflectance",
-            "blinn-phong",
-            "--specular",
-            "0.3",
-            "--shininess",
-            "30",
-        ],
+    let (dir, scene) = synth_in_temp(
+        "glossy",
+        "sombrero --size 64x64 --reflectance blinn-phong --specular 0.3 --shininess 30",
     );
     let camera = read_json(&scene.join("scene.json"));
     assert_eq!(camera["material"]["model"], "blinn-phong");
@@ -350,19 +325,7 @@ fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
     );
     // A model's parameter without its model, or out of range, is refused.
     let refused = dir.path().join("refused");
-    let base = [
-        "solve".to_string(),
-        s(&scene.join("image16.png")),
-        "--camera".into(),
-        s(&scene.join("scene.json")),
-        "--out".into(),
-        s(&refused),
-    ];
-    let with = |extra: &[&str]| {
-        let mut args = base.to_vec();
-        args.extend(extra.iter().map(|a| a.to_string()));
-        args
-    };
+    let with = |extra: &[&str]| solve_scene_args(&scene, "image16.png", &refused, extra);
     expect_failure(
         &with(&["--roughness", "0.4"]),
         &refused,
@@ -389,28 +352,16 @@ fn a_glossy_render_is_recovered_with_its_model_and_eval_measures_with_it() {
 
 /// `synth --ps-leds 3` at 32x32 in `DIR/set`.
 fn small_set(dir: &std::path::Path) -> std::path::PathBuf {
-    synth_into(
-        &dir.join("set"),
-        &["sombrero", "--size", "32x32", "--ps-leds", "3"],
-    )
+    synth_line(&dir.join("set"), "sombrero --size 32x32 --ps-leds 3")
 }
 
 /// `solve --photometric-stereo` of `small_set`'s photographs, by name,
 /// with its camera file and mask, into `out`, plus `extra`.
 fn set_args(set: &std::path::Path, out: &std::path::Path, extra: &[&str]) -> Vec<String> {
-    let mut args: Vec<String> = vec!["solve".into(), "--photometric-stereo".into()];
-    args.extend((1..=3).map(|k| s(&set.join(format!("led{k:02}.png")))));
-    args.extend([
-        "--camera".into(),
-        s(&set.join("scene.json")),
-        "--mask".into(),
-        s(&set.join("mask.png")),
-        "-q".into(),
-        "--out".into(),
-        s(out),
-    ]);
-    args.extend(extra.iter().map(|a| a.to_string()));
-    args
+    let mask = s(&set.join("mask.png"));
+    let mut options = vec!["--mask", &mask, "-q"];
+    options.extend(extra);
+    set_solve_args(set, 3, &options, out)
 }
 
 /// Issue 48, item 6: with `--photometric-stereo` the single-image solver's

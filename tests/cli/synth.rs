@@ -9,8 +9,8 @@ use sfs_core::params::SolverParams;
 use tempfile::tempdir;
 
 use crate::common::{
-    Fixture, SOLVE_FILES, SYNTH_FILES, assert_success, entries, read_json, s, sfs, solve_scene,
-    stderr, stdout, synth_into,
+    Fixture, SOLVE_FILES, SYNTH_FILES, assert_said, assert_success, entries, read_json, s, sfs,
+    solve_scene, stdout, synth_in_temp, synth_into,
 };
 
 #[test]
@@ -177,17 +177,9 @@ fn synth_renders_a_mesh() {
 
 #[test]
 fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
-    let dir = tempdir().expect("temp dir");
-    let scene = synth_into(
-        &dir.path().join("scene"),
-        &[
-            "sombrero",
-            "--size",
-            "96x96",
-            "--light",
-            "1.29,0,0.47",
-            "--shadows",
-        ],
+    let (dir, scene) = synth_in_temp(
+        "scene",
+        "sombrero --size 96x96 --light 1.29,0,0.47 --shadows",
     );
     let truth = image::open(scene.join("shadow.png"))
         .expect("shadow.png")
@@ -200,11 +192,7 @@ fn synth_shadows_has_ground_truth_and_solve_takes_the_shadow_out() {
     let out = dir.path().join("solved");
     let run = solve_scene(&scene, "image16.png", &out, &[]);
     assert_success(&run, "solve of the shadowed render");
-    assert!(
-        stderr(&run).contains("taken out of the data term"),
-        "{}",
-        stderr(&run)
-    );
+    assert_said(&run, "taken out of the data term");
     let found = image::open(out.join("shadow.png"))
         .expect("solve writes shadow.png")
         .to_luma8();

@@ -8,7 +8,8 @@ use serde_json::Value;
 use tempfile::tempdir;
 
 use crate::common::{
-    Fixture, assert_refused, assert_success, expect_failure, s, sfs, stderr, stdout,
+    Fixture, assert_refused, assert_said, assert_success, expect_failure, s, sfs, stderr, stdout,
+    strings,
 };
 
 #[test]
@@ -148,28 +149,23 @@ fn mask_and_confidence_of_another_size() {
     }
 }
 
-#[test]
-fn black_image() {
+/// A uniform 40x40 image of `value` named `name` is refused, saying `why`.
+#[track_caller]
+fn grey_image_refused(name: &str, value: u8, why: &str) {
     let fx = Fixture::new();
     let out = fx.path("r");
-    let image = fx.grey_png("black.png", 40, 40, 0);
-    expect_failure(
-        &fx.solve_focal_args(&image, &out, &[]),
-        &out,
-        &["black.png", "black on every"],
-    );
+    let image = fx.grey_png(name, 40, 40, value);
+    expect_failure(&fx.solve_focal_args(&image, &out, &[]), &out, &[name, why]);
+}
+
+#[test]
+fn black_image() {
+    grey_image_refused("black.png", 0, "black on every");
 }
 
 #[test]
 fn saturated_image() {
-    let fx = Fixture::new();
-    let out = fx.path("r");
-    let image = fx.grey_png("white.png", 40, 40, 255);
-    expect_failure(
-        &fx.solve_focal_args(&image, &out, &[]),
-        &out,
-        &["white.png", "saturated"],
-    );
+    grey_image_refused("white.png", 255, "saturated");
 }
 
 /// `solve IMAGE --focal ... -q --out OUT` with `focal_args` for the focal length.
@@ -326,14 +322,7 @@ fn malformed_obj_files() {
     for (name, contents) in cases {
         let obj = fx.write(name, contents);
         let out = fx.path(&format!("r-{name}"));
-        let args: Vec<String> = vec![
-            "synth".into(),
-            s(&obj),
-            "--size".into(),
-            "16x16".into(),
-            "--out".into(),
-            s(&out),
-        ];
+        let args = strings(&["synth", &s(&obj), "--size", "16x16", "--out", &s(&out)]);
         expect_failure(&args, &out, &[name]);
     }
 }
@@ -501,7 +490,7 @@ fn the_probes_cases_are_refused_or_said() {
         args.extend(["--out", &bad]);
         let run = sfs(&args);
         assert!(!run.status.success(), "{args:?}");
-        assert!(stderr(&run).contains("reach no pixel"), "{}", stderr(&run));
+        assert_said(&run, "reach no pixel");
     }
     // An LED pointing away from the object, and one behind the camera, are
     // warned about; --quiet keeps warnings.
@@ -534,11 +523,7 @@ fn the_probes_cases_are_refused_or_said() {
         "--quiet",
     ]));
     assert_success(&run, "solve with a light behind the camera");
-    assert!(
-        stderr(&run).contains("behind the camera"),
-        "{}",
-        stderr(&run)
-    );
+    assert_said(&run, "behind the camera");
 }
 
 /// Issue 48's misleading messages: each names the option the user gave,

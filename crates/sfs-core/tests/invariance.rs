@@ -55,6 +55,23 @@ fn scene_and_image(noisy: bool) -> (Scene, Grid<f64>) {
     (scene, image)
 }
 
+/// The default solves of [`scene_and_image`] as it is and with its image
+/// times `image_times` and its intensity scale changed by `scale` (with a
+/// hole of confidence 0 in both where `hole`).
+fn reference_and_changed(
+    noisy: bool,
+    hole: bool,
+    image_times: f64,
+    scale: impl FnOnce(f64) -> f64,
+) -> (Solution, Solution) {
+    let (scene, image) = scene_and_image(noisy);
+    let s = scene.intensity_scale;
+    let reference = solved(&problem_with(&scene, image.clone(), s, hole));
+    let changed = image.map(|v| v * image_times);
+    let changed = solved(&problem_with(&scene, changed, scale(s), hole));
+    (reference, changed)
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 6, ..ProptestConfig::default() })]
 
@@ -64,10 +81,7 @@ proptest! {
         noisy in any::<bool>(),
         hole in any::<bool>(),
     ) {
-        let (scene, image) = scene_and_image(noisy);
-        let s = scene.intensity_scale;
-        let reference = solved(&problem_with(&scene, image.clone(), s, hole));
-        let scaled = solved(&problem_with(&scene, image.map(|v| v * k), s * k, hole));
+        let (reference, scaled) = reference_and_changed(noisy, hole, k, |s| s * k);
         let d = largest_relative_difference(&scaled.depth, 1.0, &reference.depth);
         prop_assert!(d < ROUND_OFF, "k {k}, hole {hole}: relative difference {d}");
         prop_assert!((scaled.alpha / reference.alpha - 1.0).abs() < 1e-9);
@@ -79,10 +93,7 @@ proptest! {
         noisy in any::<bool>(),
         hole in any::<bool>(),
     ) {
-        let (scene, image) = scene_and_image(noisy);
-        let s = scene.intensity_scale;
-        let reference = solved(&problem_with(&scene, image.clone(), s, hole));
-        let dimmed = solved(&problem_with(&scene, image.map(|v| v * k), s, hole));
+        let (reference, dimmed) = reference_and_changed(noisy, hole, k, |s| s);
         let d = largest_relative_difference(&dimmed.depth, k.sqrt(), &reference.depth);
         prop_assert!(d < ROUND_OFF, "k {k}, hole {hole}: relative difference {d}");
     }
@@ -95,10 +106,7 @@ proptest! {
     ) {
         // Depth in units c times smaller: z' = c z, and I = s' / z'^2 needs
         // s' = c^2 s.
-        let (scene, image) = scene_and_image(noisy);
-        let s = scene.intensity_scale;
-        let reference = solved(&problem_with(&scene, image.clone(), s, hole));
-        let converted = solved(&problem_with(&scene, image, s * c * c, hole));
+        let (reference, converted) = reference_and_changed(noisy, hole, 1.0, |s| s * c * c);
         let d = largest_relative_difference(&converted.depth, 1.0 / c, &reference.depth);
         prop_assert!(d < ROUND_OFF, "c {c}, hole {hole}: relative difference {d}");
     }

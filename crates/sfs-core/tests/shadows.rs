@@ -4,6 +4,10 @@
 //! the same at every exposure; and taking shadows out of the data term
 //! recovers the shape as well as an exact hand mask does.
 
+// (only its `problem` is used here)
+#[allow(dead_code)]
+mod common;
+
 use sfs_core::grid::Grid;
 use sfs_core::light::PointLight;
 use sfs_core::metrics;
@@ -31,12 +35,8 @@ fn shadowed_sombrero(angle_deg: f64) -> (Scene, Grid<bool>) {
 
 fn solved(scene: &Scene, image: Grid<f64>, confidence: Option<Grid<f64>>) -> Solution {
     let problem = Problem {
-        image,
-        camera: scene.camera,
-        intensity_scale: scene.intensity_scale,
-        object_mask: Some(scene.object_mask.clone()),
         confidence,
-        lights: scene.lights.clone(),
+        ..common::problem(scene, image, scene.intensity_scale, &scene.lights)
     };
     solve(&problem, &SolverParams::default(), &mut ()).expect("the render solves")
 }

@@ -144,13 +144,8 @@ fn small_sombrero_is_recovered() {
     // measured 0.023 / 0.007 when the test was written.
     assert!(errors.rse < 0.03, "RSE {}", errors.rse);
     assert!(errors.rie < 0.02, "RIE {}", errors.rie);
-    assert!(
-        solution
-            .depth
-            .as_slice()
-            .iter()
-            .all(|z| z.is_finite() && *z > 0.0)
-    );
+    let depth = solution.depth.as_slice();
+    assert!(depth.iter().all(|z| z.is_finite() && *z > 0.0));
 }
 
 #[test]
@@ -537,6 +532,24 @@ fn led_beside_the_lens() -> sfs_core::light::PointLight {
     .unwrap()
 }
 
+/// Asserts the first solution's RSE against `scene`'s truth is at most
+/// 1.05 times the second's (`case` and the names say which).
+#[track_caller]
+fn assert_rse_within_5_percent(
+    scene: &sfs_core::scene::Scene,
+    [(name, solution), (reference_name, reference)]: [(&str, &sfs_core::solver::Solution); 2],
+    case: &str,
+) {
+    let rse = |s: &sfs_core::solver::Solution| {
+        metrics::rse(&s.depth, &scene.depth_gt).expect("measurable")
+    };
+    let (rse_solution, rse_reference) = (rse(solution), rse(reference));
+    assert!(
+        rse_solution <= 1.05 * rse_reference,
+        "{case}: {name} {rse_solution} vs {reference_name} {rse_reference}"
+    );
+}
+
 /// The adaptive stops keep the fixed schedule's answer. They stop the inner
 /// iterations once Psi' has settled where they would only polish the step:
 /// on a large image (512 px, where one solve's sweeps reach only locally) and
@@ -557,14 +570,8 @@ fn adaptive_stops_keep_the_fixed_schedules_answer() {
         let adaptive = solve(&problem, &SolverParams::default(), &mut ()).expect("solves");
         let fixed = SolverParams::default().with_fixed_schedule();
         let fixed = solve(&problem, &fixed, &mut ()).expect("solves");
-        let rse = |s: &sfs_core::solver::Solution| {
-            metrics::rse(&s.depth, &scene.depth_gt).expect("measurable")
-        };
-        let (rse_adaptive, rse_fixed) = (rse(&adaptive), rse(&fixed));
-        assert!(
-            rse_adaptive <= 1.05 * rse_fixed,
-            "{size} px, noise {noise}: adaptive {rse_adaptive} vs fixed {rse_fixed}"
-        );
+        let case = format!("{size} px, noise {noise}");
+        assert_rse_within_5_percent(&scene, [("adaptive", &adaptive), ("fixed", &fixed)], &case);
         let (inner_adaptive, inner_fixed) = (
             adaptive.phases.inner_iterations,
             fixed.phases.inner_iterations,
@@ -625,14 +632,8 @@ fn multigrid_linear_solver_solves_as_well_as_sor() {
             ..every_inner
         };
         let multigrid = solve(&problem, &params, &mut ()).expect("solves");
-        let rse = |s: &sfs_core::solver::Solution| {
-            metrics::rse(&s.depth, &scene.depth_gt).expect("measurable")
-        };
-        let (rse_sor, rse_multigrid) = (rse(&sor), rse(&multigrid));
-        assert!(
-            rse_multigrid <= 1.05 * rse_sor,
-            "noise {noise}: multigrid {rse_multigrid} vs SOR {rse_sor}"
-        );
+        let case = format!("noise {noise}");
+        assert_rse_within_5_percent(&scene, [("multigrid", &multigrid), ("SOR", &sor)], &case);
         // A cycle smooths 4 times (and works on the coarser grids): fewer
         // than half of SOR's sweeps (measured 45 cycles against 450).
         assert!(

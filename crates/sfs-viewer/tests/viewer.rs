@@ -41,11 +41,110 @@ fn step_until(harness: &mut Harness<'_, ViewerApp>, done: impl Fn(&ViewerApp) ->
     }
 }
 
-#[test]
-fn solves_the_sample_and_streams_its_levels_and_reports_errors() {
+/// The sample opened in a fresh data folder (returned: it lives as long as
+/// the harness needs it), after one frame or, with `solved`, once its first
+/// solve has finished.
+fn the_sample(solved: bool) -> (tempfile::TempDir, Harness<'static, ViewerApp>) {
     let dir = tempfile::tempdir().expect("temp dir");
     let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished().is_some());
+    if solved {
+        step_until(&mut harness, |app| app.solve_state().finished().is_some());
+    } else {
+        harness.step();
+    }
+    (dir, harness)
+}
+
+/// What `what` takes from the finished solve, if there is one.
+fn from_the_solve<T>(
+    harness: &Harness<'_, ViewerApp>,
+    what: impl FnOnce(&sfs_core::solver::Solution) -> Option<T>,
+) -> Option<T> {
+    harness.state().solve_state().finished().and_then(what)
+}
+
+/// Runs `change`, then steps until a solve other than the one running
+/// before it has finished.
+fn solve_after(
+    harness: &mut Harness<'_, ViewerApp>,
+    change: impl FnOnce(&mut Harness<'_, ViewerApp>),
+) {
+    let before = harness.state().solve_state().job;
+    change(harness);
+    step_until(harness, |app| {
+        app.solve_state().job != before && app.solve_state().finished().is_some()
+    });
+}
+
+/// Clicks the widget labelled `label` (through accesskit: it may lie below
+/// the fold) and lets two frames pass.
+fn click(harness: &mut Harness<'_, ViewerApp>, label: &str) {
+    harness.get_by_label(label).click_accesskit();
+    harness.step();
+    harness.step();
+}
+
+/// The point `(dx, dy)` from the bottom-left corner of the input panel's
+/// tab.
+fn in_the_input(harness: &Harness<'_, ViewerApp>, dx: f32, dy: f32) -> egui::Pos2 {
+    let tab = harness.get_by_label("input + mask").rect();
+    egui::pos2(tab.left() + dx, tab.bottom() + dy)
+}
+
+/// Drags the pointer from `start` to `end` in eight moves: a brush stroke.
+fn stroke(harness: &mut Harness<'_, ViewerApp>, start: egui::Pos2, end: egui::Pos2) {
+    harness.hover_at(start);
+    harness.step();
+    harness.drag_at(start);
+    harness.step();
+    for k in 1..=8 {
+        harness.hover_at(start + (end - start) * (k as f32 / 8.0));
+        harness.step();
+    }
+    harness.drop_at(end);
+    harness.step();
+    harness.step();
+}
+
+/// Types `text` into the text field labelled `field` and confirms it with
+/// the button labelled `button`.
+fn enter(harness: &mut Harness<'_, ViewerApp>, field: &str, button: &str, text: &str) {
+    harness
+        .get_by_role_and_label(Role::TextInput, field)
+        .set_text_value_accesskit(text);
+    harness.step();
+    click(harness, button);
+}
+
+/// Whether any label contains one of `texts`.
+fn shows_any(harness: &Harness<'_, ViewerApp>, texts: &[&str]) -> bool {
+    texts
+        .iter()
+        .any(|text| harness.query_by_label_contains(text).is_some())
+}
+
+/// Opens the sample again and returns the notice it leaves.
+fn reopen_the_sample(harness: &mut Harness<'_, ViewerApp>) -> String {
+    let ctx = harness.ctx.clone();
+    let sample = sample_image_path().expect("sample");
+    harness.state_mut().open(&ctx, &sample);
+    harness.state().notice().unwrap_or_default().to_string()
+}
+
+/// Steps until the comparison of a single photograph with the set is done
+/// and asserts it did not fail.
+fn until_compared(harness: &mut Harness<'_, ViewerApp>) {
+    step_until(harness, |app| {
+        let c = app.compare_state();
+        !c.running && (c.comparison.is_some() || c.failure.is_some())
+    });
+    let compare = harness.state().compare_state();
+    assert!(compare.failure.is_none(), "{:?}", compare.failure);
+}
+
+#[test]
+fn solves_the_sample_and_streams_its_levels_and_reports_errors() {
+    let (dir, mut harness) = the_sample(true);
     let app = harness.state();
     // The default: the fast-marching start, then the refined surface.
     let sizes = &app.solve_state().arrived;
@@ -84,9 +183,7 @@ fn solves_the_sample_and_streams_its_levels_and_reports_errors() {
 
 #[test]
 fn alpha_slider_changes_the_parameter_and_starts_a_new_solve() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    harness.step();
+    let (_dir, mut harness) = the_sample(false);
     let first_job = harness.state().solve_state().job;
     assert!(first_job.is_some());
     harness
@@ -115,25 +212,11 @@ fn confidence(harness: &Harness<'_, ViewerApp>) -> sfs_core::grid::Grid<f32> {
 
 #[test]
 fn painting_changes_the_mask_and_undo_restores_it() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    harness.step();
+    let (_dir, mut harness) = the_sample(false);
     let before = confidence(&harness);
     // A stroke across the middle of the image panel.
-    let tab = harness.get_by_label("input + mask").rect();
-    let start = egui::pos2(tab.left() + 120.0, tab.bottom() + 250.0);
-    let end = start + egui::vec2(120.0, 40.0);
-    harness.hover_at(start);
-    harness.step();
-    harness.drag_at(start);
-    harness.step();
-    for k in 1..=8 {
-        harness.hover_at(start + (end - start) * (k as f32 / 8.0));
-        harness.step();
-    }
-    harness.drop_at(end);
-    harness.step();
-    harness.step();
+    let start = in_the_input(&harness, 120.0, 250.0);
+    stroke(&mut harness, start, start + egui::vec2(120.0, 40.0));
     let doc = harness.state().document().expect("sample open");
     let painted = doc
         .masks
@@ -162,9 +245,7 @@ fn painting_changes_the_mask_and_undo_restores_it() {
 
 #[test]
 fn bad_files_leave_the_open_image_and_say_why() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    harness.step();
+    let (dir, mut harness) = the_sample(false);
     let bad = dir.path().join("broken.png");
     std::fs::write(&bad, b"not a png").expect("write");
     let wrong_mask = dir.path().join("mask-small.png");
@@ -191,9 +272,7 @@ fn bad_files_leave_the_open_image_and_say_why() {
 
 #[test]
 fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished().is_some());
+    let (_dir, mut harness) = the_sample(true);
     // The sample fits the model: a summary, no warning.
     let fit = harness
         .state()
@@ -217,12 +296,8 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     harness.get_by_label_contains("fit good: RIE");
     // The albedo is estimated by default (a photograph's default) and the
     // uniform sample's estimate is not used: its solve is albedo 1's.
-    let albedo = harness
-        .state()
-        .solve_state()
-        .finished()
-        .and_then(|s| s.albedo_fit.clone())
-        .expect("albedo auto reports its fit");
+    let albedo =
+        from_the_solve(&harness, |s| s.albedo_fit.clone()).expect("albedo auto reports its fit");
     assert!(!albedo.used, "{}", albedo.summary);
     // What the surface carries as its albedo texture: 1 wherever solved.
     let surface = harness
@@ -244,9 +319,7 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
     let before = confidence(&harness);
     // (below the fold of the controls since the Mask section grew the
     // shadows box: accesskit)
-    harness.get_by_label("suggest confidence").click_accesskit();
-    harness.step();
-    harness.step();
+    click(&mut harness, "suggest confidence");
     let suggested = confidence(&harness);
     let lowered = suggested
         .as_slice()
@@ -271,16 +344,21 @@ fn the_fit_is_reported_and_suggested_confidence_is_one_undoable_edit() {
 #[test]
 fn a_screenshot_run_records_why_it_failed() {
     let dir = tempfile::tempdir().expect("temp dir");
+    // A run of `image` that takes the screenshot `shot`, and its report.
+    let screenshot_run = |image: PathBuf, shot: &str| {
+        let failure = sfs_viewer::app::ExitReport::default();
+        let harness = harness(ViewerOptions {
+            image: Some(image),
+            screenshot: Some(dir.path().join(shot)),
+            failure: failure.clone(),
+            ..options(dir.path())
+        });
+        (harness, failure)
+    };
     // Not an image: nothing opens, the run must fail with the reason.
     let text = dir.path().join("text.png");
     std::fs::write(&text, "hello").expect("write");
-    let failure = sfs_viewer::app::ExitReport::default();
-    let mut first = harness(ViewerOptions {
-        image: Some(text),
-        screenshot: Some(dir.path().join("shot.png")),
-        failure: failure.clone(),
-        ..options(dir.path())
-    });
+    let (mut first, failure) = screenshot_run(text, "shot.png");
     for _ in 0..10 {
         first.step();
     }
@@ -290,13 +368,7 @@ fn a_screenshot_run_records_why_it_failed() {
     // A black image opens but cannot be solved: the reason is recorded.
     let black = dir.path().join("black.png");
     sfs_core::io::write_png8(&black, &sfs_core::grid::Grid::filled(16, 16, 0.0)).expect("write");
-    let failure = sfs_viewer::app::ExitReport::default();
-    let mut harness = harness(ViewerOptions {
-        image: Some(black),
-        screenshot: Some(dir.path().join("shot2.png")),
-        failure: failure.clone(),
-        ..options(dir.path())
-    });
+    let (mut harness, failure) = screenshot_run(black, "shot2.png");
     step_until(&mut harness, |app| app.solve_state().failure.is_some());
     harness.step();
     let message = failure.get().expect("a failure is recorded");
@@ -365,18 +437,14 @@ fn the_input_shows_the_photograph_as_it_looks_and_hovering_reads_linear_values()
         ));
         harness.step();
         harness.step();
-        ["I 0.0500", "I 0.0200"]
-            .iter()
-            .any(|text| harness.query_by_label_contains(text).is_some())
+        shows_any(&harness, &["I 0.0500", "I 0.0200"])
     });
     assert!(linear, "no linear value in the hover readout");
 }
 
 #[test]
 fn the_start_selector_says_what_is_used_with_lights_off_the_centre() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    harness.step();
+    let (dir, mut harness) = the_sample(false);
     let plane = "fast marching (in the lights' frame)";
     harness.get_by_label("fast marching");
     assert!(harness.query_by_label(plane).is_none());
@@ -396,11 +464,7 @@ fn the_start_selector_says_what_is_used_with_lights_off_the_centre() {
     harness.get_by_label("from image (lights off the centre: best-fitting plane)");
     // With the lights switched off the solve has the paper's centred light
     // (the check box may lie below the fold of the controls: accesskit).
-    harness
-        .get_by_label("solve with the lights where they are")
-        .click_accesskit();
-    harness.step();
-    harness.step();
+    click(&mut harness, "solve with the lights where they are");
     harness.get_by_label("fast marching");
     assert!(harness.query_by_label(plane).is_none());
 }
@@ -438,11 +502,7 @@ fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
         ..options(dir.path())
     });
     step_until(&mut harness, |app| app.solve_state().finished().is_some());
-    let shadow = harness
-        .state()
-        .solve_state()
-        .finished()
-        .and_then(|s| s.shadow.clone())
+    let shadow = from_the_solve(&harness, |s| s.shadow.clone())
         .expect("a light off the axis: the solve reports its shadow");
     let found = shadow.as_slice().iter().filter(|&&s| s).count();
     let agree = shadow
@@ -459,9 +519,7 @@ fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
     harness.get_by_label_contains("of the object taken out of the data term");
     harness.get_by_label("shadows");
     // Suggest confidence proposes the same pixels at 0.
-    harness.get_by_label("suggest confidence").click_accesskit();
-    harness.step();
-    harness.step();
+    click(&mut harness, "suggest confidence");
     let suggested = confidence(&harness);
     for (q, &s) in shadow.as_slice().iter().enumerate() {
         if s {
@@ -472,14 +530,11 @@ fn the_shadow_the_solve_took_out_is_shown_and_suggested() {
 
 #[test]
 fn a_known_distance_is_picked_typed_solved_to_and_restored() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished().is_some());
+    let (_dir, mut harness) = the_sample(true);
     // "Set distance", then a click on the object in the input panel.
     harness.get_by_label("Set distance").click_accesskit();
     harness.step();
-    let tab = harness.get_by_label("input + mask").rect();
-    let at = egui::pos2(tab.left() + 120.0, tab.bottom() + 250.0);
+    let at = in_the_input(&harness, 120.0, 250.0);
     harness.hover_at(at);
     harness.step();
     for pressed in [true, false] {
@@ -497,35 +552,22 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
         .any(|node| node.value().is_some_and(|v| v.starts_with("pixel (")));
     assert!(picked, "no pixel was picked");
     // A distance that is not positive is refused, nothing changes.
-    let typed = |harness: &mut Harness<'_, ViewerApp>, text: &str| {
-        harness
-            .get_by_role_and_label(Role::TextInput, "distance")
-            .set_text_value_accesskit(text);
-        harness.step();
-        harness.get_by_label("OK").click_accesskit();
-        harness.step();
-        harness.step();
-    };
     for bad in ["-5", "0", "NaN", "far"] {
-        typed(&mut harness, bad);
-        let refused = ["must be a positive number", "is not a number"]
-            .iter()
-            .any(|text| harness.query_by_label_contains(text).is_some());
+        enter(&mut harness, "distance", "OK", bad);
+        let refused = shows_any(&harness, &["must be a positive number", "is not a number"]);
         assert!(refused, "{bad} was not refused with a message");
         let doc = harness.state().document().expect("open");
         assert!(doc.known_depths.is_empty(), "{bad} was taken");
     }
-    let job_before = harness.state().solve_state().job;
-    typed(&mut harness, "3.0");
+    // The change re-solves; the fit comes with the result.
+    solve_after(&mut harness, |harness| {
+        enter(harness, "distance", "OK", "3.0")
+    });
     let doc = harness.state().document().expect("open");
     assert_eq!(doc.known_depths.len(), 1);
     let point = doc.known_depths[0];
     assert_eq!(point.depth, 3.0);
     let (c, r) = doc.working_pixel(point.column_px, point.row_px);
-    // The change re-solves; the fit comes with the result.
-    step_until(&mut harness, |app| {
-        app.solve_state().job != job_before && app.solve_state().finished().is_some()
-    });
     let solve = harness.state().solve_state();
     let fit = solve.known_depth_fit().expect("the fit is reported");
     assert_eq!(fit.points.len(), 1);
@@ -539,18 +581,13 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
     harness.get_by_label_contains("from 1 known distance; residuals");
     harness.get_by_label_contains("3.000 depth units, solved 3.0");
     // Kept beside the masks' autosave: reopening the image restores it.
-    let ctx = harness.ctx.clone();
-    let sample = sample_image_path().expect("sample");
-    harness.state_mut().open(&ctx, &sample);
+    let notice = reopen_the_sample(&mut harness);
     let app = harness.state();
     assert_eq!(app.document().expect("open").known_depths, vec![point]);
-    let notice = app.notice().unwrap_or_default();
     assert!(notice.contains("restored 1 known distance"), "{notice}");
     // Removed, it is gone, and the next solve has no fit.
     harness.step();
-    harness.get_by_label("remove").click_accesskit();
-    harness.step();
-    harness.step();
+    click(&mut harness, "remove");
     assert!(
         harness
             .state()
@@ -569,35 +606,23 @@ fn a_known_distance_is_picked_typed_solved_to_and_restored() {
 /// unit; reopening the image restores it, and "Clear" forgets it.
 #[test]
 fn an_object_distance_is_typed_solved_to_and_restored() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished().is_some());
-    let typed = |harness: &mut Harness<'_, ViewerApp>, text: &str| {
-        harness
-            .get_by_role_and_label(Role::TextInput, "object distance")
-            .set_text_value_accesskit(text);
-        harness.step();
-        harness.get_by_label("Set").click_accesskit();
-        harness.step();
-        harness.step();
-    };
+    let (_dir, mut harness) = the_sample(true);
     for bad in ["-5", "0", "far"] {
-        typed(&mut harness, bad);
-        let refused = ["must be a positive distance", "is not a number"]
-            .iter()
-            .any(|text| harness.query_by_label_contains(text).is_some());
+        enter(&mut harness, "object distance", "Set", bad);
+        let refused = shows_any(
+            &harness,
+            &["must be a positive distance", "is not a number"],
+        );
         assert!(refused, "{bad} was not refused with a message");
         let doc = harness.state().document().expect("open");
         assert_eq!(doc.object_distance, None, "{bad} was taken");
     }
-    let job_before = harness.state().solve_state().job;
-    typed(&mut harness, "4.5");
-    assert_eq!(
-        harness.state().document().expect("open").object_distance,
-        Some(4.5)
-    );
-    step_until(&mut harness, |app| {
-        app.solve_state().job != job_before && app.solve_state().finished().is_some()
+    solve_after(&mut harness, |harness| {
+        enter(harness, "object distance", "Set", "4.5");
+        assert_eq!(
+            harness.state().document().expect("open").object_distance,
+            Some(4.5)
+        );
     });
     let solve = harness.state().solve_state();
     let unit = solve.depth_unit().expect("the depth unit is said");
@@ -609,17 +634,12 @@ fn an_object_distance_is_typed_solved_to_and_restored() {
     harness.step();
     harness.get_by_label_contains("depth unit from the given object distance");
     // Kept beside the known distances: reopening the image restores it.
-    let ctx = harness.ctx.clone();
-    let sample = sample_image_path().expect("sample");
-    harness.state_mut().open(&ctx, &sample);
+    let notice = reopen_the_sample(&mut harness);
     let app = harness.state();
     assert_eq!(app.document().expect("open").object_distance, Some(4.5));
-    let notice = app.notice().unwrap_or_default();
     assert!(notice.contains("restored the object distance"), "{notice}");
     harness.step();
-    harness.get_by_label("Clear").click_accesskit();
-    harness.step();
-    harness.step();
+    click(&mut harness, "Clear");
     assert_eq!(
         harness.state().document().expect("open").object_distance,
         None
@@ -653,11 +673,7 @@ fn choose_reflectance(harness: &mut Harness<'_, ViewerApp>, word: &str) {
 /// [`choose_reflectance`], then waits for the new solve it starts to
 /// finish.
 fn choose_and_solve(harness: &mut Harness<'_, ViewerApp>, word: &str) {
-    let before = harness.state().solve_state().job;
-    choose_reflectance(harness, word);
-    step_until(harness, |app| {
-        app.solve_state().job != before && app.solve_state().finished().is_some()
-    });
+    solve_after(harness, |harness| choose_reflectance(harness, word));
     harness.step();
 }
 
@@ -665,9 +681,7 @@ fn choose_and_solve(harness: &mut Harness<'_, ViewerApp>, word: &str) {
 fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_what_was_used() {
     use sfs_core::material::Material;
     use sfs_core::params::ReflectanceChoice;
-    let dir = tempfile::tempdir().expect("temp dir");
-    let mut harness = harness(options(dir.path()));
-    step_until(&mut harness, |app| app.solve_state().finished().is_some());
+    let (_dir, mut harness) = the_sample(true);
     harness.step();
     // Lambert, the default: no model's parameters, nothing said.
     for label in ["roughness (rad)", "specular k_s", "shininess n"] {
@@ -698,12 +712,7 @@ fn the_reflectance_selector_shows_the_chosen_models_sliders_and_the_result_says_
     assert!(harness.query_by_label_contains("material fit (").is_none());
     // Auto: fitted, the finding and the candidates reported.
     choose_and_solve(&mut harness, "auto");
-    let fit = harness
-        .state()
-        .solve_state()
-        .finished()
-        .and_then(|s| s.material_fit.clone())
-        .expect("auto reports its fit");
+    let fit = from_the_solve(&harness, |s| s.material_fit.clone()).expect("auto reports its fit");
     assert!(!has_slider(&harness, "roughness (rad)"));
     harness.get_by_label_contains("material fit (");
     harness.get_by_label_contains(&fit.summary);
@@ -715,21 +724,9 @@ mod test_sets;
 
 /// Paints a stroke across the middle of the input panel.
 fn stroke_across_the_input(harness: &mut Harness<'_, ViewerApp>) {
-    let tab = harness.get_by_label("input + mask").rect();
     // (the 48x48 image fills the panel's width, centred in its height)
-    let start = egui::pos2(tab.left() + 40.0, tab.bottom() + 330.0);
-    let end = start + egui::vec2(150.0, 40.0);
-    harness.hover_at(start);
-    harness.step();
-    harness.drag_at(start);
-    harness.step();
-    for k in 1..=8 {
-        harness.hover_at(start + (end - start) * (k as f32 / 8.0));
-        harness.step();
-    }
-    harness.drop_at(end);
-    harness.step();
-    harness.step();
+    let start = in_the_input(harness, 40.0, 330.0);
+    stroke(harness, start, start + egui::vec2(150.0, 40.0));
 }
 
 #[test]
@@ -798,12 +795,8 @@ fn a_set_folder_opens_as_one_document_solves_and_shows_its_panels() {
         app.solve_state().set.is_some() && !app.solve_state().running
     });
     harness.state_mut().solve_single(0);
-    step_until(&mut harness, |app| {
-        let c = app.compare_state();
-        !c.running && (c.comparison.is_some() || c.failure.is_some())
-    });
+    until_compared(&mut harness);
     let compare = harness.state().compare_state();
-    assert!(compare.failure.is_none(), "{:?}", compare.failure);
     let c = compare.comparison.as_ref().expect("compared");
     assert!(c.pixels > 100 && c.rse_to_set.is_finite(), "{c:?}");
     assert!(!compare.with_set_albedo);
@@ -812,12 +805,8 @@ fn a_set_folder_opens_as_one_document_solves_and_shows_its_panels() {
     harness.step();
     // The same photograph with the set's albedo divided out: compared too.
     harness.state_mut().solve_single_with_set_albedo(0);
-    step_until(&mut harness, |app| {
-        let c = app.compare_state();
-        !c.running && (c.comparison.is_some() || c.failure.is_some())
-    });
+    until_compared(&mut harness);
     let compare = harness.state().compare_state();
-    assert!(compare.failure.is_none(), "{:?}", compare.failure);
     assert!(compare.with_set_albedo);
     let c = compare.comparison.as_ref().expect("compared");
     assert!(

@@ -943,16 +943,19 @@ mod tests {
             (solver.column_px, solver.row_px, solver.depth),
             (50.0, 70.0, 2.0)
         );
-        for depth in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-            let bad = KnownDistance { depth, ..point };
-            let reason = doc.set_known_depth(bad).err().unwrap_or_default();
-            assert!(reason.contains("positive number"), "{reason}");
-        }
-        let outside = KnownDistance {
-            column_px: 256.0,
+        // `point` moved to column `c`, and why a point is refused (empty
+        // if it is taken).
+        let at_column = |c: f64| KnownDistance {
+            column_px: c,
             ..point
         };
-        let reason = doc.set_known_depth(outside).err().unwrap_or_default();
+        let refusal =
+            |doc: &mut Document, p: KnownDistance| doc.set_known_depth(p).err().unwrap_or_default();
+        for depth in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            let reason = refusal(&mut doc, KnownDistance { depth, ..point });
+            assert!(reason.contains("positive number"), "{reason}");
+        }
+        let reason = refusal(&mut doc, at_column(256.0));
         assert!(reason.contains("outside"), "{reason}");
         assert!(doc.known_depths.is_empty(), "refused points change nothing");
         doc.set_known_depth(point).unwrap_or_else(|e| panic!("{e}"));
@@ -976,11 +979,7 @@ mod tests {
             .map(|e| e.to_string())
             .unwrap_or_default();
         assert!(reason.contains("off the object"), "{reason}");
-        let other = KnownDistance {
-            column_px: 10.0,
-            ..point
-        };
-        let reason = doc.set_known_depth(other).err().unwrap_or_default();
+        let reason = refusal(&mut doc, at_column(10.0));
         assert!(reason.contains("off the object"), "{reason}");
         assert_eq!(doc.known_depths.len(), 1);
     }

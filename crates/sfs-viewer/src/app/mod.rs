@@ -54,21 +54,11 @@ pub struct ViewerOptions {
     /// Show the albedo (a set's or a single solve's) on the surface (the
     /// 3-D view's texture).
     pub albedo_texture: bool,
-    /// Camera JSON to open the image with.
-    pub camera: Option<PathBuf>,
-    /// Object mask PNG to open the image with.
-    pub mask: Option<PathBuf>,
-    /// A frame with every light off, subtracted from the image.
-    pub ambient: Option<PathBuf>,
-    /// Vignetting correction of the image.
-    pub vignetting: sfs_core::photo::Vignetting,
-    /// A known albedo map, divided out of the image.
-    pub albedo: Option<PathBuf>,
-    /// A confidence mask: the confidence layer's start (`None`: all
-    /// trusted).
-    pub confidence: Option<PathBuf>,
-    /// Read the image as sRGB (`None`: decide from the file).
-    pub srgb: Option<bool>,
+    /// How to read the image: its camera file, mask, ambient frame,
+    /// vignetting, albedo map, confidence mask and sRGB choice (the sRGB
+    /// choice also for File > Open later). Its `max_side` is not read: the
+    /// working size is [`max_side`](Self::max_side).
+    pub open: OpenOptions,
     /// Alpha override.
     pub alpha: Option<Alpha>,
     /// Working-size override (longest side in pixels, 0 = full size).
@@ -178,14 +168,11 @@ impl ViewerApp {
         let path = options.image.clone().or_else(sample_image_path);
         match path {
             Some(path) => {
+                let base = app.open_options();
                 let open = OpenOptions {
-                    camera: options.camera.clone(),
-                    mask: options.mask.clone(),
-                    ambient: options.ambient.clone(),
-                    vignetting: options.vignetting.clone(),
-                    albedo: options.albedo.clone(),
-                    confidence: options.confidence.clone(),
-                    ..app.open_options()
+                    srgb: base.srgb,
+                    max_side: base.max_side,
+                    ..options.open.clone()
                 };
                 let mut paths = vec![path];
                 paths.extend(options.set_images.iter().cloned());
@@ -233,7 +220,7 @@ impl ViewerApp {
     /// the working size; camera file and mask found beside it.
     fn open_options(&self) -> OpenOptions {
         OpenOptions {
-            srgb: self.options.srgb,
+            srgb: self.options.open.srgb,
             max_side: (self.settings.max_side > 0).then_some(self.settings.max_side),
             ..OpenOptions::default()
         }

@@ -143,6 +143,12 @@ pub struct SolveState {
 }
 
 impl SolveState {
+    /// The running job has ended (finished, failed or cancelled).
+    fn end_job(&mut self) {
+        self.running = false;
+        self.completed_jobs += 1;
+    }
+
     /// The final result's solution.
     pub fn finished(&self) -> Option<&Solution> {
         self.solved.as_deref().map(|s| &s.solution)
@@ -657,8 +663,7 @@ impl Session {
             }
             self.solve.solved = None;
             self.solve.failure = Some(reason);
-            self.solve.running = false;
-            self.solve.completed_jobs += 1;
+            self.solve.end_job();
             return;
         }
         self.level_inputs = Some(LevelInputs {
@@ -759,8 +764,7 @@ impl Session {
                     });
                     let estimated_albedo = solution.albedo_fit.is_some();
                     self.solve.solved = Some(solved);
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
+                    self.solve.end_job();
                     if self.albedo_texture
                         && estimated_albedo
                         && let Some(level) = self.textured_level()
@@ -770,8 +774,7 @@ impl Session {
                 }
                 Event::SetFinished { solution, .. } => {
                     self.solve.set = Some(solution);
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
+                    self.solve.end_job();
                     if self.albedo_texture
                         && let Some(level) = self.textured_level()
                     {
@@ -780,12 +783,10 @@ impl Session {
                 }
                 Event::Failed { error, .. } => {
                     self.solve.failure = Some(error);
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
+                    self.solve.end_job();
                 }
                 Event::Cancelled { .. } => {
-                    self.solve.running = false;
-                    self.solve.completed_jobs += 1;
+                    self.solve.end_job();
                 }
             }
         }
@@ -1055,12 +1056,9 @@ impl Session {
         if let (Some(set), Some(doc)) = (&self.solve.set, &self.document) {
             let camera = doc.camera.intrinsics();
             let result = match what {
-                Export::DepthNpy => io::write_npy_f32(path, &set.depth),
-                Export::DepthPng => io::write_depth_png16(path, &set.depth).map(|_| ()),
-                Export::MeshPly => {
-                    io::write_depth_ply(path, &set.depth, &camera, Some(&set.albedo))
+                Export::DepthNpy | Export::DepthPng | Export::MeshPly | Export::MeshObj => {
+                    write_depth(path, what, &set.depth, &camera, &set.albedo)
                 }
-                Export::MeshObj => io::write_depth_obj(path, &set.depth, &camera),
                 Export::Reprojection => {
                     return Err("a set's solve keeps each photograph's residual, not a \
                                 reprojection: export the depth or the mesh"
@@ -1084,18 +1082,33 @@ impl Session {
         let solution = &solved.solution;
         let camera = doc.camera.intrinsics();
         let result = match what {
-            Export::DepthNpy => io::write_npy_f32(path, &solution.depth),
-            Export::DepthPng => io::write_depth_png16(path, &solution.depth).map(|_| ()),
-            Export::MeshPly => {
-                io::write_depth_ply(path, &solution.depth, &camera, Some(&solution.reprojection))
+            Export::DepthNpy | Export::DepthPng | Export::MeshPly | Export::MeshObj => {
+                write_depth(path, what, &solution.depth, &camera, &solution.reprojection)
             }
-            Export::MeshObj => io::write_depth_obj(path, &solution.depth, &camera),
             Export::Reprojection => io::write_png16(path, &solution.reprojection),
             Export::Report => io::write_json(path, &solved.report(self.solve.errors)),
         };
         result
             .map(|()| format!("wrote {}", path.display()))
             .map_err(|e| e.to_string())
+    }
+}
+
+/// Writes the exports made of the depth: the depth as `.npy` or 16-bit PNG,
+/// the mesh as `.ply` (shaded by `shade`) or `.obj`; nothing for the others.
+fn write_depth(
+    path: &Path,
+    what: Export,
+    depth: &Grid<f64>,
+    camera: &sfs_core::camera::Intrinsics,
+    shade: &Grid<f64>,
+) -> Result<(), io::IoError> {
+    match what {
+        Export::DepthNpy => io::write_npy_f32(path, depth),
+        Export::DepthPng => io::write_depth_png16(path, depth).map(|_| ()),
+        Export::MeshPly => io::write_depth_ply(path, depth, camera, Some(shade)),
+        Export::MeshObj => io::write_depth_obj(path, depth, camera),
+        Export::Reprojection | Export::Report => Ok(()),
     }
 }
 

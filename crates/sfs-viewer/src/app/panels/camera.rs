@@ -1,7 +1,7 @@
 //! The "Camera" section: focal length, principal point, intensity scale,
 //! lights, sRGB, the photograph's corrections and the working size.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use eframe::egui;
 
@@ -150,38 +150,16 @@ impl Panels {
     ) -> bool {
         type Change = Box<dyn FnOnce(&mut PhotoInput)>;
         let mut change: Option<Change> = None;
-        fn name(path: &Path) -> String {
-            path.file_name().map_or_else(
-                || path.display().to_string(),
-                |n| n.to_string_lossy().into_owned(),
-            )
-        }
         let images = [("image", IMAGE_EXTENSIONS)];
-        ui.horizontal(|ui| {
-            ui.label("ambient frame");
-            match &doc.input.ambient {
-                Some(path) => {
-                    ui.weak(name(path))
-                        .on_hover_text(path.display().to_string());
-                    if ui.small_button("clear").clicked() {
-                        change = Some(Box::new(|input| input.ambient = None));
-                    }
-                }
-                None => {
-                    ui.weak("none");
-                }
-            }
-            if ui
-                .small_button("choose…")
-                .on_hover_text(
-                    "A photograph with every light off (same exposure), subtracted from the image",
-                )
-                .clicked()
-                && let Some(path) = pick_open(&images)
-            {
-                change = Some(Box::new(move |input| input.ambient = Some(path)));
-            }
-        });
+        if let Some(ambient) = file_row(
+            ui,
+            "ambient frame",
+            doc.input.ambient.as_deref(),
+            "none",
+            "A photograph with every light off (same exposure), subtracted from the image",
+        ) {
+            change = Some(Box::new(move |input| input.ambient = ambient));
+        }
         if doc.input.ambient.is_some() && doc.report.ambient_clamped_share > 0.0 {
             ui.weak(format!(
                 "{:.1} % of pixels darker than the ambient frame (set to 0)",
@@ -225,32 +203,16 @@ impl Panels {
                     }));
                 }
             });
-        ui.horizontal(|ui| {
-            ui.label("albedo");
-            match &doc.input.albedo {
-                Some(path) => {
-                    ui.weak(name(path))
-                        .on_hover_text(path.display().to_string());
-                    if ui.small_button("clear").clicked() {
-                        change = Some(Box::new(|input| input.albedo = None));
-                    }
-                }
-                None => {
-                    ui.weak("none (uniform)");
-                }
-            }
-            if ui
-                .small_button("choose…")
-                .on_hover_text(
-                    "A known albedo map (linear, relative), divided out; pixels below 0.02 \
-                     are not trusted",
-                )
-                .clicked()
-                && let Some(path) = pick_open(&images)
-            {
-                change = Some(Box::new(move |input| input.albedo = Some(path)));
-            }
-        });
+        if let Some(albedo) = file_row(
+            ui,
+            "albedo",
+            doc.input.albedo.as_deref(),
+            "none (uniform)",
+            "A known albedo map (linear, relative), divided out; pixels below 0.02 are not \
+             trusted",
+        ) {
+            change = Some(Box::new(move |input| input.albedo = albedo));
+        }
         let Some(change) = change else {
             return false;
         };
@@ -265,4 +227,48 @@ impl Panels {
             }
         }
     }
+}
+
+/// A file's name (its whole path if it has none), for a label.
+fn name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+/// One optional file of the photograph's corrections in a row: `label`, the
+/// file's name (or `none`), "clear" and "choose…" (explained by `hover`).
+/// Returns the new choice: `Some(None)` when cleared, `Some(Some(path))`
+/// when an image was chosen, `None` when nothing changed.
+fn file_row(
+    ui: &mut egui::Ui,
+    label: &str,
+    current: Option<&Path>,
+    none: &str,
+    hover: &str,
+) -> Option<Option<PathBuf>> {
+    ui.horizontal(|ui| {
+        let mut choice = None;
+        ui.label(label);
+        match current {
+            Some(path) => {
+                ui.weak(name(path))
+                    .on_hover_text(path.display().to_string());
+                if ui.small_button("clear").clicked() {
+                    choice = Some(None);
+                }
+            }
+            None => {
+                ui.weak(none);
+            }
+        }
+        if ui.small_button("choose…").on_hover_text(hover).clicked()
+            && let Some(path) = pick_open(&[("image", IMAGE_EXTENSIONS)])
+        {
+            choice = Some(Some(path));
+        }
+        choice
+    })
+    .inner
 }

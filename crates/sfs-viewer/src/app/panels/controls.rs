@@ -26,17 +26,17 @@ impl Panels {
         })
         .default_open(!is_set)
         .show(ui, |ui| self.params_ui(ui, cx));
-        egui::CollapsingHeader::new("Mask")
-            .default_open(true)
-            .show(ui, |ui| self.mask_ui(ui, cx));
-        egui::CollapsingHeader::new("Camera")
-            .default_open(true)
-            .show(ui, |ui| self.camera_ui(ui, cx));
-        egui::CollapsingHeader::new("Known distance")
-            .default_open(true)
-            .show(ui, |ui| self.known_distance_ui(ui, cx));
-        egui::CollapsingHeader::new("3-D view")
-            .default_open(true)
-            .show(ui, |ui| self.view_settings_ui(ui, cx));
+        type Section = fn(&mut Panels, &mut egui::Ui, &mut UiContext<'_>);
+        let sections: [(&str, Section); 4] = [
+            ("Mask", Self::mask_ui),
+            ("Camera", Self::camera_ui),
+            ("Known distance", Self::known_distance_ui),
+            ("3-D view", Self::view_settings_ui),
+        ];
+        for (title, section) in sections {
+            egui::CollapsingHeader::new(title)
+                .default_open(true)
+                .show(ui, |ui| section(self, ui, cx));
+        }
     }
 }

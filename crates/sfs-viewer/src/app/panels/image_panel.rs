@@ -12,12 +12,7 @@ use crate::mask_edit::{Brush, ImagePoint, OverlayStyle};
 
 impl Panels {
     pub(super) fn image_panel_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
-        let set_names = cx
-            .session
-            .document
-            .as_ref()
-            .and_then(|d| d.set.as_ref())
-            .map(|s| s.names());
+        let set_names = cx.set_names();
         let mut rows = vec![vec![
             (Panel2d::Input, "input + mask"),
             (Panel2d::Reprojection, "reprojection"),
@@ -170,35 +165,25 @@ impl Panels {
             let solve = &cx.session.solve;
             let key = solve.completed_jobs;
             let alpha = (cx.settings.brush.overlay_opacity.clamp(0.0, 1.0) * 255.0) as u8;
+            // Draws `mask` over the image in `colour` through `texture`.
+            let overlay = |texture: &mut Option<(usize, egui::TextureHandle)>,
+                           name: &str,
+                           mask: Option<&sfs_core::grid::Grid<bool>>,
+                           colour: [u8; 4]| {
+                update_mask_texture(ui.ctx(), texture, name, mask, colour, key);
+                if let Some((_, texture)) = texture {
+                    painter.image(texture.id(), image_rect, uv, egui::Color32::WHITE);
+                }
+            };
             if cx.settings.brush.show_shadows {
                 let shadow = solve.finished().and_then(|s| s.shadow.as_ref());
                 let violet = [150, 60, 220, alpha];
-                update_mask_texture(
-                    ui.ctx(),
-                    &mut self.textures.shadows,
-                    "shadows",
-                    shadow,
-                    violet,
-                    key,
-                );
-                if let Some((_, shadows)) = &self.textures.shadows {
-                    painter.image(shadows.id(), image_rect, uv, egui::Color32::WHITE);
-                }
+                overlay(&mut self.textures.shadows, "shadows", shadow, violet);
             }
             if cx.settings.brush.show_contours {
-                let contours = solve.occlusion_edges();
                 let orange = [255, 150, 0, alpha.max(160)];
-                update_mask_texture(
-                    ui.ctx(),
-                    &mut self.textures.contours,
-                    "contours",
-                    contours,
-                    orange,
-                    key,
-                );
-                if let Some((_, contours)) = &self.textures.contours {
-                    painter.image(contours.id(), image_rect, uv, egui::Color32::WHITE);
-                }
+                let contours = solve.occlusion_edges();
+                overlay(&mut self.textures.contours, "contours", contours, orange);
             }
             self.draw_known_distances(&painter, cx, scale, origin);
             self.paint_input(ui, cx, &response, &to_image, scale, origin);
@@ -300,16 +285,16 @@ impl Panels {
             return;
         }
         let (masks, image) = doc.paint_target(paint_photo);
+        let brush = Brush {
+            radius_px: b.radius_px,
+            hardness: b.hardness,
+            mode: b.mode,
+        };
         match b.tool {
             Tool::Brush => {
                 if response.drag_started_by(primary)
                     && let Some(p) = pointer
                 {
-                    let brush = Brush {
-                        radius_px: b.radius_px,
-                        hardness: b.hardness,
-                        mode: b.mode,
-                    };
                     match masks.begin_stroke(b.layer, brush, to_image(p)) {
                         Ok(()) => self.gesture = Some(Gesture::Stroke),
                         Err(e) => cx.actions.push(Action::Notice(e.to_string())),
@@ -326,11 +311,6 @@ impl Panels {
                     && let Some(p) = pointer
                 {
                     // A click is a single dab.
-                    let brush = Brush {
-                        radius_px: b.radius_px,
-                        hardness: b.hardness,
-                        mode: b.mode,
-                    };
                     if masks.begin_stroke(b.layer, brush, to_image(p)).is_ok() {
                         masks.end_stroke();
                     }

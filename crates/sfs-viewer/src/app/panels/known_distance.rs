@@ -44,16 +44,7 @@ impl Panels {
             let text = tool
                 .distance_text
                 .get_or_insert_with(|| current.map(significant).unwrap_or_default());
-            let edit = ui
-                .add(
-                    egui::TextEdit::singleline(text)
-                        .desired_width(70.0)
-                        .hint_text("e.g. 650"),
-                )
-                .labelled_by(label);
-            ui.label(&units);
-            let entered = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-            if ui.button("Set").clicked() || entered {
+            if distance_field(ui, text, label, "e.g. 650", &units, "Set") {
                 let typed = text.trim().to_owned();
                 distance_outcome = Some(if typed.is_empty() {
                     Ok(None)
@@ -107,16 +98,7 @@ impl Panels {
             ui.horizontal(|ui| {
                 ui.label(format!("pixel ({x}, {y})"));
                 let label = ui.label("distance").id;
-                let edit = ui
-                    .add(
-                        egui::TextEdit::singleline(&mut tool.text)
-                            .desired_width(70.0)
-                            .hint_text("e.g. 350"),
-                    )
-                    .labelled_by(label);
-                ui.label(&units);
-                let entered = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
-                if ui.button("OK").clicked() || entered {
+                if distance_field(ui, &mut tool.text, label, "e.g. 350", &units, "OK") {
                     confirm = true;
                 }
                 if ui.button("Cancel").clicked() {
@@ -238,4 +220,27 @@ fn significant(value: f64) -> String {
     }
     let decimals = (3 - value.abs().log10().floor() as i32).clamp(0, 12) as usize;
     format!("{value:.decimals$}")
+}
+
+/// A distance's text field (labelled by `label`, with `hint` while empty),
+/// its units and the button `confirm`; true when the button was clicked or
+/// Enter pressed in the field.
+fn distance_field(
+    ui: &mut egui::Ui,
+    text: &mut String,
+    label: egui::Id,
+    hint: &str,
+    units: &str,
+    confirm: &str,
+) -> bool {
+    let edit = ui
+        .add(
+            egui::TextEdit::singleline(text)
+                .desired_width(70.0)
+                .hint_text(hint),
+        )
+        .labelled_by(label);
+    ui.label(units);
+    let entered = edit.lost_focus() && ui.input(|i| i.key_pressed(egui::Key::Enter));
+    ui.button(confirm).clicked() || entered
 }

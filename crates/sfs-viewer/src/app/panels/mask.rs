@@ -10,12 +10,7 @@ use crate::mask_edit::{Layer, Mode};
 
 impl Panels {
     pub(super) fn mask_ui(&mut self, ui: &mut egui::Ui, cx: &mut UiContext<'_>) {
-        let names = cx
-            .session
-            .document
-            .as_ref()
-            .and_then(|d| d.set.as_ref())
-            .map(|s| s.names());
+        let names = cx.set_names();
         if let Some(names) = &names {
             let before = self.set.paint_photo;
             self.set.paint_selector_ui(ui, names);

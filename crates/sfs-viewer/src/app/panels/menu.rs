@@ -90,35 +90,40 @@ impl Panels {
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_else(|| "result".into());
         ui.add_enabled_ui(has_result, |ui| {
-            if ui.button("Export depth (.npy)…").clicked()
-                && let Some(path) = pick_save(&format!("{name}-depth.npy"), "npy")
-            {
-                cx.actions.push(Action::Export(path, Export::DepthNpy));
-            }
-            if ui.button("Export depth (16-bit PNG)…").clicked()
-                && let Some(path) = pick_save(&format!("{name}-depth16.png"), "png")
-            {
-                cx.actions.push(Action::Export(path, Export::DepthPng));
-            }
-            if ui.button("Export mesh (.ply)…").clicked()
-                && let Some(path) = pick_save(&format!("{name}.ply"), "ply")
-            {
-                cx.actions.push(Action::Export(path, Export::MeshPly));
-            }
-            if ui.button("Export mesh (.obj)…").clicked()
-                && let Some(path) = pick_save(&format!("{name}.obj"), "obj")
-            {
-                cx.actions.push(Action::Export(path, Export::MeshObj));
-            }
-            if ui.button("Export reprojection (16-bit PNG)…").clicked()
-                && let Some(path) = pick_save(&format!("{name}-reprojection.png"), "png")
-            {
-                cx.actions.push(Action::Export(path, Export::Reprojection));
-            }
-            if ui.button("Export report (.json)…").clicked()
-                && let Some(path) = pick_save(&format!("{name}-report.json"), "json")
-            {
-                cx.actions.push(Action::Export(path, Export::Report));
+            // (label, the file name after the image's name, extension, what)
+            for (label, suffix, extension, what) in [
+                (
+                    "Export depth (.npy)…",
+                    "-depth.npy",
+                    "npy",
+                    Export::DepthNpy,
+                ),
+                (
+                    "Export depth (16-bit PNG)…",
+                    "-depth16.png",
+                    "png",
+                    Export::DepthPng,
+                ),
+                ("Export mesh (.ply)…", ".ply", "ply", Export::MeshPly),
+                ("Export mesh (.obj)…", ".obj", "obj", Export::MeshObj),
+                (
+                    "Export reprojection (16-bit PNG)…",
+                    "-reprojection.png",
+                    "png",
+                    Export::Reprojection,
+                ),
+                (
+                    "Export report (.json)…",
+                    "-report.json",
+                    "json",
+                    Export::Report,
+                ),
+            ] {
+                if ui.button(label).clicked()
+                    && let Some(path) = pick_save(&format!("{name}{suffix}"), extension)
+                {
+                    cx.actions.push(Action::Export(path, what));
+                }
             }
         });
         if ui.button("Save window screenshot…").clicked()

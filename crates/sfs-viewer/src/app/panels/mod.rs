@@ -104,6 +104,17 @@ pub struct UiContext<'a> {
     pub actions: &'a mut Vec<Action>,
 }
 
+impl UiContext<'_> {
+    /// The names of the open set's photographs (`None`: no set is open).
+    fn set_names(&self) -> Option<Vec<String>> {
+        self.session
+            .document
+            .as_ref()
+            .and_then(|d| d.set.as_ref())
+            .map(|s| s.names())
+    }
+}
+
 /// A drag in the image panel in progress.
 enum Gesture {
     Stroke,
