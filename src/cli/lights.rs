@@ -17,11 +17,11 @@ pub struct LightArgs {
     /// A point light at X,Y,Z in the camera frame, units of depth
     /// (repeatable: lights on together are summed) [default: the camera
     /// file's lights, else 0,0,0].
-    #[arg(long = "light", value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = super::parse_floats::<3>)]
+    #[arg(long = "light", value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = super::parse::parse_floats::<3>)]
     pub positions: Vec<[f64; 3]>,
     /// The principal direction of each --light, in the same order (one value
     /// applies to all) [default: isotropic].
-    #[arg(long = "light-dir", value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = super::parse_floats::<3>)]
+    #[arg(long = "light-dir", value_name = "X,Y,Z", allow_hyphen_values = true, value_parser = super::parse::parse_floats::<3>)]
     pub directions: Vec<[f64; 3]>,
     /// The anisotropy mu of each --light (radiance ~ cos^mu of the angle to
     /// --light-dir; 0 isotropic, 1 Lambertian LED) [default: 0].

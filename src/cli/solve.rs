@@ -53,7 +53,7 @@ pub struct SolveArgs {
     /// centred light, and s with lights anywhere. Repeatable: several
     /// points are met in relative least squares, each one's residual
     /// reported.
-    #[arg(long, value_name = "X,Y,Z", value_parser = super::parse_floats::<3>)]
+    #[arg(long, value_name = "X,Y,Z", value_parser = super::parse::parse_floats::<3>)]
     pub known_depth: Vec<[f64; 3]>,
     /// The object is about this far from the camera (its median depth, in
     /// the camera file's unit, e.g. mm): sets the depth unit (and s) as
@@ -63,7 +63,7 @@ pub struct SolveArgs {
     pub distance: Option<f64>,
     /// Where the lights are.
     #[command(flatten)]
-    pub lights: super::LightArgs,
+    pub lights: super::lights::LightArgs,
     /// Object mask image (white = object, black = no surface) [default: every pixel].
     #[arg(long)]
     pub mask: Option<PathBuf>,
@@ -119,7 +119,7 @@ pub struct SolveArgs {
     pub method: MethodArg,
     /// Solver parameters (one option per entry of the parameter table).
     #[command(flatten)]
-    pub params: super::ParamArgs,
+    pub params: super::params::ParamArgs,
     /// Ground-truth folder written by `synth`: adds rse and rie to the report.
     #[arg(long)]
     pub gt: Option<PathBuf>,

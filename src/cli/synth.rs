@@ -19,7 +19,7 @@ pub struct SynthArgs {
     /// `sombrero` (analytic, METHOD.md section 7) or the path of an OBJ mesh.
     pub scene: String,
     /// Image size WIDTHxHEIGHT in pixels.
-    #[arg(long, default_value = "256x256", value_parser = super::parse_size)]
+    #[arg(long, default_value = "256x256", value_parser = super::parse::parse_size)]
     pub size: (usize, usize),
     /// Gaussian noise standard deviation on the 0..255 scale; writes noisy8.png.
     #[arg(long, value_name = "SIGMA")]
@@ -29,10 +29,10 @@ pub struct SynthArgs {
     pub seed: u64,
     /// Inpainting disc CX,CY,R (fractions of width, height and the smaller
     /// side) where confidence is 0; writes confidence.png (255 = trusted).
-    #[arg(long, value_name = "CX,CY,R", value_parser = super::parse_floats::<3>)]
+    #[arg(long, value_name = "CX,CY,R", value_parser = super::parse::parse_floats::<3>)]
     pub inpaint_disc: Option<[f64; 3]>,
     /// Mesh rotation X,Y,Z in degrees (applied about X, then Y, then Z).
-    #[arg(long, value_name = "X,Y,Z", default_value = "180,0,0", value_parser = super::parse_floats::<3>)]
+    #[arg(long, value_name = "X,Y,Z", default_value = "180,0,0", value_parser = super::parse::parse_floats::<3>)]
     pub rotation: [f64; 3],
     /// Mesh distance from the camera, in units of the mesh's largest side.
     #[arg(long, default_value_t = 2.0)]
@@ -45,12 +45,12 @@ pub struct SynthArgs {
     /// Lights (camera frame, in units of depth: the Sombrero's, or the
     /// mesh's largest side = 1) [default: one at the optical centre].
     #[command(flatten)]
-    pub lights: super::LightArgs,
+    pub lights: super::lights::LightArgs,
     /// The surface's material [default: lambert]; recorded in scene.json.
     #[command(flatten)]
     pub material: super::lights::MaterialArgs,
     /// Output folder (created if needed).
-    #[arg(long, value_parser = super::parse_path)]
+    #[arg(long, value_parser = super::parse::parse_path)]
     pub out: PathBuf,
     /// A photometric-stereo set instead of one image: N photographs
     /// (led01.png, ...), each lit by one LED alone, on a ring 10 to 45
@@ -313,7 +313,7 @@ impl SynthArgs {
             rotation: self.rotation,
             distance: self.distance,
             shadows: false,
-            lights: super::LightArgs::default(),
+            lights: super::lights::LightArgs::default(),
             material: self.material.clone(),
             out: self.out.clone(),
             ps_leds: None,

@@ -18,19 +18,19 @@ pub struct ViewArgs {
     /// names each photograph by its light (`image`), open as one
     /// photometric-stereo set (a folder's `mask.png` and `ambient.png` are
     /// used).
-    #[arg(value_parser = super::parse_path, num_args = 1.., required = true, value_name = "IMAGE|FOLDER")]
+    #[arg(value_parser = super::parse::parse_path, num_args = 1.., required = true, value_name = "IMAGE|FOLDER")]
     pub images: Vec<PathBuf>,
     /// Camera file (keys of `synth`'s scene.json).
-    #[arg(long, value_parser = super::parse_path)]
+    #[arg(long, value_parser = super::parse::parse_path)]
     pub camera: Option<PathBuf>,
     /// Confidence PNG (0 = untrusted .. 255 = trusted; at the photograph's
     /// size or the working size): the confidence layer starts from it, as
     /// `solve --confidence` (an autosaved painting of this image wins, and
     /// the status line says so).
-    #[arg(long, value_parser = super::parse_path)]
+    #[arg(long, value_parser = super::parse::parse_path)]
     pub confidence: Option<PathBuf>,
     /// Object mask PNG (255 = object).
-    #[arg(long, value_parser = super::parse_path)]
+    #[arg(long, value_parser = super::parse::parse_path)]
     pub mask: Option<PathBuf>,
     /// sRGB decoding: `on`, `off` or `auto` (on for JPEG and 8-bit
     /// photographs, off for 16-bit, float and linear-marked PNGs); `--srgb`
@@ -39,7 +39,7 @@ pub struct ViewArgs {
     pub srgb: super::solve::SrgbArg,
     /// A frame with every light off (same camera settings), subtracted from
     /// the image.
-    #[arg(long, value_name = "FILE", value_parser = super::parse_path)]
+    #[arg(long, value_name = "FILE", value_parser = super::parse::parse_path)]
     pub ambient: Option<PathBuf>,
     /// Vignetting correction: `cos4` (the pinhole's natural fall-off) or a
     /// flat-field image (a uniform white target) [default: none].
@@ -47,7 +47,7 @@ pub struct ViewArgs {
     pub vignetting: Option<String>,
     /// A known albedo map (linear, relative), divided out; pixels with
     /// albedo below 0.02 are not trusted.
-    #[arg(long, value_name = "FILE", value_parser = super::parse_path)]
+    #[arg(long, value_name = "FILE", value_parser = super::parse::parse_path)]
     pub albedo: Option<PathBuf>,
     /// Smoothness weight alpha in relative units, or `auto` (else the
     /// remembered value; default auto).
@@ -59,10 +59,10 @@ pub struct ViewArgs {
     #[arg(long, value_name = "PIXELS")]
     pub max_side: Option<usize>,
     /// Save a screenshot here once the solve has finished, then exit.
-    #[arg(long, value_name = "PATH.png", value_parser = super::parse_path)]
+    #[arg(long, value_name = "PATH.png", value_parser = super::parse::parse_path)]
     pub screenshot: Option<PathBuf>,
     /// Write UI frame-time statistics (JSON) here on exit.
-    #[arg(long, value_name = "PATH.json", value_parser = super::parse_path)]
+    #[arg(long, value_name = "PATH.json", value_parser = super::parse::parse_path)]
     pub stats: Option<PathBuf>,
     /// With --stats: after the first solve, change alpha this many times and
     /// time each change to the first new level on screen.
@@ -78,7 +78,7 @@ pub struct ViewArgs {
     #[arg(long)]
     pub albedo_texture: bool,
     /// Window size in points, WIDTHxHEIGHT.
-    #[arg(long, value_parser = super::parse_size, default_value = "1280x800")]
+    #[arg(long, value_parser = super::parse::parse_size, default_value = "1280x800")]
     pub window: (usize, usize),
 }
 

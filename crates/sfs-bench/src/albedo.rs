@@ -36,7 +36,7 @@ use sfs_core::solver::{Method, Problem, Solution, solve};
 
 use super::lights::render;
 use super::scenes::{noisy, problem, timed_solve};
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// Seed of the true albedo's cell errors.
 const SEED: u64 = 1;
@@ -257,7 +257,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         Vec::new()
     };
     let report = AlbedoReport {
-        command: super::command_line(),
+        command: super::shared::command_line(),
         rows,
         face,
         skipped,

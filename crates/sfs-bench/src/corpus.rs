@@ -32,7 +32,7 @@ use sfs_core::solver::depth_unit::{DistanceCues, UnitSource, solve_photograph};
 use sfs_core::solver::photometric::compare_single;
 use sfs_core::solver::{Method, Problem};
 
-use super::BenchArgs;
+use super::shared::BenchArgs;
 
 /// Renders in the corpus (uniform albedo), and textured ones beside.
 const CASES: usize = 120;

@@ -31,7 +31,7 @@ use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::scenes::{noisy, problem, render_or_skip, timed_solve};
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// A depth jump between neighbours: steeper than this tangent (about 87
 /// degrees) in the true depth, `|dz| / z * f / h`.

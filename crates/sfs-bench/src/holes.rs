@@ -20,7 +20,7 @@ use sfs_core::solver::Problem;
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::scenes::{noisy, problem, render_or_skip, timed_solve};
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// Seed of the blobs.
 const SEED: u64 = 1;

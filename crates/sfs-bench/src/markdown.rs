@@ -46,7 +46,7 @@ impl<R: Serialize> SceneReport<R> {
         markdown: fn(&Self) -> String,
     ) -> Result<Self> {
         let report = Self {
-            command: super::command_line(),
+            command: super::shared::command_line(),
             rows,
             skipped,
         };

@@ -27,7 +27,7 @@ use sfs_core::solver::photometric::{
     depth_range, positive_quantile, solve_photometric,
 };
 
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// The noise levels (0..255 scale) and their seed.
 const NOISE: [f64; 2] = [0.0, 5.0];

@@ -27,7 +27,7 @@ use sfs_core::solver::depth_unit::{DepthUnit, DistanceCues, solve_photograph};
 use sfs_core::solver::photometric::compare_single;
 use sfs_core::solver::{Method, Problem, Solution};
 
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// The photographs' working size with `--quick` (the defaults solve them
 /// at their own 1296x864).

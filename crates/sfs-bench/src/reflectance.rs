@@ -20,7 +20,7 @@ use sfs_core::solver::Method;
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
 
 use super::scenes::{problem, timed_solve};
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// One scene of one material solved with one model.
 #[derive(Clone, Debug, Serialize)]

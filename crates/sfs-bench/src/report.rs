@@ -11,10 +11,10 @@ use serde::Serialize;
 
 use super::figures;
 use super::markdown::{table_head, write_markdown};
-use super::{
-    ALPHA_CLEAN, ALPHA_NOISY, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, TV_ITERATIONS, lights,
-    robustness,
+use super::shared::{
+    ALPHA_CLEAN, ALPHA_NOISY, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, TV_ITERATIONS,
 };
+use super::{lights, robustness};
 use sfs_core::memory::proc_mib;
 
 /// One solve of the report.

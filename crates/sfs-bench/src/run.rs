@@ -14,10 +14,11 @@ use super::figures::Figure;
 use super::paper_figures;
 use super::report::{self, Conditions, Curve, Report, Row, SpeedUp};
 use super::scenes::problem;
-use super::{
+use super::shared::{
     ALPHA_CLEAN, ALPHA_NOISY, BenchArgs, CurveRecorder, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, Part,
-    TV_ITERATIONS, lights, reset_peak_memory, robustness, wanted,
+    TV_ITERATIONS, reset_peak_memory, wanted,
 };
+use super::{lights, robustness};
 use sfs_core::grid::Grid;
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
@@ -563,7 +564,7 @@ pub(super) fn run(args: &BenchArgs, started: Instant) -> Result<()> {
     let inpainting = inpainting(&runner, &benches, &args.out, &mut got)?;
     let (robustness, lights) = defaults_parts(args, &mut got.skipped)?;
     let report = Report {
-        command: super::command_line(),
+        command: super::shared::command_line(),
         quick: args.quick,
         machine: report::machine(),
         rows: got.rows,

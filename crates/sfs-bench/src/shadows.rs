@@ -25,7 +25,7 @@ use sfs_core::solver::{Problem, Solution};
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
 use super::scenes::{self, noisy, timed_solve};
-use super::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted};
 
 /// Automatic handling within this factor of the hand mask.
 const HAND_MASK_FACTOR: f64 = 1.1;

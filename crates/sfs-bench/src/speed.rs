@@ -15,7 +15,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use super::figures::{self, Figure, LogLogPlot, Series};
-use super::{BenchArgs, CurveRecorder, reset_peak_memory};
+use super::shared::{BenchArgs, CurveRecorder, reset_peak_memory};
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
 use sfs_core::params::{InitialDepth, LinearSolver, SolverParams};
@@ -149,7 +149,7 @@ fn cases(args: &BenchArgs, large: bool) -> Vec<(&'static str, (usize, usize))> {
     }
     cases
         .into_iter()
-        .filter(|(name, _)| super::wanted(args, name))
+        .filter(|(name, _)| super::shared::wanted(args, name))
         .collect()
 }
 
@@ -395,7 +395,7 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         rows.extend(group);
     }
     let report = SpeedReport {
-        command: super::command_line(),
+        command: super::shared::command_line(),
         rows,
         cancels,
         convergence: convergence_rows,
