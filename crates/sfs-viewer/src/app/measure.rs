@@ -60,7 +60,7 @@ pub struct Measurement {
     frames_after_finish: usize,
     stats: Stats,
     /// Where a `--screenshot` run's failure goes.
-    failure: super::ExitReport,
+    failure: ExitReport,
 }
 
 impl Measurement {
@@ -70,7 +70,7 @@ impl Measurement {
         screenshot_path: Option<PathBuf>,
         stats_path: Option<PathBuf>,
         latency_trials: usize,
-        failure: super::ExitReport,
+        failure: ExitReport,
     ) -> Self {
         Self {
             screenshot_path,
@@ -252,4 +252,21 @@ fn save_png(image: &egui::ColorImage, path: &Path) -> Result<(), String> {
     image::RgbaImage::from_raw(w as u32, h as u32, bytes)
         .ok_or_else(|| "screenshot has an inconsistent size".to_string())
         .and_then(|img| img.save(path).map_err(|e| e.to_string()))
+}
+
+/// A message slot shared between the viewer and the code that launched it.
+#[derive(Clone, Debug, Default)]
+pub struct ExitReport(std::sync::Arc<std::sync::Mutex<Option<String>>>);
+
+impl ExitReport {
+    /// Records `message` (the first one wins).
+    pub fn set(&self, message: String) {
+        let mut slot = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        slot.get_or_insert(message);
+    }
+
+    /// The recorded message, if any.
+    pub fn get(&self) -> Option<String> {
+        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
+    }
 }

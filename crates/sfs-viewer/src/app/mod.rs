@@ -34,6 +34,7 @@ pub use document::{
     CameraSource, CameraState, Document, KnownDistance, OpenOptions, PhotoSet, sample_image_path,
     set_images_in,
 };
+pub use measure::ExitReport;
 pub use panels::{Action, Panel2d};
 pub use session::{CompareState, EnergyPoint, Export, LevelView, Progress, SolveState, per_pixel};
 pub use settings::{InitialChoice, ParamSettings, SetParamSettings, Settings, Tool};
@@ -79,23 +80,6 @@ pub struct ViewerOptions {
     /// open, the solve failed, the screenshot was not saved), for the
     /// command to exit non-zero with it once the window has closed.
     pub failure: ExitReport,
-}
-
-/// A message slot shared between the viewer and the code that launched it.
-#[derive(Clone, Debug, Default)]
-pub struct ExitReport(std::sync::Arc<std::sync::Mutex<Option<String>>>);
-
-impl ExitReport {
-    /// Records `message` (the first one wins).
-    pub fn set(&self, message: String) {
-        let mut slot = self.0.lock().unwrap_or_else(|p| p.into_inner());
-        slot.get_or_insert(message);
-    }
-
-    /// The recorded message, if any.
-    pub fn get(&self) -> Option<String> {
-        self.0.lock().unwrap_or_else(|p| p.into_inner()).clone()
-    }
 }
 
 /// The viewer application.

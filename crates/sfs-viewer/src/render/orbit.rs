@@ -1,6 +1,6 @@
 //! An orbit camera around the surface (glam, right-handed, y up).
 
-use super::Bounds;
+use super::mesh::Bounds;
 use glam::{Mat4, Vec3};
 
 /// Pitch is kept within this of the poles so the up vector never aligns

@@ -1,6 +1,7 @@
 //! Long-lived GPU state: pipelines, mesh buffers and the offscreen target.
 
-use super::{ColourMode, RenderError, SurfaceMesh, SurfaceVertex, ViewSettings};
+use super::mesh::{SurfaceMesh, SurfaceVertex};
+use super::settings::{ColourMode, RenderError, ViewSettings};
 use glam::Vec3;
 use std::num::NonZeroU64;
 

@@ -9,7 +9,7 @@
 
 use eframe::egui;
 
-use super::{Action, Panel2d, UiContext};
+use super::context::{Action, Panel2d, UiContext};
 use crate::app::images;
 use crate::app::session::Session;
 use crate::app::settings::SetParamSettings;
