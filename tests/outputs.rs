@@ -133,7 +133,7 @@ fn an_interrupted_run_leaves_nothing() {
     }
     // Into a folder with an earlier result: it stays as it was.
     let out = tmp.path().join("kept");
-    assert!(run(&solve_args(&image, &camera, &out)).status.success());
+    assert!(run(solve_args(&image, &camera, &out)).status.success());
     let before = fs::read(out.join("depth.npy")).unwrap();
     let mut child = start_solve(&image, &camera, &out);
     send("-INT", &child);

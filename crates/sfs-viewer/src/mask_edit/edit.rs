@@ -4,9 +4,10 @@
 
 use sfs_core::grid::Grid;
 
-use super::history::{Change, region_edit};
+use super::masks::Masks;
 use super::rect::{Rect, rect_spanning, span, whole};
-use super::{Cell, ImagePoint, Layer, MaskError, Masks, Mode, parameter};
+use super::types::{Cell, ImagePoint, Layer, MaskError, Mode, parameter};
+use super::undo::{Change, region_edit};
 
 /// A hard region operation on one layer.
 enum Op<'a> {

@@ -51,234 +51,29 @@
 //! overlay's RGBA); `rect` holds the pixel rectangles they share. The public
 //! paths stay `mask_edit::Masks`, `mask_edit::Brush` and so on.
 
+mod brush;
 mod edit;
 mod history;
+mod masks;
 mod overlay;
 mod persist;
 mod rect;
 mod stroke;
+mod types;
+mod undo;
 
-pub use history::DEFAULT_HISTORY_BYTES;
+pub use brush::Brush;
+pub use masks::Masks;
 pub use overlay::OverlayStyle;
 pub use persist::autosave_dir;
-pub use stroke::Brush;
-
-use std::path::PathBuf;
-
-use serde::{Deserialize, Serialize};
-use sfs_core::grid::Grid;
-use sfs_core::io::IoError;
-
-use history::History;
-use stroke::Stroke;
-
-/// A position in image pixel coordinates `[x, y]` (see the module docs).
-pub type ImagePoint = [f32; 2];
-
-/// Smallest accepted brush radius. A hard brush of this radius centred on a
-/// pixel centre covers exactly that pixel; radii below about 0.71 can miss
-/// every pixel centre when the cursor is near a pixel corner.
-pub const MIN_BRUSH_RADIUS_PX: f32 = 0.5;
-
-/// Why a mask operation failed; messages name the file or parameter.
-#[derive(Debug, thiserror::Error)]
-pub enum MaskError {
-    /// Reading or writing a file failed (the message names the file; a mask
-    /// file of the wrong size is [`IoError::SizeMismatch`]).
-    #[error(transparent)]
-    Io(#[from] IoError),
-    /// A parameter is out of range.
-    #[error("invalid {name}: {reason}")]
-    Parameter {
-        /// The parameter, as named in the API (`radius_px`, `tolerance`, ...).
-        name: &'static str,
-        /// What is wrong with it.
-        reason: String,
-    },
-    /// An image or layer passed in does not have the size of the masks.
-    #[error(
-        "the {what} is {}x{} but the masks are {}x{}",
-        found.0, found.1, expected.0, expected.1
-    )]
-    SizeMismatch {
-        /// What was passed in (`image`, `object mask`).
-        what: &'static str,
-        /// Its `(width, height)`.
-        found: (usize, usize),
-        /// The masks' `(width, height)`.
-        expected: (usize, usize),
-    },
-    /// An autosave folder exists but cannot be restored.
-    #[error("autosave {} is unusable: {reason}", path.display())]
-    Autosave {
-        /// The autosave file concerned.
-        path: PathBuf,
-        /// What is wrong with it.
-        reason: String,
-    },
-}
-
-fn parameter(name: &'static str, reason: String) -> MaskError {
-    MaskError::Parameter { name, reason }
-}
-
-/// Which mask an edit applies to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum Layer {
-    /// The confidence mask, `c` in [0, 1], 1 = trusted.
-    Confidence,
-    /// The object mask, `true` = object, `false` = background.
-    Object,
-}
-
-/// What an edit does to the pixels it covers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub enum Mode {
-    /// Exclude: confidence towards 0, object to background.
-    Paint,
-    /// Restore: confidence towards 1, object to object.
-    Erase,
-}
-
-/// A layer's cell type.
-trait Cell: Copy + PartialEq {
-    /// The value of a cleared layer.
-    const DEFAULT: Self;
-    /// What a hard shape sets in `mode`.
-    fn target(mode: Mode) -> Self;
-    /// A stroke's value from the value at its start and its coverage.
-    fn blend(start: Self, coverage: f32, mode: Mode) -> Self;
-    /// The inverted value.
-    fn inverted(self) -> Self;
-}
-
-impl Cell for f32 {
-    const DEFAULT: Self = 1.0;
-    fn target(mode: Mode) -> Self {
-        if mode == Mode::Erase { 1.0 } else { 0.0 }
-    }
-    fn blend(start: Self, coverage: f32, mode: Mode) -> Self {
-        match mode {
-            Mode::Paint => start.min(1.0 - coverage),
-            Mode::Erase => start.max(coverage),
-        }
-    }
-    fn inverted(self) -> Self {
-        1.0 - self
-    }
-}
-
-impl Cell for bool {
-    const DEFAULT: Self = true;
-    fn target(mode: Mode) -> Self {
-        mode == Mode::Erase
-    }
-    fn blend(start: Self, coverage: f32, mode: Mode) -> Self {
-        if coverage >= 0.5 {
-            Self::target(mode)
-        } else {
-            start
-        }
-    }
-    fn inverted(self) -> Self {
-        !self
-    }
-}
-
-/// The two editable masks of one image, with their undo/redo history.
-#[derive(Clone, Debug)]
-pub struct Masks {
-    confidence: Grid<f32>,
-    object: Grid<bool>,
-    history: History,
-    stroke: Option<Stroke>,
-    revision: u64,
-}
-
-impl Masks {
-    /// Default masks (every pixel trusted and object) for a `width` x
-    /// `height` image.
-    pub fn new(width: usize, height: usize) -> Self {
-        let confidence = Grid::filled(width, height, 1.0);
-        let object = Grid::filled(width, height, true);
-        Self::with_layers(confidence, object)
-    }
-
-    fn with_layers(confidence: Grid<f32>, object: Grid<bool>) -> Self {
-        Self {
-            confidence,
-            object,
-            history: History::new(DEFAULT_HISTORY_BYTES),
-            stroke: None,
-            revision: 0,
-        }
-    }
-
-    /// Masks holding the given layers, with an empty history. Errors when the
-    /// sizes differ or a confidence value is outside [0, 1].
-    pub fn from_layers(confidence: Grid<f32>, object: Grid<bool>) -> Result<Self, MaskError> {
-        let (found, expected) = (object.size(), confidence.size());
-        if found != expected {
-            return Err(MaskError::SizeMismatch {
-                what: "object mask",
-                found,
-                expected,
-            });
-        }
-        let values = confidence.as_slice();
-        if let Some(k) = values.iter().position(|v| !(0.0..=1.0).contains(v)) {
-            let (c, r) = (k % expected.0, k / expected.0);
-            let reason = format!("value {} at ({c}, {r}) is outside [0, 1]", values[k]);
-            return Err(parameter("confidence", reason));
-        }
-        Ok(Self::with_layers(confidence, object))
-    }
-
-    /// `(width, height)` of the masks.
-    pub fn size(&self) -> (usize, usize) {
-        self.confidence.size()
-    }
-
-    /// The confidence layer (1 = trusted).
-    pub fn confidence(&self) -> &Grid<f32> {
-        &self.confidence
-    }
-
-    /// The object layer (`true` = object).
-    pub fn object(&self) -> &Grid<bool> {
-        &self.object
-    }
-
-    /// The confidence for the solver's `Problem`: `None` when every pixel is
-    /// trusted.
-    pub fn confidence_for_solver(&self) -> Option<Grid<f64>> {
-        let all_trusted = self.confidence.as_slice().iter().all(|&v| v == 1.0);
-        (!all_trusted).then(|| self.confidence.map(|&v| f64::from(v)))
-    }
-
-    /// The object mask for the solver's `Problem`: `None` when every pixel
-    /// is object.
-    pub fn object_for_solver(&self) -> Option<Grid<bool>> {
-        let all_object = self.object.as_slice().iter().all(|&v| v);
-        (!all_object).then(|| self.object.clone())
-    }
-
-    /// A counter that changes whenever a mask value changes (during strokes
-    /// too, and on undo/redo); the app re-solves and re-uploads the overlay
-    /// when it differs from the value it last saw.
-    pub fn revision(&self) -> u64 {
-        self.revision
-    }
-
-    fn bump(&mut self) {
-        self.revision = self.revision.wrapping_add(1);
-    }
-}
+pub use types::{ImagePoint, Layer, MIN_BRUSH_RADIUS_PX, MaskError, Mode};
+pub use undo::DEFAULT_HISTORY_BYTES;
 
 /// Helpers shared by the tests of the child modules.
 #[cfg(test)]
 mod test_support {
     use super::*;
+    use sfs_core::grid::Grid;
 
     pub(super) fn brush(radius_px: f32, hardness: f32, mode: Mode) -> Brush {
         Brush {

@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::Masks;
+use super::masks::Masks;
 
 /// Colours of [`Masks::overlay_rgba`].
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -10,9 +10,10 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use serde::{Deserialize, Serialize};
 use sfs_core::io::{self, IoError};
 
-use super::history::{Change, region_edit};
+use super::masks::Masks;
 use super::rect::whole;
-use super::{Layer, MaskError, Masks};
+use super::types::{Layer, MaskError};
+use super::undo::{Change, region_edit};
 
 /// File names inside an autosave folder.
 const AUTOSAVE_JSON: &str = "autosave.json";
