@@ -111,7 +111,7 @@ fn table_option_in_set(name: &str) -> String {
         "shadow-bound" => "a set leaves each photograph's shadows out of its data itself \
                            (--ps-no-cast-shadows stops tracing cast shadows)"
             .to_owned(),
-        "reflectance" | "roughness" | "specular" | "shininess" => {
+        _ if name == "reflectance" || sfs_core::material::model_of_param(name).is_some() => {
             "a set is solved as a Lambertian surface whose albedo it estimates".to_owned()
         }
         "albedo-edge" => {
