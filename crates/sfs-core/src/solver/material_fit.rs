@@ -121,3 +121,27 @@ pub fn resolve(
     let fit = fit_material(problem, params, observer)?;
     Ok((params.clone().with_material(fit.material), Some(fit)))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The models' table gives the candidates the hand-written list gave,
+    /// in its order (a fit's ranking and ties depend on it).
+    #[test]
+    fn the_candidates_are_the_former_list_in_its_order() {
+        let mut former = vec![Material::Lambert];
+        for roughness_rad in [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8] {
+            former.push(Material::OrenNayar { roughness_rad });
+        }
+        for specular in [0.1, 0.3, 0.6, 1.0] {
+            for shininess in [5.0, 10.0, 20.0, 40.0, 80.0] {
+                former.push(Material::BlinnPhong {
+                    specular,
+                    shininess,
+                });
+            }
+        }
+        assert_eq!(candidates(), former);
+    }
+}
