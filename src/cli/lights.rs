@@ -3,7 +3,7 @@
 //! order, and `--light-index K` for the lights of a camera file.
 
 use anyhow::{Result, bail};
-use clap::Args;
+use clap::{Arg, ArgMatches, Args, Command, FromArgMatches};
 
 use sfs_core::light::PointLight;
 use sfs_core::material::Material;
@@ -89,22 +89,76 @@ impl LightArgs {
 }
 
 /// The material of a rendered or evaluated surface (METHOD.md section 10):
-/// `synth` renders with it, `eval` measures with it. The names are those of
-/// `solve`'s parameters of the same meaning.
-#[derive(Debug, Clone, Args)]
+/// `synth` renders with it, `eval` measures with it. The options are
+/// `--reflectance MODEL` and each model's parameters, named, read and checked
+/// as `solve`'s parameters of the same names (the models' table
+/// [`sfs_core::material::MODELS`] lists them).
+#[derive(Debug, Clone, Default)]
 pub struct MaterialArgs {
-    /// Reflectance model: lambert, oren-nayar or blinn-phong.
-    #[arg(long, value_name = "MODEL", value_parser = ["lambert", "oren-nayar", "blinn-phong"])]
-    pub reflectance: Option<String>,
-    /// Oren-Nayar roughness sigma, radians [default: 0.3].
-    #[arg(long, value_name = "SIGMA")]
-    pub roughness: Option<f64>,
-    /// Blinn-Phong specular weight k_s [default: 0.3].
-    #[arg(long, value_name = "KS")]
-    pub specular: Option<f64>,
-    /// Blinn-Phong shininess n [default: 20].
-    #[arg(long, value_name = "N")]
-    pub shininess: Option<f64>,
+    given: Vec<(&'static str, String)>,
+}
+
+/// The option names of [`MaterialArgs`]: `reflectance`, then every model's
+/// parameters.
+fn material_options() -> impl Iterator<Item = &'static str> {
+    std::iter::once("reflectance").chain(
+        sfs_core::material::MODELS
+            .iter()
+            .flat_map(|m| m.params.iter().map(|p| p.name)),
+    )
+}
+
+impl Args for MaterialArgs {
+    fn augment_args(cmd: Command) -> Command {
+        let models = sfs_core::material::MODEL_NAMES;
+        let cmd = cmd.arg(
+            Arg::new("reflectance")
+                .long("reflectance")
+                .value_name("MODEL")
+                .value_parser(clap::builder::PossibleValuesParser::new(models))
+                .help(format!("Reflectance model: {}.", models.join(", "))),
+        );
+        sfs_core::material::MODELS.iter().fold(cmd, |cmd, model| {
+            model.params.iter().fold(cmd, |cmd, param| {
+                cmd.arg(
+                    Arg::new(param.name)
+                        .long(param.name)
+                        .value_name("VALUE")
+                        .value_parser(clap::value_parser!(f64))
+                        .help(format!(
+                            "With --reflectance {}: {}",
+                            model.name,
+                            sfs_core::params::table::spec(param.name).map_or("", |s| s.help)
+                        )),
+                )
+            })
+        })
+    }
+
+    fn augment_args_for_update(cmd: Command) -> Command {
+        Self::augment_args(cmd)
+    }
+}
+
+impl FromArgMatches for MaterialArgs {
+    fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
+        let given = material_options()
+            .filter_map(|name| {
+                let text = if name == "reflectance" {
+                    matches.get_one::<String>(name).cloned()
+                } else {
+                    matches.get_one::<f64>(name).map(|v| v.to_string())
+                };
+                text.map(|text| (name, text))
+            })
+            .collect();
+        Ok(Self { given })
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &ArgMatches) -> Result<(), clap::Error> {
+        *self = Self::from_arg_matches(matches)?;
+        Ok(())
+    }
 }
 
 impl MaterialArgs {
@@ -112,16 +166,10 @@ impl MaterialArgs {
     /// entries of the same names (ranges, a model's parameter only with its
     /// model); `None` when no option is given.
     pub fn material(&self) -> Result<Option<Material>> {
-        let typed = [
-            ("reflectance", self.reflectance.clone()),
-            ("roughness", self.roughness.map(|v| v.to_string())),
-            ("specular", self.specular.map(|v| v.to_string())),
-            ("shininess", self.shininess.map(|v| v.to_string())),
-        ];
         let mut given = Vec::new();
-        for (name, text) in typed {
-            if let (Some(spec), Some(text)) = (sfs_core::params::table::spec(name), text) {
-                given.push((spec, text));
+        for (name, text) in &self.given {
+            if let Some(spec) = sfs_core::params::table::spec(name) {
+                given.push((spec, text.clone()));
             }
         }
         if given.is_empty() {

@@ -104,8 +104,8 @@ impl ParamArgs {
 }
 
 /// Refuses a model's parameter given without its model (`--roughness`
-/// without oren-nayar, `--specular` or `--shininess` without blinn-phong):
-/// it would be silently unused. `given`: the options as typed.
+/// without oren-nayar, `--specular` or `--shininess` without blinn-phong;
+/// the models' table says whose each is): it would be silently unused. `given`: the options as typed.
 pub fn refuse_unused(
     params: &SolverParams,
     given: &[(&'static ParamSpec, String)],
@@ -117,11 +117,7 @@ pub fn refuse_unused(
             reason: format!(
                 "--{} belongs to --reflectance {} (the chosen reflectance does not use it)",
                 spec.name,
-                if spec.name == "roughness" {
-                    "oren-nayar"
-                } else {
-                    "blinn-phong"
-                }
+                sfs_core::material::model_of_param(spec.name).map_or("", |m| m.name)
             ),
         }),
         None => Ok(()),

@@ -13,6 +13,7 @@ use super::solve::SolveArgs;
 use crate::output::OutputStage;
 use sfs_core::grid::Grid;
 use sfs_core::io;
+use sfs_core::params::photometric::{PS_ROBUST_SCALE, PS_SMOOTHNESS, PsRule, ps_spec};
 use sfs_core::photo::{self, CameraSpec, PhotoInput, PhotoReport};
 use sfs_core::scene::photometric::{albedo_error, mean_angle_deg};
 use sfs_core::solver::photometric::{
@@ -20,31 +21,30 @@ use sfs_core::solver::photometric::{
 };
 use sfs_core::solver::{self, LevelResult, SolveObserver};
 
-/// `--NAME TEXT`: `auto` (`None`) or a number; `positive`: above 0, else
-/// at least 0. One rule and one message per option (`--ps-robust-scale -1`
-/// said "non-negative", then 0 "positive").
+/// `--NAME TEXT` for the core's photometric-stereo parameter `name`
+/// ([`sfs_core::params::PS_PARAMS`]): `auto` (`None`) or a number under the
+/// entry's one rule and message (`--ps-robust-scale -1` said "non-negative",
+/// then 0 "positive"). `positive`: the rule the caller expects (above 0,
+/// else at least 0); a caller that disagrees with the table is refused.
 fn auto_or_number(text: &str, name: &str, positive: bool) -> Result<Option<f64>> {
-    if text.trim().eq_ignore_ascii_case("auto") {
-        return Ok(None);
-    }
-    let rule = if positive {
-        "a positive number (above 0)"
+    let expected = if positive {
+        PsRule::Positive
     } else {
-        "a non-negative number"
+        PsRule::NonNegative
     };
-    let fits = |v: f64| v.is_finite() && if positive { v > 0.0 } else { v >= 0.0 };
-    match text.trim().parse::<f64>() {
-        Ok(v) if fits(v) => Ok(Some(v)),
-        _ => bail!("--{name} {text}: must be `auto` or {rule}"),
-    }
+    let Some(spec) = ps_spec(name).filter(|s| s.rule == expected) else {
+        bail!("--{name}: not a photometric-stereo parameter with the rule {expected:?}");
+    };
+    spec.parse(text)
+        .map_err(|_| anyhow::anyhow!("--{name} {text}: {}", spec.accepted()))
 }
 
 /// The set's settings from the options.
 fn params(args: &SolveArgs) -> Result<PhotometricParams> {
     Ok(PhotometricParams {
-        alpha: auto_or_number(&args.ps_smoothness, "ps-smoothness", false)?,
+        alpha: auto_or_number(&args.ps_smoothness, PS_SMOOTHNESS.name, false)?,
         // The Cauchy scale divides the residuals: it must be above 0.
-        robust_scale: auto_or_number(&args.ps_robust_scale, "ps-robust-scale", true)?,
+        robust_scale: auto_or_number(&args.ps_robust_scale, PS_ROBUST_SCALE.name, true)?,
         cast_shadows: !args.ps_no_cast_shadows,
         ..PhotometricParams::default()
     })
@@ -111,7 +111,7 @@ fn table_option_in_set(name: &str) -> String {
         "shadow-bound" => "a set leaves each photograph's shadows out of its data itself \
                            (--ps-no-cast-shadows stops tracing cast shadows)"
             .to_owned(),
-        "reflectance" | "roughness" | "specular" | "shininess" => {
+        _ if name == "reflectance" || sfs_core::material::model_of_param(name).is_some() => {
             "a set is solved as a Lambertian surface whose albedo it estimates".to_owned()
         }
         "albedo-edge" => {
@@ -653,5 +653,27 @@ mod option_tests {
             auto_or_number("0", "ps-smoothness", false).unwrap(),
             Some(0.0)
         );
+    }
+
+    /// One value out of range, refused by the command line as by the core's
+    /// validation and the viewer (their tests): the table's one rule.
+    #[test]
+    fn an_out_of_range_value_is_refused_by_the_core_rule() {
+        use sfs_core::params::photometric::PS_ROBUST_SCALE;
+        use sfs_core::solver::photometric::PhotometricParams;
+        let message = auto_or_number("0", "ps-robust-scale", true)
+            .expect_err("0 is out of range")
+            .to_string();
+        assert!(message.ends_with(PS_ROBUST_SCALE.accepted()), "{message}");
+        let core = PhotometricParams {
+            robust_scale: Some(0.0),
+            ..PhotometricParams::default()
+        };
+        assert_eq!(
+            core.validate().expect_err("refused").name,
+            "ps-robust-scale"
+        );
+        // A caller expecting another rule than the table's is refused.
+        assert!(auto_or_number("1", "ps-robust-scale", false).is_err());
     }
 }

@@ -52,14 +52,271 @@ pub const MAX_SPECULAR: f64 = 10.0;
 /// Accepted shininess exponents `n`.
 pub const SHININESS_RANGE: (f64, f64) = (1.0, 1000.0);
 
-impl Material {
-    /// The command-line name: `lambert`, `oren-nayar` or `blinn-phong`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Material::Lambert => "lambert",
-            Material::OrenNayar { .. } => "oren-nayar",
-            Material::BlinnPhong { .. } => "blinn-phong",
+/// Which reflectance model the solver uses (the parameter table's
+/// `reflectance`): one of [`MODELS`] (by [`Model::choice`]) or `auto`. Its
+/// words, parsing and parameters all come from [`MODELS`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum ReflectanceChoice {
+    /// Lambert (the paper's; default).
+    #[default]
+    Lambert,
+    /// Oren-Nayar with `roughness_rad`.
+    OrenNayar,
+    /// Blinn-Phong with `specular` and `shininess`.
+    BlinnPhong,
+    /// Fitted to the image on a coarse working copy before the solve
+    /// (`solver::material_fit`).
+    Auto,
+}
+
+/// The word of [`ReflectanceChoice::Auto`].
+pub const AUTO: &str = "auto";
+
+impl ReflectanceChoice {
+    /// The model chosen; `None` for [`ReflectanceChoice::Auto`].
+    pub fn model(self) -> Option<&'static Model> {
+        MODELS.iter().find(|m| m.choice == self)
+    }
+
+    /// The command-line word: the model's name, or `auto`.
+    pub fn name(self) -> &'static str {
+        self.model().map_or(AUTO, |m| m.name)
+    }
+
+    /// The choice called `word` (any case); `None` for an unknown word.
+    pub fn from_name(word: &str) -> Option<Self> {
+        if word.eq_ignore_ascii_case(AUTO) {
+            return Some(ReflectanceChoice::Auto);
         }
+        MODELS
+            .iter()
+            .find(|m| m.name.eq_ignore_ascii_case(word))
+            .map(|m| m.choice)
+    }
+}
+
+/// One parameter of a reflectance model: its entry in the parameter table
+/// (`params::PARAMS`, where the solver's value lives) and how a
+/// [`Material`] holds it.
+#[derive(Clone, Copy, Debug)]
+pub struct ModelParam {
+    /// The parameter table's name (the command line's `--NAME`).
+    pub name: &'static str,
+    /// Accepted values, `[min, max]` (the table's range).
+    pub range: (f64, f64),
+    /// The solver's default.
+    pub default: f64,
+    /// Reads it from a material of its model.
+    pub get: fn(&Material) -> f64,
+    /// Writes it into a material of its model (other models: unchanged).
+    pub set: fn(&mut Material, f64),
+}
+
+/// One reflectance model: a row of [`MODELS`]. Everything that lists the
+/// models (the parameter table's `reflectance` words and which parameters
+/// belong to which model, `reflectance auto`'s candidates, fast marching's
+/// bound, the command line's accepted names) reads these rows.
+#[derive(Clone, Copy, Debug)]
+pub struct Model {
+    /// Its name on the command line, in reports and stored settings.
+    pub name: &'static str,
+    /// Its value of the parameter table's `reflectance`.
+    pub choice: ReflectanceChoice,
+    /// What it models, one line (for help texts and the viewer).
+    pub summary: &'static str,
+    /// Its parameters, in the order [`Model::fit_grid`] lists them.
+    pub params: &'static [ModelParam],
+    /// The material with every parameter at its default.
+    pub base: Material,
+    /// The values `reflectance auto` tries, one list per parameter (every
+    /// combination, the first parameter outermost); `None`: not tried.
+    pub fit_grid: Option<&'static [&'static [f64]]>,
+    /// Fast marching's bound by `g` alone holds: `ln m(c)` falls at least
+    /// as fast as `ln c` towards the rim.
+    pub bound_by_g: bool,
+}
+
+impl Model {
+    /// The material of this model with `value(param)` for each parameter.
+    pub fn material(&self, value: impl Fn(&ModelParam) -> f64) -> Material {
+        let mut material = self.base;
+        for param in self.params {
+            (param.set)(&mut material, value(param));
+        }
+        material
+    }
+
+    /// The materials `reflectance auto` tries of this model: every
+    /// combination of [`Model::fit_grid`] (the first parameter outermost);
+    /// none when it is not tried.
+    pub fn fit_candidates(&self) -> Vec<Material> {
+        let Some(grid) = self.fit_grid else {
+            return Vec::new();
+        };
+        let mut out = vec![self.base];
+        for (param, values) in self.params.iter().zip(grid.iter()) {
+            out = out
+                .iter()
+                .flat_map(|&material| {
+                    values.iter().map(move |&v| {
+                        let mut m = material;
+                        (param.set)(&mut m, v);
+                        m
+                    })
+                })
+                .collect();
+        }
+        out
+    }
+}
+
+/// Oren-Nayar's roughness `sigma`, radians.
+pub const ROUGHNESS: ModelParam = ModelParam {
+    name: "roughness",
+    range: (0.0, MAX_ROUGHNESS_RAD),
+    default: 0.3,
+    get: |m| match *m {
+        Material::OrenNayar { roughness_rad } => roughness_rad,
+        _ => f64::NAN,
+    },
+    set: |m, v| {
+        if let Material::OrenNayar { roughness_rad } = m {
+            *roughness_rad = v;
+        }
+    },
+};
+
+/// Blinn-Phong's specular weight `k_s`.
+pub const SPECULAR: ModelParam = ModelParam {
+    name: "specular",
+    range: (0.0, MAX_SPECULAR),
+    default: 0.3,
+    get: |m| match *m {
+        Material::BlinnPhong { specular, .. } => specular,
+        _ => f64::NAN,
+    },
+    set: |m, v| {
+        if let Material::BlinnPhong { specular, .. } = m {
+            *specular = v;
+        }
+    },
+};
+
+/// Blinn-Phong's shininess exponent `n`.
+pub const SHININESS: ModelParam = ModelParam {
+    name: "shininess",
+    range: SHININESS_RANGE,
+    default: 20.0,
+    get: |m| match *m {
+        Material::BlinnPhong { shininess, .. } => shininess,
+        _ => f64::NAN,
+    },
+    set: |m, v| {
+        if let Material::BlinnPhong { shininess, .. } = m {
+            *shininess = v;
+        }
+    },
+};
+
+/// The reflectance models, in the order the command line lists them and
+/// `reflectance auto` tries them. Adding a model: its [`Material`] variant
+/// (with its arms in this file), its [`ReflectanceChoice`], its row here and
+/// its parameters' entries in the parameter table (ARCHITECTURE.md, "Adding
+/// a reflectance model").
+pub const MODELS: &[Model] = &[
+    Model {
+        name: "lambert",
+        choice: ReflectanceChoice::Lambert,
+        summary: "the paper's matte surface",
+        params: &[],
+        base: Material::Lambert,
+        fit_grid: Some(&[]),
+        bound_by_g: true,
+    },
+    Model {
+        name: "oren-nayar",
+        choice: ReflectanceChoice::OrenNayar,
+        summary: "rough: plaster, clay, stone, cloth",
+        params: &[ROUGHNESS],
+        base: Material::OrenNayar {
+            roughness_rad: ROUGHNESS.default,
+        },
+        fit_grid: Some(&[&[0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8]]),
+        bound_by_g: false,
+    },
+    Model {
+        name: "blinn-phong",
+        choice: ReflectanceChoice::BlinnPhong,
+        summary: "glossy: skin, plastic",
+        params: &[SPECULAR, SHININESS],
+        base: Material::BlinnPhong {
+            specular: SPECULAR.default,
+            shininess: SHININESS.default,
+        },
+        fit_grid: Some(&[&[0.1, 0.3, 0.6, 1.0], &[5.0, 10.0, 20.0, 40.0, 80.0]]),
+        bound_by_g: true,
+    },
+];
+
+/// Every model's name: the words a material option accepts.
+pub const MODEL_NAMES: &[&str] = &{
+    let mut names = [""; MODELS.len()];
+    let mut i = 0;
+    while i < MODELS.len() {
+        names[i] = MODELS[i].name;
+        i += 1;
+    }
+    names
+};
+
+/// The words of the parameter table's `reflectance`: every model's name,
+/// then `auto`.
+pub const REFLECTANCE_WORDS: &[&str] = &{
+    let mut words = [AUTO; MODELS.len() + 1];
+    let mut i = 0;
+    while i < MODELS.len() {
+        words[i] = MODELS[i].name;
+        i += 1;
+    }
+    words
+};
+
+/// The model whose parameter the parameter table's `name` is; `None` for a
+/// parameter of every model.
+pub fn model_of_param(name: &str) -> Option<&'static Model> {
+    MODELS
+        .iter()
+        .find(|m| m.params.iter().any(|p| p.name == name))
+}
+
+impl Material {
+    /// Its model's choice (the one `match` naming each model's variant).
+    pub fn choice(&self) -> ReflectanceChoice {
+        match self {
+            Material::Lambert => ReflectanceChoice::Lambert,
+            Material::OrenNayar { .. } => ReflectanceChoice::OrenNayar,
+            Material::BlinnPhong { .. } => ReflectanceChoice::BlinnPhong,
+        }
+    }
+
+    /// Its row of [`MODELS`].
+    pub fn model(&self) -> &'static Model {
+        let choice = self.choice();
+        MODELS
+            .iter()
+            .find(|m| m.choice == choice)
+            .unwrap_or(&MODELS[0])
+    }
+
+    /// The command-line name: its model's (`lambert`, `oren-nayar`, ...).
+    pub fn name(&self) -> &'static str {
+        self.model().name
+    }
+
+    /// Fast marching's bound by `g` alone holds for it ([`Model::bound_by_g`]).
+    pub fn bound_by_g(&self) -> bool {
+        self.model().bound_by_g
     }
 
     /// True for Lambert (the closed forms of the paper apply).
@@ -78,6 +335,19 @@ impl Material {
                 specular,
                 shininess,
             } => format!("blinn-phong (specular {specular:.3}, shininess {shininess:.1})"),
+        }
+    }
+
+    /// The model in a few characters (a narrow table's cell), e.g.
+    /// `oren-nayar σ 0.40`, `blinn-phong k_s 0.60 n 5`.
+    pub fn short(&self) -> String {
+        match *self {
+            Material::Lambert => "lambert".into(),
+            Material::OrenNayar { roughness_rad } => format!("oren-nayar σ {roughness_rad:.2}"),
+            Material::BlinnPhong {
+                specular,
+                shininess,
+            } => format!("blinn-phong k_s {specular:.2} n {shininess:.0}"),
         }
     }
 

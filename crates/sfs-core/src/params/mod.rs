@@ -3,10 +3,13 @@
 //! Defaults are the paper's (Maurer et al. 2015, Section 4) where it gives one.
 //! [`SolverParams::validate`] rejects bad values with an error naming the
 //! parameter; nothing is clamped silently.
+pub mod photometric;
+mod reflectance;
 mod settings;
 pub mod table;
 mod validate;
 
+pub use photometric::{PS_PARAMS, PsParamSpec, PsRule, ps_spec};
 pub use settings::*;
 pub use table::{PARAMS, ParamError, ParamKind, ParamSpec, ParamValue};
 pub use validate::check_constant_initial_depth;

@@ -5,7 +5,6 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::material::Material;
 use crate::model::Derivatives;
 
 /// Accepted intensity scales `s`: depth grows as `sqrt(s)`, so within these
@@ -181,23 +180,9 @@ impl LinearSolver {
     }
 }
 
-/// Which reflectance model the solver uses (the table's `reflectance`);
-/// its parameters are [`SolverParams`]' `roughness_rad`, `specular` and
-/// `shininess`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "kebab-case")]
-pub enum ReflectanceChoice {
-    /// Lambert (the paper's; default).
-    #[default]
-    Lambert,
-    /// Oren-Nayar with `roughness_rad`.
-    OrenNayar,
-    /// Blinn-Phong with `specular` and `shininess`.
-    BlinnPhong,
-    /// Fitted to the image on a coarse working copy before the solve
-    /// (`solver::material_fit`).
-    Auto,
-}
+/// Which reflectance model the solver uses: [`crate::material::ReflectanceChoice`]
+/// (beside the models' table it names).
+pub use crate::material::ReflectanceChoice;
 
 /// Where the solver takes the surface's albedo from (`--albedo`): 1
 /// everywhere (the paper's; the library's default), or estimated from the
@@ -378,9 +363,9 @@ impl Default for SolverParams {
             anti_alias_sigma: 0.0,
             shadow_bound: false,
             reflectance: ReflectanceChoice::Lambert,
-            roughness_rad: 0.3,
-            specular: 0.3,
-            shininess: 20.0,
+            roughness_rad: crate::material::ROUGHNESS.default,
+            specular: crate::material::SPECULAR.default,
+            shininess: crate::material::SHININESS.default,
             albedo: AlbedoChoice::One,
             albedo_edge: crate::albedo::DEFAULT_EDGE_LOG_STEP,
         }
@@ -422,73 +407,6 @@ impl SolverParams {
                 dz_limit: 0.01,
                 ..Self::default()
             },
-        }
-    }
-}
-
-impl SolverParams {
-    /// The material these parameters ask for; `None` for
-    /// [`ReflectanceChoice::Auto`] (fitted by `solver::material_fit`).
-    pub fn fixed_material(&self) -> Option<Material> {
-        Some(match self.reflectance {
-            ReflectanceChoice::Lambert => Material::Lambert,
-            ReflectanceChoice::OrenNayar => Material::OrenNayar {
-                roughness_rad: self.roughness_rad,
-            },
-            ReflectanceChoice::BlinnPhong => Material::BlinnPhong {
-                specular: self.specular,
-                shininess: self.shininess,
-            },
-            ReflectanceChoice::Auto => return None,
-        })
-    }
-
-    /// The material a solve uses: [`SolverParams::fixed_material`], Lambert
-    /// while `auto` is unresolved (the solvers resolve it first).
-    pub fn material(&self) -> Material {
-        self.fixed_material().unwrap_or_default()
-    }
-
-    /// These parameters with `auto` taken as the material it solves with
-    /// (Lambert) and albedo 1: for trial solves that must not compare the
-    /// materials again each time, and searches whose trials must all solve
-    /// one model (with `--albedo auto` deciding per trial, a known-depth
-    /// search missed its distance by 6 % on a render).
-    pub fn without_fit(&self) -> Self {
-        let mut params = self.clone().with_material(self.material());
-        params.albedo = AlbedoChoice::One;
-        params
-    }
-
-    /// These parameters set to `material` (its model and parameters).
-    pub fn with_material(mut self, material: Material) -> Self {
-        match material {
-            Material::Lambert => self.reflectance = ReflectanceChoice::Lambert,
-            Material::OrenNayar { roughness_rad } => {
-                self.reflectance = ReflectanceChoice::OrenNayar;
-                self.roughness_rad = roughness_rad;
-            }
-            Material::BlinnPhong {
-                specular,
-                shininess,
-            } => {
-                self.reflectance = ReflectanceChoice::BlinnPhong;
-                self.specular = specular;
-                self.shininess = shininess;
-            }
-        }
-        self
-    }
-
-    /// True when the named parameter matters for the chosen reflectance
-    /// (`roughness` only with Oren-Nayar, `specular` and `shininess` only
-    /// with Blinn-Phong; everything else always): the viewer shows a
-    /// model's sliders only when it is chosen.
-    pub fn applies(&self, name: &str) -> bool {
-        match name {
-            "roughness" => self.reflectance == ReflectanceChoice::OrenNayar,
-            "specular" | "shininess" => self.reflectance == ReflectanceChoice::BlinnPhong,
-            _ => true,
         }
     }
 }

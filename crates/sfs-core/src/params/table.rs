@@ -583,24 +583,10 @@ pub const PARAMS: &[ParamSpec] = &[
                'blinn-phong' (glossy: skin, plastic; --specular, --shininess), or 'auto': \
                fitted to the image on a coarse copy, reported with how well the image \
                determined it.",
-        kind: ParamKind::Choice(&["lambert", "oren-nayar", "blinn-phong", "auto"]),
+        kind: ParamKind::Choice(crate::material::REFLECTANCE_WORDS),
         slider: Some((0.0, 0.0)),
-        get: |p| {
-            ParamValue::Choice(match p.reflectance {
-                ReflectanceChoice::Lambert => "lambert",
-                ReflectanceChoice::OrenNayar => "oren-nayar",
-                ReflectanceChoice::BlinnPhong => "blinn-phong",
-                ReflectanceChoice::Auto => "auto",
-            })
-        },
-        set: |p, v| {
-            p.reflectance = match word(v) {
-                "oren-nayar" => ReflectanceChoice::OrenNayar,
-                "blinn-phong" => ReflectanceChoice::BlinnPhong,
-                "auto" => ReflectanceChoice::Auto,
-                _ => ReflectanceChoice::Lambert,
-            }
-        },
+        get: |p| ParamValue::Choice(p.reflectance.name()),
+        set: |p, v| p.reflectance = ReflectanceChoice::from_name(word(v)).unwrap_or_default(),
     },
     ParamSpec {
         name: "roughness",
@@ -609,8 +595,8 @@ pub const PARAMS: &[ParamSpec] = &[
                (default 0.3; 0 is Lambert; at most 1). Rough surfaces stay lit towards the rim \
                and look flatter facing the light. Fast marching needs it below about 0.61.",
         kind: ParamKind::Real {
-            min: 0.0,
-            max: crate::material::MAX_ROUGHNESS_RAD,
+            min: crate::material::ROUGHNESS.range.0,
+            max: crate::material::ROUGHNESS.range.1,
             log: false,
             auto: false,
         },
@@ -624,8 +610,8 @@ pub const PARAMS: &[ParamSpec] = &[
         help: "Blinn-Phong specular weight k_s against a diffuse weight of 1 (default 0.3; 0 \
                is Lambert; at most 10).",
         kind: ParamKind::Real {
-            min: 0.0,
-            max: crate::material::MAX_SPECULAR,
+            min: crate::material::SPECULAR.range.0,
+            max: crate::material::SPECULAR.range.1,
             log: false,
             auto: false,
         },
@@ -639,8 +625,8 @@ pub const PARAMS: &[ParamSpec] = &[
         help: "Blinn-Phong shininess exponent n (default 20): larger gives a smaller, sharper \
                highlight (10: a broad sheen, 30: skin or plastic, 100: polished). In [1, 1000].",
         kind: ParamKind::Real {
-            min: crate::material::SHININESS_RANGE.0,
-            max: crate::material::SHININESS_RANGE.1,
+            min: crate::material::SHININESS.range.0,
+            max: crate::material::SHININESS.range.1,
             log: true,
             auto: false,
         },

@@ -253,8 +253,9 @@ fn local_root<const LAMBERT: bool>(
         material,
     };
     // The bound by g alone needs `ln m(c)` to fall at least as fast as
-    // `ln c` (Lambert, Blinn-Phong); Oren-Nayar's falls slower.
-    let bound_by_g = !matches!(material, Material::OrenNayar { .. });
+    // `ln c` (Lambert, Blinn-Phong); Oren-Nayar's falls slower. The models'
+    // table says which.
+    let bound_by_g = material.bound_by_g();
     let facing = equation.facing_value(lower);
     let (h_facing, _) = equation.eval(facing);
     if !h_facing.is_finite() {

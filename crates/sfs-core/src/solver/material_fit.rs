@@ -29,22 +29,15 @@ pub const FIT_SIDE: usize = 128;
 
 pub use super::fits::{MaterialFit, MaterialTrial};
 
-/// The candidates: Lambert, Oren-Nayar over its roughness and Blinn-Phong
-/// over its weight and shininess.
+/// The candidates: every model of [`crate::material::MODELS`] that
+/// `auto` tries, over its [`crate::material::Model::fit_grid`] (Lambert,
+/// Oren-Nayar over its roughness, Blinn-Phong over its weight and
+/// shininess).
 pub fn candidates() -> Vec<Material> {
-    let mut out = vec![Material::Lambert];
-    for roughness_rad in [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8] {
-        out.push(Material::OrenNayar { roughness_rad });
-    }
-    for specular in [0.1, 0.3, 0.6, 1.0] {
-        for shininess in [5.0, 10.0, 20.0, 40.0, 80.0] {
-            out.push(Material::BlinnPhong {
-                specular,
-                shininess,
-            });
-        }
-    }
-    out
+    crate::material::MODELS
+        .iter()
+        .flat_map(|model| model.fit_candidates())
+        .collect()
 }
 
 /// Compares the candidate materials on `problem` at `params` (whose
@@ -127,4 +120,28 @@ pub fn resolve(
     }
     let fit = fit_material(problem, params, observer)?;
     Ok((params.clone().with_material(fit.material), Some(fit)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The models' table gives the candidates the hand-written list gave,
+    /// in its order (a fit's ranking and ties depend on it).
+    #[test]
+    fn the_candidates_are_the_former_list_in_its_order() {
+        let mut former = vec![Material::Lambert];
+        for roughness_rad in [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8] {
+            former.push(Material::OrenNayar { roughness_rad });
+        }
+        for specular in [0.1, 0.3, 0.6, 1.0] {
+            for shininess in [5.0, 10.0, 20.0, 40.0, 80.0] {
+                former.push(Material::BlinnPhong {
+                    specular,
+                    shininess,
+                });
+            }
+        }
+        assert_eq!(candidates(), former);
+    }
 }

@@ -8,6 +8,7 @@ use serde::{Deserialize, Serialize};
 use crate::mask_edit::{Layer, Mode};
 use std::collections::BTreeMap;
 
+use sfs_core::params::photometric::PS_SMOOTHNESS;
 use sfs_core::params::{AlbedoChoice, InitialDepth, PARAMS, SolverParams};
 use sfs_core::solver::photometric::PhotometricParams;
 
@@ -216,15 +217,19 @@ pub struct SetParamSettings {
 }
 
 impl SetParamSettings {
-    /// Smallest and largest smoothness the control offers.
-    pub const ALPHA_RANGE: (f64, f64) = (1e-9, 1e-1);
+    /// Smallest and largest smoothness the control offers: the core's
+    /// `ps-smoothness` entry's slider, inside its rule.
+    pub const ALPHA_RANGE: (f64, f64) = match PS_SMOOTHNESS.slider {
+        Some(range) => range,
+        None => (0.0, 0.0), // never: the entry has a slider
+    };
 
     /// The scheme's settings: the defaults with this smoothness (a stored
-    /// value that is not a positive number in range is taken as auto).
+    /// value outside the core's rule or the control's range is taken as
+    /// auto).
     pub fn to_params(&self) -> PhotometricParams {
-        let (low, high) = Self::ALPHA_RANGE;
         PhotometricParams {
-            alpha: self.alpha.filter(|a| (low..=high).contains(a)),
+            alpha: PS_SMOOTHNESS.in_slider(self.alpha),
             ..PhotometricParams::default()
         }
     }
@@ -303,6 +308,23 @@ mod tests {
         let json = serde_json::to_string(&s).unwrap_or_default();
         let back: Settings = serde_json::from_str(&json).unwrap_or_default();
         assert_eq!(back, s);
+    }
+
+    /// A smoothness out of the core's rule: the viewer's control does not
+    /// keep it, as the core's validation refuses it.
+    #[test]
+    fn the_sets_smoothness_range_is_the_cores_rule() {
+        let (low, high) = SetParamSettings::ALPHA_RANGE;
+        assert!(PS_SMOOTHNESS.admits(low) && PS_SMOOTHNESS.admits(high) && low < high);
+        let bad = -1e-6;
+        let stored = SetParamSettings { alpha: Some(bad) };
+        assert_eq!(stored.to_params().alpha, None);
+        let core = PhotometricParams {
+            alpha: Some(bad),
+            ..PhotometricParams::default()
+        };
+        assert_eq!(core.validate().expect_err("refused").name, "ps-smoothness");
+        assert!(PS_SMOOTHNESS.parse("-1e-6").is_err());
     }
 
     #[test]

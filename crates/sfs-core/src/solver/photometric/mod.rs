@@ -423,7 +423,8 @@ pub fn level_sizes(width: usize, height: usize, params: &PhotometricParams) -> V
 /// photographs' predictions).
 ///
 /// # Errors
-/// An invalid set (see [`validate`]), no trusted observation, cancellation,
+/// A parameter out of its rule ([`PhotometricParams::validate`]), an
+/// invalid set (see [`validate`]), no trusted observation, cancellation,
 /// or a result that is not a surface.
 pub fn solve_photometric(
     problem: &PhotometricProblem,
@@ -431,6 +432,7 @@ pub fn solve_photometric(
     observer: &mut dyn SolveObserver,
 ) -> Result<PhotometricSolution, SolveError> {
     let start = Instant::now();
+    params.validate()?;
     validate(problem)?;
     let (width, height) = problem.photos[0].image.size();
     let finest = finest_level(problem);

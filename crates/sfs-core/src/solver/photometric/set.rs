@@ -2,12 +2,14 @@
 //! [`PhotometricProblem`] (its [`SetPhoto`]s), [`PhotometricParams`],
 //! [`PhotometricSolution`] (a [`PhotoResult`] per photograph). Plain data
 //! below the solve and its children; re-exported from the folder's module.
-//! Uses `camera`, `grid`, `light`, `model`.
+//! Uses `camera`, `grid`, `light`, `model`, `params` (the set's rules).
 
 use crate::camera::Intrinsics;
 use crate::grid::Grid;
 use crate::light::PointLight;
 use crate::model::Energy;
+use crate::params::ParamError;
+use crate::params::photometric::{PS_ROBUST_SCALE, PS_SMOOTHNESS};
 use crate::solver::problem::LevelReport;
 
 /// One photograph of a set, lit by its own light.
@@ -81,6 +83,17 @@ impl Default for PhotometricParams {
     }
 }
 
+impl PhotometricParams {
+    /// Checks the values a user sets against their entries of the
+    /// photometric-stereo table ([`crate::params::PS_PARAMS`]: the rules
+    /// the command line and the viewer apply too); the error names the
+    /// parameter.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        PS_SMOOTHNESS.check(self.alpha)?;
+        PS_ROBUST_SCALE.check(self.robust_scale)
+    }
+}
+
 /// One photograph's fit.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct PhotoResult {
@@ -146,4 +159,35 @@ pub struct PhotometricSolution {
     pub iterations: usize,
     /// Wall time, seconds.
     pub seconds: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One value out of range is refused by the core with the rule the
+    /// command line and the viewer apply (their tests), naming it.
+    #[test]
+    fn validate_refuses_a_value_outside_its_rule_and_names_it() {
+        assert!(PhotometricParams::default().validate().is_ok());
+        let bad = PhotometricParams {
+            robust_scale: Some(0.0),
+            ..PhotometricParams::default()
+        };
+        let e = bad.validate().expect_err("0 divides");
+        assert_eq!(e.name, "ps-robust-scale");
+        assert_eq!(e.reason, PS_ROBUST_SCALE.accepted());
+        assert!(PS_ROBUST_SCALE.parse("0").is_err());
+        let bad = PhotometricParams {
+            alpha: Some(-1.0),
+            ..PhotometricParams::default()
+        };
+        assert_eq!(bad.validate().expect_err("negative").name, "ps-smoothness");
+        let fine = PhotometricParams {
+            alpha: Some(0.0),
+            robust_scale: Some(0.5),
+            ..PhotometricParams::default()
+        };
+        assert!(fine.validate().is_ok());
+    }
 }

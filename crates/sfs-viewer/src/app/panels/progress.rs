@@ -5,7 +5,6 @@
 use eframe::egui;
 
 use super::{Action, Panels, UiContext};
-use sfs_core::material::Material;
 use sfs_core::solver::{Solution, material_fit};
 
 impl Panels {
@@ -173,7 +172,7 @@ fn material_ui(ui: &mut egui::Ui, solution: &Solution) {
                     .on_hover_text("sqrt(sum c (I - R)^2 / sum c I^2) of the candidate's solve");
                 ui.end_row();
                 for trial in best.chain(lambert) {
-                    ui.label(short_material(&trial.material))
+                    ui.label(trial.material.short())
                         .on_hover_text(trial.material.describe());
                     ui.label(format!("×{:.3}", trial.relative_energy));
                     ui.label(format!("{:.4}", trial.relative_residual));
@@ -181,19 +180,6 @@ fn material_ui(ui: &mut egui::Ui, solution: &Solution) {
                 }
             });
     });
-}
-
-/// A material in a few characters, for the candidates' table (the narrow
-/// side panel): `oren-nayar σ 0.40`, `blinn-phong k_s 0.60 n 5`.
-fn short_material(material: &Material) -> String {
-    match *material {
-        Material::Lambert => "lambert".into(),
-        Material::OrenNayar { roughness_rad } => format!("oren-nayar σ {roughness_rad:.2}"),
-        Material::BlinnPhong {
-            specular,
-            shininess,
-        } => format!("blinn-phong k_s {specular:.2} n {shininess:.0}"),
-    }
 }
 
 /// The side panel's line on a known-distance fit: the scale, each
