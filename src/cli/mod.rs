@@ -61,7 +61,7 @@ pub enum Command {
     },
     /// Open the viewer on an image.
     #[cfg(feature = "gui")]
-    View(ViewArgs),
+    View(Box<ViewArgs>),
 }
 
 /// Parses `args` (including the program name) and runs the command.
