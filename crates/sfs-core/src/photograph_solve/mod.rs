@@ -18,10 +18,7 @@
 
 mod report;
 
-use std::path::PathBuf;
-
 use crate::grid::Grid;
-use crate::light::PointLight;
 use crate::model_fit::{self, ModelFit};
 use crate::params::{self, InitialDepth, SolverParams};
 use crate::photo::{self, PhotoFit, PhotoReport, PreparedPhoto, SummedPhoto};
@@ -313,15 +310,6 @@ impl PhotographSolve {
             scale_given: self.scale_given,
             rig_lights: self.photo.rig_lights.clone(),
         })
-    }
-
-    /// Whether the solve decides its depth unit by searching the scale (a
-    /// distance given, or lights off the centre with no scale given)
-    /// rather than by one solve.
-    pub fn searches_depth_unit(&self) -> bool {
-        !self.known_distances.is_empty()
-            || self.distance.is_some()
-            || (!self.scale_given && !self.problem.light_is_centred())
     }
 
     /// Solves: refuses what cannot be solved, decides the depth unit (and
@@ -703,16 +691,6 @@ impl SolvedPhotograph {
             &domain,
             self.solution.scales.intensity,
         )
-    }
-
-    /// The surface's lights as the report lists them.
-    pub fn lights(&self) -> &[PointLight] {
-        &self.problem.lights
-    }
-
-    /// The photographs this solve read.
-    pub fn images(&self) -> &[PathBuf] {
-        &self.input.photo.images
     }
 }
 
