@@ -537,7 +537,9 @@ fn unit_notes_and_warnings(
             100.0 * median.relative_residual
         ));
     }
-    if let Some(fit) = unit.fit.as_ref()
+    // Only a search for distances the user gave: the shading's own search
+    // at the defaults has its verdict in the unit's words.
+    if let Some(fit) = unit.fit.as_ref().filter(|f| !f.points.is_empty())
         && !fit.converged
         && first.is_empty()
     {
@@ -730,5 +732,53 @@ impl SolvedPhotograph {
             rse: errors.map(|e| e.0),
             rie: errors.map(|e| e.1),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::calibrate::{KnownDepthFit, KnownDepthResidual};
+
+    fn unit_with_fit(points: Vec<KnownDepthResidual>, source: UnitSource) -> DepthUnit {
+        DepthUnit {
+            source,
+            cue_distance: f64::NAN,
+            precision: 0.0,
+            solved_distance: f64::NAN,
+            intensity_scale: 1.0,
+            aim: None,
+            shading: None,
+            fit: Some(KnownDepthFit {
+                intensity_scale: 1.0,
+                points,
+                median_depth: None,
+                rms_relative_residual: 0.0,
+                solves: 12,
+                converged: false,
+                scale_precision: None,
+            }),
+        }
+    }
+
+    /// A scale search that did not settle is a warning where the user gave
+    /// distances, and not at the defaults (no distance given), where the
+    /// shading's own search is said in the unit's words.
+    #[test]
+    fn an_unsettled_search_warns_only_for_distances_the_user_gave() {
+        let settle = |unit: &DepthUnit| {
+            let (mut notes, mut warnings) = (Vec::new(), Vec::new());
+            unit_notes_and_warnings(unit, "mm", &mut notes, &mut warnings);
+            warnings.iter().any(|w| w.contains("did not settle"))
+        };
+        let point = KnownDepthResidual {
+            column_px: 3.0,
+            row_px: 4.0,
+            given: 640.0,
+            solved: 640.5,
+            relative_residual: 0.0008,
+        };
+        assert!(settle(&unit_with_fit(vec![point], UnitSource::KnownDepths)));
+        assert!(!settle(&unit_with_fit(Vec::new(), UnitSource::Guess)));
     }
 }
