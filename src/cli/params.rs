@@ -103,13 +103,25 @@ impl ParamArgs {
     }
 }
 
-/// Refuses a model's parameter given without its model (`--roughness`
-/// without oren-nayar, `--specular` or `--shininess` without blinn-phong;
-/// the models' table says whose each is): it would be silently unused. `given`: the options as typed.
+/// Refuses a parameter that would do nothing whatever the image (`--h-z`
+/// with exact derivatives) and a model's parameter given without its model
+/// (`--roughness` without oren-nayar, `--specular` or `--shininess` without
+/// blinn-phong; the models' table says whose each is): either would be
+/// silently unused. `given`: the options as typed.
 pub fn refuse_unused(
     params: &SolverParams,
     given: &[(&'static ParamSpec, String)],
 ) -> Result<(), ParamError> {
+    if let Some((spec, text, why)) = given
+        .iter()
+        .find_map(|(spec, text)| params.inert(spec.name).map(|why| (spec, text, why)))
+    {
+        return Err(ParamError {
+            name: spec.name,
+            value: text.clone(),
+            reason: why.to_owned(),
+        });
+    }
     match given.iter().find(|(spec, _)| !params.applies(spec.name)) {
         Some((spec, text)) => Err(ParamError {
             name: spec.name,

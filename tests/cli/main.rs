@@ -8,6 +8,7 @@ mod common;
 mod depth_unit;
 #[cfg(feature = "gui")]
 mod fronts;
+mod options;
 mod photographs;
 mod solve;
 mod synth;

@@ -426,7 +426,7 @@ fn shadow_bound_with_a_centred_light_is_reported_unused() {
         "{unused:?}"
     );
     let clean = fx.path("clean");
-    assert_success(&sfs(fx.solve_args(&clean, &["--kappa", "1"])), "solve");
+    assert_success(&sfs(fx.solve_args(&clean, &[])), "solve");
     let report = read_json(&clean.join("report.json"));
     assert_eq!(report["unused_options"], Value::Array(Vec::new()));
 }

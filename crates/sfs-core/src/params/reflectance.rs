@@ -63,6 +63,17 @@ impl SolverParams {
             None => true,
         }
     }
+
+    /// Why the named parameter, given, would do nothing whatever the image
+    /// (`h-z` without numeric derivatives); `None` when it may act.
+    pub fn inert(&self, name: &str) -> Option<&'static str> {
+        match (name, self.derivatives) {
+            ("h-z", crate::model::Derivatives::Exact) => Some(
+                "--h-z is the step of numeric derivatives and the derivatives are exact                  (give --derivatives numeric with it)",
+            ),
+            _ => None,
+        }
+    }
 }
 
 #[cfg(test)]

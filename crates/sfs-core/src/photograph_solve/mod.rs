@@ -401,7 +401,8 @@ impl PhotographSolve {
         let shadow_share = solution.shadow.as_ref().map(|shadow| {
             shadow.as_slice().iter().filter(|&&s| s).count() as f64 / object_pixels.max(1) as f64
         });
-        let unused_options = self.unused_options();
+        let mut unused_options = self.unused_options();
+        unused_options.extend(solution.unused_parameters.iter().cloned());
         let unit_name = self.unit_name().to_owned();
         let mut notes = self.photo.notes.clone();
         let mut warnings = Vec::new();

@@ -68,6 +68,9 @@ pub(crate) struct Walk {
     pub final_energy: Energy,
     /// Whether a budget stopped the scheme.
     pub budget_exhausted: bool,
+    /// With the shadow bound asked for and a shadow taken out: the pixels
+    /// it moved onto their grazing rays; `None` when it did not run.
+    pub shadow_bound_moved: Option<usize>,
 }
 
 /// Runs `scheme` coarse to fine over `prepared`'s levels from its initial
@@ -124,6 +127,7 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
         initial_energy,
         final_energy: initial_energy,
         budget_exhausted: false,
+        shadow_bound_moved: None,
     };
     let finest = &levels[levels.len() - 1];
     for (index, level) in levels.iter().enumerate() {
@@ -155,6 +159,7 @@ pub(crate) fn coarse_to_fine<M: Reflectance>(
                 &mut depth,
                 Cancel::new(&|| observer.is_cancelled()),
             )?;
+            walk.shadow_bound_moved = Some(moved);
             if moved > 0 {
                 end.energy = level_energy(
                     model,

@@ -23,6 +23,7 @@ use super::problem::{
 };
 use super::sor;
 use super::system::LinearSystem;
+use super::unused::{Effects, Path, unused_parameters};
 
 /// Solves with the problem's own model and the material of `params`
 /// (`auto` as Lambert, what it resolves to; [`super::solve`] runs its fit
@@ -70,6 +71,7 @@ fn solve_on_worker<M: Reflectance>(
         // Relative to the depth's own scale: any unit of depth works.
         z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         phases: PhaseTimes::default(),
+        effects: Effects::default(),
     };
     // A start computed by another method (fast marching) is shown to the
     // observer as the first level, so a viewer has a surface at once.
@@ -85,6 +87,19 @@ fn solve_on_worker<M: Reflectance>(
         &mut scheme,
     )?;
     let phases = scheme.phases;
+    let unused_parameters = unused_parameters(
+        params,
+        Path {
+            refines_warm_start: prepared.refines_warm_start,
+            refines_holes: prepared.refines_holes,
+            linear_solver: scheme.schedule.linear_solver,
+            kappa: scheme.schedule.kappa,
+            kappa_max: scheme.schedule.kappa_max,
+            has_object_mask: problem.object_mask.is_some(),
+            shadow_bound_moved: walk.shadow_bound_moved,
+        },
+        scheme.effects,
+    );
     let shadow = prepared.shadow.take();
     let (depth, reprojection) = on_object(problem, walk.depth, walk.reprojection);
     let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
@@ -107,6 +122,7 @@ fn solve_on_worker<M: Reflectance>(
         material: params.material(),
         material_fit: None,
         albedo_fit: None,
+        unused_parameters,
     }
     .checked()
 }
@@ -152,6 +168,7 @@ fn pick_start<M: Reflectance>(
         prepared,
         z_floor: 1e-6 * prepared.initial_depth.abs().max(f64::MIN_POSITIVE),
         phases: PhaseTimes::default(),
+        effects: Effects::default(),
     };
     let step = LevelStep {
         level: finest,
@@ -191,6 +208,9 @@ struct GaussNewton<'a, M> {
     prepared: &'a Prepared<'a>,
     z_floor: f64,
     phases: PhaseTimes,
+    /// What the parameters' decisions did against the defaults' (for the
+    /// unused options).
+    effects: Effects,
 }
 
 /// What each level of the scheme runs, resolved for the problem: the
@@ -250,11 +270,29 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         let mut energies = Vec::with_capacity(schedule.kappa_max);
         // Energy of the current depth on this level, once known.
         let mut current: Option<Energy> = step.start_energy;
+        // The defaults' schedule: whether the stopping test decided as the
+        // defaults' would have (for the unused options).
+        let defaults = SolverParams::for_units(params.units);
+        let default_schedule = Schedule::new(
+            &SolverParams {
+                kappa: defaults.kappa,
+                kappa_holes: defaults.kappa_holes,
+                ..params.clone()
+            },
+            self.prepared.refines_holes,
+        );
+        let converged = |energies: &[f64], tolerance: f64| matches!(energies[..], [.., before, after] if before - after <= tolerance * before);
+        let default_stops = |iteration: usize, energies: &[f64]| {
+            iteration >= default_schedule.kappa_max
+                || (iteration >= default_schedule.kappa
+                    && converged(energies, defaults.level_tolerance))
+        };
         for iteration in 0..schedule.kappa_max {
-            if iteration >= schedule.kappa
-                && let [.., before, after] = energies[..]
-                && before - after <= params.level_tolerance * before
-            {
+            let stops = iteration >= schedule.kappa && converged(&energies, params.level_tolerance);
+            if stops != default_stops(iteration, &energies) {
+                self.effects.level_stop_differed = true;
+            }
+            if stops {
                 break; // the level has converged
             }
             let t0 = Instant::now();
@@ -284,6 +322,8 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             // (decided after the first solve).
             let mut only_polish = false;
             let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
+            // The default tolerance's decisions, for the unused options.
+            let adaptive_default = refines_warm_start && defaults.inner_tolerance > 0.0;
             for inner in 0..params.inner_iterations {
                 let t1 = Instant::now();
                 let change = system.update_weights(
@@ -301,12 +341,20 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 // the minimum), they go on: their sweeps lengthen the step
                 // and change the answer. The rows of a system not solved
                 // again are not assembled.
-                if inner > 0 && adaptive && change < params.inner_tolerance && only_polish {
+                let stops = inner > 0 && adaptive && change < params.inner_tolerance && only_polish;
+                let default_stops = inner > 0
+                    && adaptive_default
+                    && change < defaults.inner_tolerance
+                    && only_polish;
+                if stops != default_stops {
+                    self.effects.inner_stop_differed = true;
+                }
+                if stops {
                     break;
                 }
                 let t2 = Instant::now();
                 system.assemble(level, alpha, Cancel::new(&|| observer.is_cancelled()))?;
-                if inner == 0 && (params.linear_tolerance > 0.0 || adaptive) {
+                if inner == 0 && (params.linear_tolerance > 0.0 || adaptive || adaptive_default) {
                     // At dz = 0 the residual is the right-hand side.
                     start_residual = system
                         .rhs_norm_squared(Cancel::new(&|| observer.is_cancelled()))?
@@ -320,7 +368,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     params.linear_tolerance * start_residual,
                     observer,
                 )?;
-                if inner == 0 && adaptive {
+                if inner == 0 && (adaptive || adaptive_default) {
                     // The step's length first (a light pass); the residual
                     // (a pass over the whole system) only where that does
                     // not decide.
@@ -334,10 +382,17 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let z_floor = self.z_floor;
             let (max_step, energy) = match params.step_control {
                 StepControl::Crop => {
+                    let before = match current {
+                        Some(energy) => energy,
+                        None => energy_of(depth, observer)?,
+                    };
                     let step =
                         apply_update(depth, &system, &level.domain, crop, 1.0, z_floor, observer);
                     check_cancelled(observer)?;
-                    (step, energy_of(depth, observer)?)
+                    let after = energy_of(depth, observer)?;
+                    // Backtracking would have halved this step.
+                    self.effects.energy_rose |= after.total > before.total;
+                    (step, after)
                 }
                 StepControl::Backtracking => {
                     let before = match current {
@@ -381,6 +436,10 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 max_step,
                 elapsed: step.start.elapsed(),
             });
+        }
+        if energies.len() == schedule.kappa_max && !default_stops(schedule.kappa_max, &energies) {
+            // The defaults would have gone on past kappa-max.
+            self.effects.level_stop_differed = true;
         }
         let energy = match current {
             Some(energy) => energy,

@@ -422,6 +422,7 @@ fn run<M: Reflectance>(
         material: params.material(),
         material_fit: None,
         albedo_fit: None,
+        unused_parameters: Vec::new(),
     }
     .checked()
 }

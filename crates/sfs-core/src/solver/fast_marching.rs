@@ -769,6 +769,7 @@ pub fn solve_fast_marching(
         material: settings.material,
         material_fit: None,
         albedo_fit: None,
+        unused_parameters: Vec::new(),
     }
     .checked()
 }

@@ -63,6 +63,9 @@ pub fn solve_method(
             observer,
         ),
     }?;
+    if matches!(method, Method::FastMarching(_)) {
+        solution.unused_parameters = super::unused::unused_by_fast_marching(params);
+    }
     solution.material_fit = fit;
     if let Some(albedo) = albedo {
         albedo.restore(&mut solution);

@@ -30,6 +30,7 @@ pub(crate) mod shadow_bound;
 pub mod shadows;
 pub mod sor;
 pub mod system;
+pub(crate) mod unused;
 pub(crate) mod working;
 
 pub use driver::solve_with_model;

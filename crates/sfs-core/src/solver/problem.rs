@@ -232,6 +232,10 @@ pub struct Solution {
     /// With `--albedo auto`, the estimated albedo and whether the solve
     /// used it ([`super::albedo_fit`]); `None` otherwise.
     pub albedo_fit: Option<super::fits::AlbedoFit>,
+    /// The parameters set away from their defaults that this solve left
+    /// without effect, each `--NAME VALUE: why` (the path it took skipped
+    /// them, or their decisions came out as the defaults' would have).
+    pub unused_parameters: Vec<String>,
 }
 
 fn seconds<S: serde::Serializer>(d: &Duration, s: S) -> Result<S::Ok, S::Error> {
