@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-// The CLI tests' helpers: the binary, its runs, the files a solve writes.
-#[allow(dead_code)]
+// The CLI tests' helpers: the binary, its runs, the files a solve writes
+// (this test uses few of them).
+#[allow(dead_code, unused_imports)]
 #[path = "cli/common.rs"]
 mod common;
 

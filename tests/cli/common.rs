@@ -2,16 +2,24 @@
 //! `synth` and `solve` write, the Sombrero fixture and the checks of a
 //! refused run.
 
-use std::ffi::OsStr;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-use serde_json::Value;
 use tempfile::{TempDir, tempdir};
 
 /// The binary under test.
 pub(crate) const BIN: &str = env!("CARGO_BIN_EXE_sfs-studio");
+/// The folder the runs start in: the package's, where `cargo test` starts
+/// them too.
+const RUN_DIR: &str = env!("CARGO_MANIFEST_DIR");
+
+// Running the binary and reading its output, as the bench's tests do.
+#[path = "../support/binary.rs"]
+mod binary;
+pub(crate) use binary::{
+    assert_help_mentions, assert_success, read_json, run_into, s, sfs, stderr, stdout,
+};
 
 /// Files `synth` writes (with `--noise` and `--inpaint-disc`), the hidden
 /// manifest of the run's outputs included.
@@ -41,38 +49,6 @@ pub(crate) const SOLVE_FILES: [&str; 11] = [
     "report.json",
 ];
 
-/// Runs the binary with `args`.
-pub(crate) fn sfs<I, S>(args: I) -> Output
-where
-    I: IntoIterator<Item = S>,
-    S: AsRef<OsStr>,
-{
-    Command::new(BIN)
-        .args(args)
-        .output()
-        .expect("cannot start the sfs-studio binary")
-}
-
-pub(crate) fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-pub(crate) fn stdout(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// Asserts a run succeeded, showing its output otherwise.
-#[track_caller]
-pub(crate) fn assert_success(out: &Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what} failed with {}\nstdout:\n{}\nstderr:\n{}",
-        out.status,
-        stdout(out),
-        stderr(out)
-    );
-}
-
 /// Names of the entries of `dir` (empty if it does not exist).
 pub(crate) fn entries(dir: &Path) -> Vec<String> {
     match fs::read_dir(dir) {
@@ -85,17 +61,6 @@ pub(crate) fn entries(dir: &Path) -> Vec<String> {
         }
         Err(_) => Vec::new(),
     }
-}
-
-/// Paths as strings, for argument lists.
-pub(crate) fn s(path: &Path) -> String {
-    path.to_str().expect("temporary paths are UTF-8").to_owned()
-}
-
-pub(crate) fn read_json(path: &Path) -> Value {
-    let text =
-        fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
 }
 
 /// A temporary folder holding `synth sombrero --size 40x40` with noise and
@@ -234,10 +199,7 @@ pub(crate) fn assert_refused(args: &[String], says: &[&str]) {
 /// succeeded and returns `DIR`.
 #[track_caller]
 pub(crate) fn synth_into(dir: &Path, args: &[&str]) -> PathBuf {
-    let mut all: Vec<String> = vec!["synth".into()];
-    all.extend(args.iter().map(|a| a.to_string()));
-    all.extend(["--out".into(), s(dir)]);
-    assert_success(&sfs(&all), &format!("synth {}", args.join(" ")));
+    run_into(dir, "synth", args);
     dir.to_path_buf()
 }
 

@@ -8,8 +8,8 @@ use serde_json::Value;
 use tempfile::tempdir;
 
 use crate::common::{
-    Fixture, assert_refused, assert_said, assert_success, expect_failure, s, sfs, stderr, stdout,
-    strings,
+    Fixture, assert_help_mentions, assert_refused, assert_said, assert_success, expect_failure, s,
+    sfs, stderr, stdout, strings,
 };
 
 #[test]
@@ -42,22 +42,9 @@ fn help_of_every_subcommand() {
         ),
         ("eval", &["--depth", "--gt"][..]),
     ] {
-        let out = sfs([sub, "--help"]);
-        assert_success(&out, &format!("{sub} --help"));
-        let text = stdout(&out);
-        for option in options {
-            assert!(
-                text.contains(option),
-                "`{sub} --help` does not mention {option}:\n{text}"
-            );
-        }
+        assert_help_mentions(&[sub], options);
     }
-    let out = sfs(["--help"]);
-    assert_success(&out, "--help");
-    let text = stdout(&out);
-    for sub in ["synth", "solve", "eval"] {
-        assert!(text.contains(sub), "--help does not list {sub}:\n{text}");
-    }
+    let text = assert_help_mentions(&[], &["synth", "solve", "eval"]);
     assert!(!text.contains("bench"), "--help lists bench:\n{text}");
 }
 

@@ -121,6 +121,17 @@ pub struct Panel<'a> {
     pub title: &'a str,
 }
 
+impl<'a> Panel<'a> {
+    /// `values` shaded by `shade` under `title`.
+    pub fn new(values: &'a Grid<f64>, shade: Shade, title: &'a str) -> Self {
+        Self {
+            values,
+            shade,
+            title,
+        }
+    }
+}
+
 /// The colour of the `step` x `step` block at block `(c, r)` of `panel`: its
 /// finite values' mean, shaded; light grey where none is finite.
 fn block_colour(panel: &Panel<'_>, c: usize, r: usize, step: usize) -> [u8; 3] {
@@ -465,21 +476,9 @@ mod tests {
         let holes = Grid::from_fn(40, 20, |c, _| if c < 20 { f64::NAN } else { 1.0 });
         let figure = panel_grid(
             &[vec![
-                Panel {
-                    values: &g,
-                    shade: Shade::Grey([0.0, 38.0]),
-                    title: "grey",
-                },
-                Panel {
-                    values: &g,
-                    shade: Shade::Colour([0.0, 38.0]),
-                    title: "a much longer title",
-                },
-                Panel {
-                    values: &holes,
-                    shade: Shade::Grey([0.0, 1.0]),
-                    title: "holes",
-                },
+                Panel::new(&g, Shade::Grey([0.0, 38.0]), "grey"),
+                Panel::new(&g, Shade::Colour([0.0, 38.0]), "a much longer title"),
+                Panel::new(&holes, Shade::Grey([0.0, 1.0]), "holes"),
             ]],
             2,
         )
@@ -510,16 +509,8 @@ mod tests {
         // A panel smaller than the first is drawn at its own size.
         let small = Grid::from_fn(4, 4, |_, _| 0.5);
         let mixed = [vec![
-            Panel {
-                values: &g,
-                shade: Shade::Grey([0.0, 1.0]),
-                title: "",
-            },
-            Panel {
-                values: &small,
-                shade: Shade::Grey([0.0, 1.0]),
-                title: "",
-            },
+            Panel::new(&g, Shade::Grey([0.0, 1.0]), ""),
+            Panel::new(&small, Shade::Grey([0.0, 1.0]), ""),
         ]];
         assert!(panel_grid(&mixed, 1).is_ok());
         let first_panel_row = GAP + TITLE_HEIGHT;

@@ -43,20 +43,12 @@ pub(super) fn fig2(image: &Grid<f64>, reprojections: &[(f64, Grid<f64>)]) -> Res
         .iter()
         .map(|(alpha, _)| format!("α = {}", figures::tick_label(*alpha)))
         .collect();
-    let mut row = vec![Panel {
-        values: image,
-        shade: IMAGE,
-        title: "input",
-    }];
+    let mut row = vec![Panel::new(image, IMAGE, "input")];
     row.extend(
         reprojections
             .iter()
             .zip(&titles)
-            .map(|((_, reprojection), title)| Panel {
-                values: reprojection,
-                shade: IMAGE,
-                title,
-            }),
+            .map(|((_, reprojection), title)| Panel::new(reprojection, IMAGE, title)),
     );
     figures::panel_grid(&[row], 1)
 }
@@ -79,21 +71,9 @@ pub(super) fn fig3(
     });
     figures::panel_grid(
         &[vec![
-            Panel {
-                values: &degraded,
-                shade: IMAGE,
-                title: "input, region removed",
-            },
-            Panel {
-                values: masked,
-                shade: IMAGE,
-                title: "inpainted",
-            },
-            Panel {
-                values: full,
-                shade: IMAGE,
-                title: "without the region",
-            },
+            Panel::new(&degraded, IMAGE, "input, region removed"),
+            Panel::new(masked, IMAGE, "inpainted"),
+            Panel::new(full, IMAGE, "without the region"),
         ]],
         1,
     )
@@ -118,26 +98,21 @@ pub(super) fn fig4(scene: &Scene, lin: [&Grid<f64>; 2], fmm: [&Grid<f64>; 2]) ->
     ];
     let image_err = [0.0, 0.1];
     let step = (scene.image.width() / 270).max(1);
-    let panel = |values, shade, title| Panel {
-        values,
-        shade,
-        title,
-    };
     figures::panel_grid(
         &[
             vec![
-                panel(&scene.image, IMAGE, "image (truth)"),
-                panel(lin[1], IMAGE, "linearised"),
-                panel(&il, Shade::Colour(image_err), "|difference| 0-0.1"),
-                panel(fmm[1], IMAGE, "fast marching"),
-                panel(&ifm, Shade::Colour(image_err), "|difference| 0-0.1"),
+                Panel::new(&scene.image, IMAGE, "image (truth)"),
+                Panel::new(lin[1], IMAGE, "linearised"),
+                Panel::new(&il, Shade::Colour(image_err), "|difference| 0-0.1"),
+                Panel::new(fmm[1], IMAGE, "fast marching"),
+                Panel::new(&ifm, Shade::Colour(image_err), "|difference| 0-0.1"),
             ],
             vec![
-                panel(gt_depth, Shade::Colour(depth_range), "depth (truth)"),
-                panel(lin[0], Shade::Colour(depth_range), "linearised"),
-                panel(&dl, Shade::Colour(depth_err), "|difference| 0-20%"),
-                panel(fmm[0], Shade::Colour(depth_range), "fast marching"),
-                panel(&df, Shade::Colour(depth_err), "|difference| 0-20%"),
+                Panel::new(gt_depth, Shade::Colour(depth_range), "depth (truth)"),
+                Panel::new(lin[0], Shade::Colour(depth_range), "linearised"),
+                Panel::new(&dl, Shade::Colour(depth_err), "|difference| 0-20%"),
+                Panel::new(fmm[0], Shade::Colour(depth_range), "fast marching"),
+                Panel::new(&df, Shade::Colour(depth_err), "|difference| 0-20%"),
             ],
         ],
         step,

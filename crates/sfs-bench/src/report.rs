@@ -165,52 +165,22 @@ struct Paper {
     seconds: [f64; 3],
 }
 
+/// The paper's Tables 1-3, a row a scene (NaN: not reported).
+#[rustfmt::skip]
+const PAPER: [(&str, Paper); 5] = [
+    ("sombrero", Paper { clean_rse: [0.00301, 0.00318, 0.00768], clean_rie: [0.00495, 0.00209, 0.00925], noisy_rse: [0.19530, 0.05118, 0.01542], noisy_rie: [0.27254, 0.13239, 0.03851], processed_rse: [0.02008, 0.19197, 0.01741, 0.01538], seconds: [1.0, 29113.0, 17.0] }),
+    ("bunny",    Paper { clean_rse: [0.00266, 0.00439, 0.00928], clean_rie: [0.00154, 0.00007, 0.00327], noisy_rse: [0.10973, 0.03235, 0.01359], noisy_rie: [0.17347, 0.15279, 0.12285], processed_rse: [0.01434, 0.06164, 0.01470, 0.01357], seconds: [1.0, 23969.0, 11.0] }),
+    ("dragon",   Paper { clean_rse: [0.00422, 0.01376, 0.02904], clean_rie: [0.00255, 0.00028, 0.02333], noisy_rse: [0.12240, 0.05395, 0.03391], noisy_rie: [0.19409, 0.18767, 0.17732], processed_rse: [0.04623, 0.08226, 0.03322, 0.03390], seconds: [1.0, 25350.0, 12.0] }),
+    ("suzanne",  Paper { clean_rse: [0.00253, 0.00251, 0.00696], clean_rie: [0.00082, 0.00002, 0.00224], noisy_rse: [0.12134, 0.01256, 0.00826], noisy_rie: [0.16783, 0.14302, 0.12038], processed_rse: [0.01245, 0.06169, 0.00917, 0.00824], seconds: [2.0, 48395.0, 21.0] }),
+    ("highres",  Paper { clean_rse: [0.01593, f64::NAN, 0.02930], clean_rie: [0.00067, f64::NAN, 0.03414], noisy_rse: [f64::NAN; 3],               noisy_rie: [f64::NAN; 3],               processed_rse: [f64::NAN; 4],                       seconds: [33.0, f64::NAN, 340.0] }),
+];
+
 /// The paper's figures for `scene` (`None`: a scene the paper did not have).
-fn paper(scene: &str) -> Option<Paper> {
-    let p = match scene {
-        "sombrero" => Paper {
-            clean_rse: [0.00301, 0.00318, 0.00768],
-            clean_rie: [0.00495, 0.00209, 0.00925],
-            noisy_rse: [0.19530, 0.05118, 0.01542],
-            noisy_rie: [0.27254, 0.13239, 0.03851],
-            processed_rse: [0.02008, 0.19197, 0.01741, 0.01538],
-            seconds: [1.0, 29113.0, 17.0],
-        },
-        "bunny" => Paper {
-            clean_rse: [0.00266, 0.00439, 0.00928],
-            clean_rie: [0.00154, 0.00007, 0.00327],
-            noisy_rse: [0.10973, 0.03235, 0.01359],
-            noisy_rie: [0.17347, 0.15279, 0.12285],
-            processed_rse: [0.01434, 0.06164, 0.01470, 0.01357],
-            seconds: [1.0, 23969.0, 11.0],
-        },
-        "dragon" => Paper {
-            clean_rse: [0.00422, 0.01376, 0.02904],
-            clean_rie: [0.00255, 0.00028, 0.02333],
-            noisy_rse: [0.12240, 0.05395, 0.03391],
-            noisy_rie: [0.19409, 0.18767, 0.17732],
-            processed_rse: [0.04623, 0.08226, 0.03322, 0.03390],
-            seconds: [1.0, 25350.0, 12.0],
-        },
-        "suzanne" => Paper {
-            clean_rse: [0.00253, 0.00251, 0.00696],
-            clean_rie: [0.00082, 0.00002, 0.00224],
-            noisy_rse: [0.12134, 0.01256, 0.00826],
-            noisy_rie: [0.16783, 0.14302, 0.12038],
-            processed_rse: [0.01245, 0.06169, 0.00917, 0.00824],
-            seconds: [2.0, 48395.0, 21.0],
-        },
-        "highres" => Paper {
-            clean_rse: [0.01593, f64::NAN, 0.02930],
-            clean_rie: [0.00067, f64::NAN, 0.03414],
-            noisy_rse: [f64::NAN; 3],
-            noisy_rie: [f64::NAN; 3],
-            processed_rse: [f64::NAN; 4],
-            seconds: [33.0, f64::NAN, 340.0],
-        },
-        _ => return None,
-    };
-    Some(p)
+fn paper(scene: &str) -> Option<&'static Paper> {
+    PAPER
+        .iter()
+        .find(|(name, _)| *name == scene)
+        .map(|(_, figures)| figures)
 }
 
 /// A number to five decimals; a dash for NaN (not reported).
@@ -314,17 +284,16 @@ fn table1(md: &mut String, report: &Report, scenes: &[String]) {
     ];
 
     let _ = writeln!(md, "## Table 1: RSE and RIE, clean and noisy\n");
-    let _ = writeln!(
+    table_head(
         md,
-        "| scene | noise | method | RSE | RIE | paper RSE | paper RIE |"
+        "| scene | noise | method | RSE | RIE | paper RSE | paper RIE |",
     );
-    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- |");
     for scene in scenes {
         let p = paper(scene);
         for noise in [0.0, NOISE_SIGMA] {
             for (method, k) in methods {
                 if let Some(r) = find(&report.rows, scene, noise, method) {
-                    let (pr, pi) = p.as_ref().map_or((f64::NAN, f64::NAN), |p| {
+                    let (pr, pi) = p.map_or((f64::NAN, f64::NAN), |p| {
                         if noise == 0.0 {
                             (p.clean_rse[k], p.clean_rie[k])
                         } else {
@@ -358,11 +327,10 @@ fn table2(md: &mut String, report: &Report, scenes: &[String]) {
         "Pre: ROF/TV denoising, weight = the image's estimated noise level (Immerkaer), {TV_ITERATIONS} primal-dual iterations. \
          Post: the depth smoothed with the energy's second-order Charbonnier term, weight {POST_WEIGHT}.\n"
     );
-    let _ = writeln!(
+    table_head(
         md,
-        "| scene | method | RSE | +pre | +post | paper RSE | paper +pre | paper +post |"
+        "| scene | method | RSE | +pre | +post | paper RSE | paper +pre | paper +post |",
     );
-    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- | --- |");
     for scene in scenes {
         let p = paper(scene);
         for (method, k) in [("linearised", 1usize), ("fast_marching", 0)] {
@@ -378,7 +346,7 @@ fn table2(md: &mut String, report: &Report, scenes: &[String]) {
             if get("").is_nan() {
                 continue;
             }
-            let (po, pp, pq) = p.as_ref().map_or((f64::NAN, f64::NAN, f64::NAN), |p| {
+            let (po, pp, pq) = p.map_or((f64::NAN, f64::NAN, f64::NAN), |p| {
                 (
                     p.noisy_rse[if k == 1 { 2 } else { 0 }],
                     p.processed_rse[2 * k],
@@ -402,11 +370,10 @@ fn table2(md: &mut String, report: &Report, scenes: &[String]) {
 /// Table 3: runtimes on the clean images.
 fn table3(md: &mut String, report: &Report, scenes: &[String]) {
     let _ = writeln!(md, "\n## Table 3: runtimes in this run (clean images)\n");
-    let _ = writeln!(
+    table_head(
         md,
-        "| scene | linearised s | explicit s | fast marching s | explicit / linearised | linearised / fast marching | paper: ours, Ju, Vogel s |"
+        "| scene | linearised s | explicit s | fast marching s | explicit / linearised | linearised / fast marching | paper: ours, Ju, Vogel s |",
     );
-    let _ = writeln!(md, "| --- | --- | --- | --- | --- | --- | --- |");
     for scene in scenes {
         let get = |method: &str| find(&report.rows, scene, 0.0, method);
         let (Some(l), Some(e), Some(f)) =
@@ -511,8 +478,7 @@ fn peak_memory(md: &mut String, report: &Report, conditions: &Conditions) {
             " (could not be reset: a running maximum)"
         }
     );
-    let _ = writeln!(md, "| method | peak MiB |");
-    let _ = writeln!(md, "| --- | --- |");
+    table_head(md, "| method | peak MiB |");
     let mut names: Vec<&str> = report.rows.iter().map(|r| r.method.as_str()).collect();
     names.sort_unstable();
     names.dedup();
@@ -538,8 +504,7 @@ fn figures_2_to_4(md: &mut String, report: &Report) {
             md,
             "![Fig. 2](fig2_bunny_alpha.png)\n\nLeft to right: input, then alpha:\n"
         );
-        let _ = writeln!(md, "| alpha | RSE | RIE |");
-        let _ = writeln!(md, "| --- | --- | --- |");
+        table_head(md, "| alpha | RSE | RIE |");
         for (a, rse, rie) in &report.alpha_sweep {
             let _ = writeln!(md, "| {a} | {} | {} |", fmt(*rse), fmt(*rie));
         }

@@ -253,8 +253,7 @@ pub fn markdown(robustness: &Robustness) -> String {
             md,
             "\n### The default over image sizes (clean, same field of view)\n"
         );
-        let _ = writeln!(md, "| scene | size | RSE | seconds |");
-        let _ = writeln!(md, "| --- | --- | --- | --- |");
+        super::markdown::table_head(&mut md, "| scene | size | RSE | seconds |");
         for r in &robustness.sizes {
             let _ = writeln!(
                 md,

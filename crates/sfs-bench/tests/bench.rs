@@ -2,90 +2,102 @@
 //! part's report and its checks, `--help`, and bad options refused.
 
 use std::collections::BTreeSet;
-use std::ffi::OsStr;
 use std::fs;
-use std::path::Path;
-use std::process::{Command, Output};
+use std::path::{Path, PathBuf};
 
 use serde_json::Value;
-use tempfile::tempdir;
+use tempfile::{TempDir, tempdir};
 
 /// The binary under test.
 const BIN: &str = env!("CARGO_BIN_EXE_sfs-bench");
 /// The workspace's root: the runs start there, as `cargo run -p sfs-bench`
 /// from the repository does, so the default `../shared` folders resolve.
-const WORKSPACE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
+const RUN_DIR: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../..");
 
-/// Runs the binary with `args` from the workspace's root.
-fn sfs<I, S>(args: I) -> Output
-where
-    I: IntoIterator<Item = S>,
-    S: AsRef<OsStr>,
-{
-    Command::new(BIN)
-        .args(args)
-        .current_dir(WORKSPACE)
-        .output()
-        .expect("cannot start the sfs-bench binary")
+// Running the binary and reading its output, as the CLI's tests do.
+#[path = "../../../tests/support/binary.rs"]
+mod binary;
+use binary::{assert_help_mentions, read_json, run_into, s, sfs, stderr};
+
+/// The report `sfs-bench --quick --part PART ARGS` wrote, in a temporary
+/// folder that lives as long as it.
+struct QuickPart {
+    /// Holds the output folder.
+    _dir: TempDir,
+    /// The part's name.
+    part: String,
+    /// The output folder.
+    out: PathBuf,
+    /// `PART.json`.
+    report: Value,
 }
 
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
+impl QuickPart {
+    /// Runs `sfs-bench --quick --part PART ARGS --out OUT`, asserts it
+    /// succeeded and reads `OUT/PART.json`.
+    #[track_caller]
+    fn run(part: &str, args: &[&str]) -> Self {
+        let dir = tempdir().expect("temp dir");
+        let out = dir.path().join(part);
+        let mut all = vec!["--part", part];
+        all.extend(args);
+        run_into(&out, "--quick", &all);
+        let report = read_json(&out.join(format!("{part}.json")));
+        Self {
+            _dir: dir,
+            part: part.to_owned(),
+            out,
+            report,
+        }
+    }
+
+    /// The report's rows.
+    fn rows(&self) -> &[Value] {
+        self.report["rows"].as_array().expect("rows")
+    }
+
+    /// Asserts that `PART.md` holds `text`.
+    #[track_caller]
+    fn assert_markdown_has(&self, text: &str) {
+        let path = self.out.join(format!("{}.md", self.part));
+        let md = fs::read_to_string(&path)
+            .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
+        assert!(
+            md.contains(text),
+            "no {text:?} in {}:
+{md}",
+            path.display()
+        );
+    }
 }
 
-fn stdout(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stdout).into_owned()
+/// The string values of `key` over `rows`.
+fn names<'a>(rows: &'a [Value], key: &str) -> BTreeSet<&'a str> {
+    rows.iter().map(|r| r[key].as_str().expect(key)).collect()
 }
 
-/// Asserts a run succeeded, showing its output otherwise.
+/// Asserts that the string values of `key` over `rows` are `expected`, in
+/// any order.
 #[track_caller]
-fn assert_success(out: &Output, what: &str) {
-    assert!(
-        out.status.success(),
-        "{what} failed with {}\nstdout:\n{}\nstderr:\n{}",
-        out.status,
-        stdout(out),
-        stderr(out)
+fn assert_names(rows: &[Value], key: &str, expected: &[&str]) {
+    assert_eq!(
+        names(rows, key),
+        BTreeSet::from_iter(expected.iter().copied())
     );
-}
-
-/// Paths as strings, for argument lists.
-fn s(path: &Path) -> String {
-    path.to_str().expect("temporary paths are UTF-8").to_owned()
-}
-
-fn read_json(path: &Path) -> Value {
-    let text =
-        fs::read_to_string(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()));
-    serde_json::from_str(&text).unwrap_or_else(|e| panic!("{} is not JSON: {e}", path.display()))
-}
-
-/// Runs `sfs-bench --quick ARGS --out OUT` and asserts it succeeded.
-#[track_caller]
-fn bench_quick(out: &Path, args: &[&str]) {
-    let mut all: Vec<String> = vec!["--quick".into()];
-    all.extend(args.iter().map(|a| a.to_string()));
-    all.extend(["--out".into(), s(out)]);
-    assert_success(&sfs(&all), &format!("sfs-bench {}", args.join(" ")));
 }
 
 #[test]
 fn help_lists_the_options() {
-    let out = sfs(["--help"]);
-    assert_success(&out, "--help");
-    let text = stdout(&out);
-    for option in [
-        "--meshes",
-        "--quick",
-        "--scenes",
-        "--explicit-seconds",
-        "--out",
-    ] {
-        assert!(
-            text.contains(option),
-            "`sfs-bench --help` does not mention {option}:\n{text}"
-        );
-    }
+    assert_help_mentions(
+        &[],
+        &[
+            "--meshes",
+            "--quick",
+            "--scenes",
+            "--explicit-seconds",
+            "--out",
+        ],
+    );
 }
 
 /// `bench --part albedo --quick` on the Sombrero: every light, pattern and
@@ -95,12 +107,9 @@ fn help_lists_the_options() {
 /// below albedo 1, and a smooth albedo (no edge) is left as albedo 1.
 #[test]
 fn bench_albedo_solves_each_render_three_ways() {
-    let dir = tempdir().expect("temp dir");
-    let out = dir.path().join("albedo");
-    bench_quick(&out, &["--part", "albedo", "--scenes", "sombrero"]);
-    assert!(out.join("albedo.md").is_file());
-    let report = read_json(&out.join("albedo.json"));
-    let rows = report["rows"].as_array().expect("rows");
+    let run = QuickPart::run("albedo", &["--scenes", "sombrero"]);
+    assert!(run.out.join("albedo.md").is_file());
+    let rows = run.rows();
     assert_eq!(rows.len(), 16, "2 lights x 4 albedos x 2 noise levels");
     for row in rows {
         let value = |key: &str| row[key].as_f64().expect("a number");
@@ -127,22 +136,12 @@ fn bench_albedo_solves_each_render_three_ways() {
 
 #[test]
 fn bench_edges_compares_the_truth_with_the_answer_and_finds_contours() {
-    let meshes = Path::new(WORKSPACE).join("../shared/meshes");
-    let dir = tempdir().expect("temp dir");
-    let out = dir.path().join("edges");
-    bench_quick(
-        &out,
-        &[
-            "--part",
-            "edges",
-            "--scenes",
-            "sombrero,suzanne",
-            "--meshes",
-            &s(&meshes),
-        ],
+    let meshes = Path::new(RUN_DIR).join("../shared/meshes");
+    let run = QuickPart::run(
+        "edges",
+        &["--scenes", "sombrero,suzanne", "--meshes", &s(&meshes)],
     );
-    let report = read_json(&out.join("edges.json"));
-    let rows = report["rows"].as_array().expect("rows");
+    let rows = run.rows();
     let suzanne_there = meshes.join("suzanne.obj").is_file();
     assert_eq!(
         rows.len(),
@@ -173,23 +172,15 @@ fn bench_edges_compares_the_truth_with_the_answer_and_finds_contours() {
         }
         assert_eq!(row["paper_rse"].is_null(), value("noise") == 0.0, "{row}");
     }
-    let md = std::fs::read_to_string(out.join("edges.md")).expect("edges.md");
-    assert!(md.contains("| sombrero | 64x64 | 0 |"), "{md}");
+    run.assert_markdown_has("| sombrero | 64x64 | 0 |");
 }
 
 #[test]
 fn bench_holes_measures_every_hole_against_the_harmonic_fill() {
-    let dir = tempdir().expect("temp dir");
-    let out = dir.path().join("holes");
-    bench_quick(&out, &["--part", "holes", "--scenes", "sombrero"]);
-    let report = read_json(&out.join("holes.json"));
-    let rows = report["rows"].as_array().expect("rows");
-    let holes: BTreeSet<&str> = rows.iter().map(|r| r["hole"].as_str().unwrap()).collect();
-    assert_eq!(
-        holes,
-        BTreeSet::from(["band", "blobs", "disc", "silhouette"])
-    );
+    let run = QuickPart::run("holes", &["--scenes", "sombrero"]);
+    let rows = run.rows();
     assert_eq!(rows.len(), 8, "four holes, clean and noisy");
+    assert_names(rows, "hole", &["band", "blobs", "disc", "silhouette"]);
     for row in rows {
         let value = |key: &str| row[key].as_f64().unwrap();
         let (without, fill) = (value("rse_no_hole"), value("rse_harmonic_fill"));
@@ -206,27 +197,23 @@ fn bench_holes_measures_every_hole_against_the_harmonic_fill() {
             "{row}"
         );
     }
-    let md = std::fs::read_to_string(out.join("holes.md")).expect("holes.md");
-    assert!(md.contains("| sombrero | 128x128 | 0 | disc |"), "{md}");
+    run.assert_markdown_has("| sombrero | 128x128 | 0 | disc |");
 }
 
 #[test]
 fn bench_speed_reports_every_method_side_by_side() {
-    let dir = tempdir().expect("temp dir");
-    let out = dir.path().join("speed");
-    bench_quick(&out, &["--part", "speed", "--scenes", "sombrero"]);
-    let report = read_json(&out.join("speed.json"));
-    let rows = report["rows"].as_array().expect("rows");
-    let methods: BTreeSet<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
-    assert_eq!(
-        methods,
-        BTreeSet::from([
+    let run = QuickPart::run("speed", &["--scenes", "sombrero"]);
+    let rows = run.rows();
+    assert_names(
+        rows,
+        "method",
+        &[
             "defaults",
             "fast marching",
             "fixed counts",
             "multigrid",
-            "paper schedule"
-        ])
+            "paper schedule",
+        ],
     );
     for row in rows {
         assert_eq!(row["size"], "256x256");
@@ -244,27 +231,28 @@ fn bench_speed_reports_every_method_side_by_side() {
     assert!(inner("defaults") < inner("fixed counts"));
     // SOR against V-cycles on the same system: both reduce the residual,
     // 4 cycles further than 40 sweeps.
-    let convergence = report["convergence"].as_array().expect("convergence");
+    let convergence = run.report["convergence"].as_array().expect("convergence");
     assert_eq!(convergence.len(), 1);
     let c = &convergence[0];
     let value = |key: &str| c[key].as_f64().expect(key);
     assert!(value("sor_after_40") < value("sor_after_10") && value("sor_after_10") < 1.0);
     assert!(value("cycle_after_4") < value("sor_after_40"), "{c}");
-    assert!(out.join("speed.md").exists());
-    assert!(out.join("speed-sombrero-256x256.png").exists());
+    assert!(run.out.join("speed.md").exists());
+    assert!(run.out.join("speed-sombrero-256x256.png").exists());
 }
 
 #[test]
 fn bench_quick_on_a_tiny_configuration_writes_a_report_that_parses() {
     let dir = tempdir().expect("temp dir");
     let out = dir.path().join("bench");
-    bench_quick(&out, &["--scenes", "sombrero", "--explicit-seconds", "0.5"]);
+    run_into(
+        &out,
+        "--quick",
+        &["--scenes", "sombrero", "--explicit-seconds", "0.5"],
+    );
     let report = read_json(&out.join("report.json"));
     let rows = report["rows"].as_array().expect("rows");
-    let methods: BTreeSet<&str> = rows
-        .iter()
-        .map(|r| r["method"].as_str().expect("method"))
-        .collect();
+    let methods = names(rows, "method");
     for method in [
         "linearised",
         "explicit",

@@ -8,7 +8,7 @@ use sfs_core::camera::Intrinsics;
 use sfs_core::grid::Grid;
 use sfs_core::light::LightModel;
 use sfs_core::metrics;
-use sfs_core::model::{PixelRay, Reflectance};
+use sfs_core::model::{LevelGeometry, Reflectance};
 use sfs_core::params::{LinearSolver, SolverParams};
 use sfs_core::scene::{self, Scene, sombrero::sombrero};
 use sfs_core::solver::{Problem, Solution, solve};
@@ -24,22 +24,18 @@ fn analytic(
     on_object: impl Fn(f64, f64) -> bool,
 ) -> Scene {
     let camera = Intrinsics::centred(SIZE as f64, SIZE, SIZE);
+    let pixels = LevelGeometry::new(SIZE, SIZE, SIZE, SIZE, camera);
     let model = LightModel::new(1.0, &[]);
     let mut depth_gt = Grid::filled(SIZE, SIZE, f64::NAN);
     let mut object_mask = Grid::filled(SIZE, SIZE, false);
     let image = Grid::from_fn(SIZE, SIZE, |c, r| {
-        let (x_px, y_px) = camera.image_xy(c as f64, r as f64);
-        if !on_object(x_px, y_px) {
+        let ray = pixels.ray(c, r);
+        if !on_object(ray.x_px, ray.y_px) {
             return 0.0;
         }
-        let (z, zx, zy) = depth(x_px, y_px);
+        let (z, zx, zy) = depth(ray.x_px, ray.y_px);
         *depth_gt.at_mut(c, r) = z;
         *object_mask.at_mut(c, r) = true;
-        let ray = PixelRay {
-            x_px,
-            y_px,
-            focal_px: camera.focal_px,
-        };
         model.radiance(&ray, z, zx, zy)
     });
     // Exposed so that the brightest pixel is 0.9, as scenes are rendered.

@@ -417,10 +417,10 @@ fn the_input_shows_the_photograph_as_it_looks_and_hovering_reads_linear_values()
     let doc = harness.state().document().expect("open");
     let largest_change = doc
         .image
+        .zip_map(&image, |a, b| (a - b).abs())
         .as_slice()
         .iter()
-        .zip(image.as_slice())
-        .map(|(a, b)| (a - b).abs())
+        .copied()
         .fold(0.0, f64::max);
     assert!(largest_change < 1e-4, "{largest_change}");
     // Shown with the exposure that makes the 99th percentile (0.05) white.
