@@ -131,7 +131,7 @@ impl CoarseLevel {
 }
 
 /// The multigrid hierarchy of one system: its coarse levels in the
-/// crate's one hierarchy ([`crate::linalg::multigrid`]).
+/// crate's one hierarchy (`linalg::multigrid`).
 pub struct Multigrid {
     hierarchy: Hierarchy<CoarseLevel>,
     /// The fine residual, laid out like `LinearSystem::dz_padded`.
