@@ -17,6 +17,10 @@
 //! reused while the system changes a little (the inner iterations on Psi'):
 //! the cycle always smooths and measures residuals on the current fine
 //! system, only the coarse correction is the older one.
+//!
+//! The coarsening loop and the V-cycle are the crate's one hierarchy's
+//! (`crate::linalg::multigrid`); this module supplies its levels: the
+//! system with its smoother on top ([`Fine`]), the Galerkin levels below.
 
 use rayon::prelude::*;
 
