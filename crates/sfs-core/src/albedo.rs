@@ -24,12 +24,15 @@
 //! image once it is divided out. Pure functions over `grid`, polling a `Cancel` between
 //! iterations.
 
+use std::borrow::Borrow;
+
 use rayon::prelude::*;
 
 use crate::albedo_chain::{EdgePair, confirmed_by_chain};
 use crate::cancel::{Cancel, Cancelled};
 use crate::grid::Grid;
 use crate::linalg::cg;
+use crate::linalg::multigrid::{self, Coarsen, Hierarchy, Level as _, Sweeps};
 
 /// The default edge step `tau`: the smallest change of log brightness
 /// between neighbours taken as an albedo edge (0.2: a ratio of 1.22).
@@ -538,7 +541,8 @@ impl Stencil {
 
 /// Solves the integration's system from zero by conjugate gradients
 /// preconditioned with a multigrid V-cycle over its 2x2-block Galerkin
-/// levels ([`Hierarchy`]), to a relative residual of 1e-6; returns the
+/// levels ([`JacobiLevel`] in the crate's one [`Hierarchy`]), to a relative
+/// residual of 1e-6; returns the
 /// iterations. The estimate is the system's solution, not where a solver
 /// stops: the cascadic Jacobi-preconditioned CG before ran into its 400
 /// iterations at every level above 256 px, and the chains' estimate on the
@@ -546,30 +550,49 @@ impl Stencil {
 /// converged without [`CUT_WEIGHT`]). The bench's render rows are the same
 /// to four digits at 1e-6 and 1e-9 (at most 136 iterations at 1e-8).
 fn integrate(stencil: &Stencil, x: &mut [f64], cancel: Cancel<'_>) -> Result<usize, Cancelled> {
-    let hierarchy = Hierarchy::new(stencil);
+    let mut fine = JacobiLevel::new(stencil);
+    let mut hierarchy = Hierarchy::build(&fine);
     x.iter_mut().for_each(|v| *v = 0.0);
-    let precondition = |r: &[f64], z: &mut [f64]| hierarchy.v_cycle(0, r, z);
-    conjugate_gradients(stencil, x, &precondition, cancel)
+    // One V-cycle from zero for `A z = r` (the same smoothing before and
+    // after, the coarse correction weighted by [`COARSE_CORRECTION`]):
+    // symmetric, and positive on every system measured, so a
+    // preconditioner of conjugate gradients (which stops should `r . z`
+    // ever turn non-positive).
+    let precondition = |r: &[f64], z: &mut [f64]| {
+        fine.b.copy_from_slice(r);
+        fine.zero_unknowns();
+        hierarchy.cycle(&mut fine, SWEEPS);
+        z.copy_from_slice(&fine.x);
+    };
+    conjugate_gradients(stencil, x, precondition, cancel)
 }
 
-/// The 2x2-block Galerkin levels of the integration's system, each with
-/// its diagonal: a multigrid V-cycle as the preconditioner of conjugate
-/// gradients.
-struct Hierarchy<'a> {
-    /// The system itself.
-    finest: &'a Stencil,
-    /// Its coarser levels, down to a side of at most [`COARSEST_SIDE`].
-    coarse: Vec<Stencil>,
-    /// The diagonal of each level, the finest first.
-    diagonals: Vec<Vec<f64>>,
+/// One level of the integration's multigrid: a [`Stencil`] (borrowed for
+/// the finest, owned below) with its diagonal and vectors, smoothed by
+/// damped Jacobi, its coarser level the 2x2-block Galerkin system of
+/// [`Stencil::coarsen`].
+struct JacobiLevel<S> {
+    /// The level's system.
+    stencil: S,
+    /// The diagonal of its matrix.
+    diagonal: Vec<f64>,
+    /// The unknowns.
+    x: Vec<f64>,
+    /// The right-hand side (the finest level's: the residual to
+    /// precondition).
+    b: Vec<f64>,
+    /// `A x` and residuals.
+    scratch: Vec<f64>,
 }
 
 /// The coarsest level's longest side, pixels.
 const COARSEST_SIDE: usize = 4;
-/// Damped Jacobi sweeps before and after each coarse correction.
-const SMOOTHING_SWEEPS: usize = 2;
-/// Jacobi sweeps on the coarsest level.
-const COARSEST_SWEEPS: usize = 20;
+/// Damped Jacobi sweeps before and after each coarse correction, and on
+/// the coarsest level.
+const SWEEPS: Sweeps = Sweeps {
+    smoothing: 2,
+    coarsest: 20,
+};
 /// The coarse correction's weight: a piecewise-constant prolongation
 /// undercorrects smooth errors; measured on a 1920x1080 render's two
 /// estimates, 1.5 needed 11-29 iterations to 1e-4 against 22-41 with 1.
@@ -578,47 +601,48 @@ const COARSE_CORRECTION: f64 = 1.5;
 /// graph Laplacian, whose Jacobi-scaled spectrum lies in (0, 2]).
 const JACOBI_DAMPING: f64 = 0.8;
 
-impl<'a> Hierarchy<'a> {
-    /// The levels of `finest`.
-    fn new(finest: &'a Stencil) -> Self {
-        let mut coarse: Vec<Stencil> = Vec::new();
-        loop {
-            let last = coarse.last().unwrap_or(finest);
-            if last.width.max(last.height) <= COARSEST_SIDE {
-                break;
-            }
-            let next = last.coarsen();
-            coarse.push(next);
-        }
-        let mut diagonals = vec![finest.diagonal()];
-        diagonals.extend(coarse.iter().map(Stencil::diagonal));
+impl<S: Borrow<Stencil>> JacobiLevel<S> {
+    /// The level of `stencil`, its vectors zero.
+    fn new(stencil: S) -> Self {
+        let system: &Stencil = stencil.borrow();
+        let diagonal = system.diagonal();
+        let n = system.width * system.height;
         Self {
-            finest,
-            coarse,
-            diagonals,
+            stencil,
+            diagonal,
+            x: vec![0.0; n],
+            b: vec![0.0; n],
+            scratch: vec![0.0; n],
         }
     }
+}
 
-    /// Level `l` (0: the finest).
-    fn level(&self, l: usize) -> &Stencil {
-        if l == 0 {
-            self.finest
-        } else {
-            &self.coarse[l - 1]
-        }
+impl<S: Borrow<Stencil>> Coarsen for JacobiLevel<S> {
+    type Coarse = JacobiLevel<Stencil>;
+
+    /// The 2x2-block Galerkin level, down to a longest side of at most
+    /// [`COARSEST_SIDE`].
+    fn coarsen(&self) -> Option<JacobiLevel<Stencil>> {
+        let stencil: &Stencil = self.stencil.borrow();
+        (stencil.width.max(stencil.height) > COARSEST_SIDE)
+            .then(|| JacobiLevel::new(stencil.coarsen()))
     }
+}
 
-    /// `z` += damped Jacobi sweeps on level `l` for `A z = r`.
-    fn smooth(&self, l: usize, r: &[f64], z: &mut [f64], sweeps: usize, scratch: &mut [f64]) {
-        let stencil = self.level(l);
-        let diagonal = &self.diagonals[l];
+impl<S: Borrow<Stencil>> multigrid::Level for JacobiLevel<S> {
+    type Coarse = JacobiLevel<Stencil>;
+
+    /// `x` += damped Jacobi sweeps for `A x = b`.
+    fn smooth(&mut self, sweeps: usize) {
+        let stencil: &Stencil = self.stencil.borrow();
         for _ in 0..sweeps {
-            stencil.apply(z, scratch);
-            z.par_iter_mut()
+            stencil.apply(&self.x, &mut self.scratch);
+            self.x
+                .par_iter_mut()
                 .zip(
-                    scratch
+                    self.scratch
                         .par_iter()
-                        .zip(r.par_iter().zip(diagonal.par_iter())),
+                        .zip(self.b.par_iter().zip(self.diagonal.par_iter())),
                 )
                 .for_each(|(z, (az, (r, d)))| {
                     if *d > 0.0 {
@@ -628,31 +652,26 @@ impl<'a> Hierarchy<'a> {
         }
     }
 
-    /// One V-cycle from zero for `A z = r` on level `l` (the same smoothing
-    /// before and after, the coarse correction weighted by
-    /// [`COARSE_CORRECTION`]): symmetric, and positive on every system
-    /// measured, so a preconditioner of conjugate gradients (which stops
-    /// should `r . z` ever turn non-positive).
-    fn v_cycle(&self, l: usize, r: &[f64], z: &mut [f64]) {
-        z.iter_mut().for_each(|v| *v = 0.0);
-        let mut scratch = vec![0.0; r.len()];
-        if l == self.coarse.len() {
-            self.smooth(l, r, z, COARSEST_SWEEPS, &mut scratch);
-            return;
-        }
-        self.smooth(l, r, z, SMOOTHING_SWEEPS, &mut scratch);
-        let stencil = self.level(l);
-        // The residual r - A z, restricted to the coarser level.
-        stencil.apply(z, &mut scratch);
-        scratch
+    /// The residual `b - A x` summed over the 2x2 blocks.
+    fn restrict_residual(&mut self, coarse: &mut JacobiLevel<Stencil>) {
+        let stencil: &Stencil = self.stencil.borrow();
+        stencil.apply(&self.x, &mut self.scratch);
+        self.scratch
             .par_iter_mut()
-            .zip(r.par_iter())
+            .zip(self.b.par_iter())
             .for_each(|(az, r)| *az = r - *az);
-        let coarse_r = stencil.restrict(&scratch);
-        let mut coarse_z = vec![0.0; coarse_r.len()];
-        self.v_cycle(l + 1, &coarse_r, &mut coarse_z);
-        stencil.prolong_add(&coarse_z, COARSE_CORRECTION, z);
-        self.smooth(l, r, z, SMOOTHING_SWEEPS, &mut scratch);
+        coarse.b = stencil.restrict(&self.scratch);
+    }
+
+    /// Each 2x2 block of `x` raised by [`COARSE_CORRECTION`] times its
+    /// coarse value.
+    fn prolong_add(&mut self, coarse: &JacobiLevel<Stencil>) {
+        let stencil: &Stencil = self.stencil.borrow();
+        stencil.prolong_add(&coarse.x, COARSE_CORRECTION, &mut self.x);
+    }
+
+    fn zero_unknowns(&mut self) {
+        self.x.iter_mut().for_each(|v| *v = 0.0);
     }
 }
 
@@ -664,7 +683,7 @@ impl<'a> Hierarchy<'a> {
 fn conjugate_gradients(
     stencil: &Stencil,
     x: &mut [f64],
-    precondition: &(dyn Fn(&[f64], &mut [f64]) + Sync),
+    precondition: impl FnMut(&[f64], &mut [f64]),
     cancel: Cancel<'_>,
 ) -> Result<usize, Cancelled> {
     const MAX_ITERATIONS: usize = 400;

@@ -17,10 +17,15 @@
 //! reused while the system changes a little (the inner iterations on Psi'):
 //! the cycle always smooths and measures residuals on the current fine
 //! system, only the coarse correction is the older one.
+//!
+//! The coarsening loop and the V-cycle are the crate's one hierarchy's
+//! (`crate::linalg::multigrid`); this module supplies its levels: the
+//! system with its smoother on top ([`Fine`]), the Galerkin levels below.
 
 use rayon::prelude::*;
 
 use crate::cancel::{Cancel, Uncancelled};
+use crate::linalg::multigrid::{self, Coarsen, Hierarchy, Sweeps};
 
 use super::sor;
 use super::system::{HALO, LinearSystem, PLANE_INVERSE_DIAGONAL, PLANES};
@@ -95,7 +100,7 @@ impl Axis {
 }
 
 /// One coarse level: its Galerkin operator and vectors.
-struct Level {
+pub(crate) struct CoarseLevel {
     width: usize,
     height: usize,
     /// 25 coefficients per pixel (row-major 5x5 around it, centre 12).
@@ -113,7 +118,7 @@ struct Level {
     y_axis: Axis,
 }
 
-impl Level {
+impl CoarseLevel {
     fn padded_width(&self) -> usize {
         self.width + 2 * HALO
     }
@@ -129,9 +134,10 @@ impl Level {
     }
 }
 
-/// The multigrid hierarchy of one system.
+/// The multigrid hierarchy of one system: its coarse levels in the
+/// crate's one hierarchy (`linalg::multigrid`).
 pub struct Multigrid {
-    levels: Vec<Level>,
+    hierarchy: Hierarchy<CoarseLevel>,
     /// The fine residual, laid out like `LinearSystem::dz_padded`.
     fine_residual: Vec<f32>,
     /// Smoothing sweeps before and after each coarse correction.
@@ -147,19 +153,8 @@ impl Multigrid {
     /// system smaller than 2 x [`COARSEST_SIDE`] on a side: a cycle is then
     /// plain smoothing).
     pub fn build(system: &LinearSystem, sweeps: usize) -> Self {
-        let mut levels: Vec<Level> = Vec::new();
-        let (mut w, mut h) = (system.width, system.height);
-        while w.div_ceil(2) >= COARSEST_SIDE && h.div_ceil(2) >= COARSEST_SIDE {
-            let (x_axis, y_axis) = (Axis::new(w), Axis::new(h));
-            let level = match levels.last() {
-                None => galerkin(w, h, |c, r| system.stencil(c, r), x_axis, y_axis),
-                Some(finer) => galerkin(w, h, |c, r| finer.stencil_at(c, r), x_axis, y_axis),
-            };
-            (w, h) = (level.width, level.height);
-            levels.push(level);
-        }
         Self {
-            levels,
+            hierarchy: Hierarchy::build(system),
             fine_residual: vec![0.0; system.dz_padded.len()],
             sweeps: sweeps.max(1),
         }
@@ -167,39 +162,28 @@ impl Multigrid {
 
     /// Number of coarse levels.
     pub fn coarse_levels(&self) -> usize {
-        self.levels.len()
+        self.hierarchy.levels().len()
     }
 
     /// One V-cycle on `system` (its current unknowns as the start): smooth,
     /// correct from the coarse levels, smooth ([`Self::residual_norm`] then
     /// says how far it got).
     pub fn cycle(&mut self, system: &mut LinearSystem, smoother: &dyn Smoother) {
-        smoother.smooth(system, self.sweeps);
-        if self.levels.is_empty() {
+        if self.hierarchy.levels().is_empty() {
+            // Plain smoothing: once, not the coarsest level's sweeps.
+            smoother.smooth(system, self.sweeps);
             return;
         }
-        system.residual_into(&mut self.fine_residual);
-        let pw = system.padded_width();
-        // The residual is padded: image pixel (c, r) at (r + HALO) pw + c + HALO.
-        restrict(
-            &self.fine_residual,
-            pw,
-            HALO * pw + HALO,
-            &mut self.levels[0],
-        );
-        coarse_cycle(&mut self.levels, self.sweeps);
-        let LinearSystem {
-            coefficients,
-            dz_padded,
-            width,
-            height,
-            ..
-        } = system;
-        let inverse_plane = PLANE_INVERSE_DIAGONAL * pw + HALO;
-        prolong_add(&self.levels[0], dz_padded, (*width, *height), |c, r| {
-            coefficients[(r + HALO) * PLANES * pw + inverse_plane + c] != 0.0
-        });
-        smoother.smooth(system, self.sweeps);
+        let mut fine = Fine {
+            system,
+            smoother,
+            residual: &mut self.fine_residual,
+        };
+        let sweeps = Sweeps {
+            smoothing: self.sweeps,
+            coarsest: COARSEST_SWEEPS,
+        };
+        self.hierarchy.cycle(&mut fine, sweeps);
     }
 
     /// The Euclidean norm of `b - A dz` of the current unknowns.
@@ -208,9 +192,104 @@ impl Multigrid {
     }
 }
 
+/// The next coarser level below a `w x h` one whose rows `stencil` gives,
+/// or None when a side would fall below [`COARSEST_SIDE`].
+fn coarser<F>(w: usize, h: usize, stencil: F) -> Option<CoarseLevel>
+where
+    F: Fn(usize, usize) -> Option<[f32; 25]> + Sync,
+{
+    (w.div_ceil(2) >= COARSEST_SIDE && h.div_ceil(2) >= COARSEST_SIDE)
+        .then(|| galerkin(w, h, stencil, Axis::new(w), Axis::new(h)))
+}
+
+impl Coarsen for LinearSystem {
+    type Coarse = CoarseLevel;
+
+    fn coarsen(&self) -> Option<CoarseLevel> {
+        coarser(self.width, self.height, |c, r| self.stencil(c, r))
+    }
+}
+
+impl Coarsen for CoarseLevel {
+    type Coarse = CoarseLevel;
+
+    fn coarsen(&self) -> Option<CoarseLevel> {
+        coarser(self.width, self.height, |c, r| self.stencil_at(c, r))
+    }
+}
+
+/// The finest level of a cycle: the system, its smoother and the buffer of
+/// its residual.
+struct Fine<'a> {
+    system: &'a mut LinearSystem,
+    smoother: &'a dyn Smoother,
+    residual: &'a mut [f32],
+}
+
+impl multigrid::Level for Fine<'_> {
+    type Coarse = CoarseLevel;
+
+    fn smooth(&mut self, sweeps: usize) {
+        self.smoother.smooth(self.system, sweeps);
+    }
+
+    fn restrict_residual(&mut self, coarse: &mut CoarseLevel) {
+        self.system.residual_into(self.residual);
+        let pw = self.system.padded_width();
+        // The residual is padded: image pixel (c, r) at (r + HALO) pw + c + HALO.
+        restrict(self.residual, pw, HALO * pw + HALO, coarse);
+    }
+
+    fn prolong_add(&mut self, coarse: &CoarseLevel) {
+        let pw = self.system.padded_width();
+        let LinearSystem {
+            coefficients,
+            dz_padded,
+            width,
+            height,
+            ..
+        } = &mut *self.system;
+        let inverse_plane = PLANE_INVERSE_DIAGONAL * pw + HALO;
+        prolong_add(coarse, dz_padded, (*width, *height), |c, r| {
+            coefficients[(r + HALO) * PLANES * pw + inverse_plane + c] != 0.0
+        });
+    }
+
+    fn zero_unknowns(&mut self) {
+        self.system.dz_padded.iter_mut().for_each(|v| *v = 0.0);
+    }
+}
+
+impl multigrid::Level for CoarseLevel {
+    type Coarse = CoarseLevel;
+
+    fn smooth(&mut self, sweeps: usize) {
+        for _ in 0..sweeps {
+            gauss_seidel(self);
+        }
+    }
+
+    fn restrict_residual(&mut self, coarse: &mut CoarseLevel) {
+        coarse_residual(self);
+        restrict(&self.r, self.width, 0, coarse);
+    }
+
+    fn prolong_add(&mut self, coarse: &CoarseLevel) {
+        let (w, h) = (self.width, self.height);
+        let inverse = &self.inverse_diagonal;
+        prolong_add(coarse, &mut self.x, (w, h), |c, r| {
+            inverse[r * w + c] != 0.0
+        });
+    }
+
+    fn zero_unknowns(&mut self) {
+        self.x.iter_mut().for_each(|v| *v = 0.0);
+    }
+}
+
 /// The Galerkin operator `P^T A P` of a `w x h` level whose rows `stencil`
 /// gives (None: not solved for), on the grid the axes coarsen to.
-fn galerkin<F>(w: usize, h: usize, stencil: F, x_axis: Axis, y_axis: Axis) -> Level
+fn galerkin<F>(w: usize, h: usize, stencil: F, x_axis: Axis, y_axis: Axis) -> CoarseLevel
 where
     F: Fn(usize, usize) -> Option<[f32; 25]> + Sync,
 {
@@ -292,7 +371,7 @@ where
         }
     }
     let padded = (wc + 2 * HALO) * (hc + 2 * HALO);
-    Level {
+    CoarseLevel {
         width: wc,
         height: hc,
         stencil: coefficients,
@@ -307,7 +386,7 @@ where
 
 /// `coarse.b = P^T r` from the finer level's residual, whose pixel `(c, r)`
 /// is `residual[r * stride + c + offset]`.
-fn restrict(residual: &[f32], stride: usize, offset: usize, coarse: &mut Level) {
+fn restrict(residual: &[f32], stride: usize, offset: usize, coarse: &mut CoarseLevel) {
     let (x_axis, y_axis) = (&coarse.x_axis, &coarse.y_axis);
     let wc = coarse.width;
     coarse
@@ -330,7 +409,7 @@ fn restrict(residual: &[f32], stride: usize, offset: usize, coarse: &mut Level) 
 /// `fine += P coarse.x` at the finer level's pixels that `solved` accepts;
 /// `fine` holds a `size` level padded by [`HALO`].
 fn prolong_add(
-    coarse: &Level,
+    coarse: &CoarseLevel,
     fine: &mut [f32],
     size: (usize, usize),
     solved: impl Fn(usize, usize) -> bool + Sync,
@@ -360,37 +439,8 @@ fn prolong_add(
         });
 }
 
-/// The V-cycle below the finest level: `levels[0].b` is set, its unknowns
-/// are solved for from zero.
-fn coarse_cycle(levels: &mut [Level], sweeps: usize) {
-    let Some((level, coarser)) = levels.split_first_mut() else {
-        return;
-    };
-    level.x.iter_mut().for_each(|v| *v = 0.0);
-    if coarser.is_empty() {
-        for _ in 0..COARSEST_SWEEPS {
-            gauss_seidel(level);
-        }
-        return;
-    }
-    for _ in 0..sweeps {
-        gauss_seidel(level);
-    }
-    coarse_residual(level);
-    restrict(&level.r, level.width, 0, &mut coarser[0]);
-    coarse_cycle(coarser, sweeps);
-    let inverse = &level.inverse_diagonal;
-    let w = level.width;
-    prolong_add(&coarser[0], &mut level.x, (w, level.height), |c, r| {
-        inverse[r * w + c] != 0.0
-    });
-    for _ in 0..sweeps {
-        gauss_seidel(level);
-    }
-}
-
 /// `r = b - A x` on a coarse level.
-fn coarse_residual(level: &mut Level) {
+fn coarse_residual(level: &mut CoarseLevel) {
     let (w, pw) = (level.width, level.padded_width());
     let (x, stencil, inverse, b) = (&level.x, &level.stencil, &level.inverse_diagonal, &level.b);
     level
@@ -439,7 +489,7 @@ impl SharedUnknowns {
 
 /// One Gauss-Seidel sweep of a coarse level in band red-black order (the
 /// order of [`sor::sweep`]): even bands in parallel, then odd bands.
-fn gauss_seidel(level: &mut Level) {
+fn gauss_seidel(level: &mut CoarseLevel) {
     let (w, h, pw) = (level.width, level.height, level.padded_width());
     let len = level.x.len();
     let unknowns = SharedUnknowns(level.x.as_mut_ptr());
@@ -579,7 +629,7 @@ mod tests {
         }
         let s = system(31, 26, 0.3);
         let mg = Multigrid::build(&s, 2);
-        for level in &mg.levels {
+        for level in mg.hierarchy.levels() {
             let (w, h) = (level.width, level.height);
             for q in 0..w * h {
                 for k in 0..25 {
