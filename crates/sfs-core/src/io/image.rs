@@ -1,7 +1,8 @@
 //! Grey images and masks: PNG, TIFF (8/16/32-bit and float) and JPEG read as
-//! linear luminance (sRGB decoded on request or as the file says), 16- and
-//! 8-bit PNG writers marking linear data (gAMA 1.0), mask PNGs, and the
-//! 16-bit depth picture for viewing.
+//! linear luminance (sRGB decoded on request or as the file says; integer
+//! samples on [0, 1], float samples on their own scale, see
+//! [`FloatSamples`]), 16- and 8-bit PNG writers marking linear data (gAMA
+//! 1.0), mask PNGs, and the 16-bit depth picture for viewing.
 
 use std::fs;
 use std::path::Path;

@@ -1,9 +1,8 @@
 //! Reading and writing the files sfs-studio works with, one module per
 //! format: [`image`] (grey images and masks: PNG, TIFF with integer or float
-//! samples, JPEG), [`npy`]
-//! (NumPy arrays), [`mesh`] (PLY and OBJ meshes of a depth map), [`json`]
-//! (any serde value) and [`atomic`] (a file replaced all at once). The
-//! camera file is [`crate::camera_file`]'s.
+//! samples, JPEG), [`npy`] (NumPy arrays), [`mesh`] (PLY and OBJ meshes of a
+//! depth map), [`json`] (any serde value) and [`atomic`] (a file replaced
+//! all at once). The camera file is [`crate::camera_file`]'s.
 //!
 //! Every error names the file (or folder) it concerns.
 
