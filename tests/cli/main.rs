@@ -6,6 +6,7 @@
 
 mod common;
 mod depth_unit;
+mod floats;
 #[cfg(feature = "gui")]
 mod fronts;
 mod options;

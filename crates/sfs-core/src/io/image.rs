@@ -1,7 +1,8 @@
 //! Grey images and masks: PNG, TIFF (8/16/32-bit and float) and JPEG read as
-//! linear luminance (sRGB decoded on request or as the file says), 16- and
-//! 8-bit PNG writers marking linear data (gAMA 1.0), mask PNGs, and the
-//! 16-bit depth picture for viewing.
+//! linear luminance (sRGB decoded on request or as the file says; integer
+//! samples on [0, 1], float samples on their own scale, see
+//! [`FloatSamples`]), 16- and 8-bit PNG writers marking linear data (gAMA
+//! 1.0), mask PNGs, and the 16-bit depth picture for viewing.
 
 use std::fs;
 use std::path::Path;
@@ -25,7 +26,10 @@ fn srgb_to_linear(v: f64) -> f64 {
     }
 }
 
-fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
+/// Decodes `path`; the flag says whether its samples are floats (a float
+/// TIFF: no fixed white), as opposed to integers (divided by their type's
+/// maximum, on [0, 1]).
+fn decode_image(path: &Path) -> Result<(DynamicImage, bool), IoError> {
     let read_error = |cause: std::io::Error| IoError::ReadImage {
         path: path.to_path_buf(),
         cause: ImageError::IoError(cause),
@@ -39,17 +43,24 @@ fn decode_image(path: &Path) -> Result<DynamicImage, IoError> {
         .with_guessed_format()
         .map_err(read_error)?;
     let is_tiff = reader.format() == Some(ImageFormat::Tiff);
-    reader.decode().or_else(|cause| match cause {
+    match reader.decode() {
+        Ok(image) => {
+            let float = matches!(
+                image,
+                DynamicImage::ImageRgb32F(_) | DynamicImage::ImageRgba32F(_)
+            );
+            Ok((image, float))
+        }
         // Grey float32/float64 and 32-bit integer TIFFs, which `image` does
         // not decode.
-        ImageError::Unsupported(_) if is_tiff => {
+        Err(ImageError::Unsupported(_)) if is_tiff => {
             decode_tiff_samples(path).map_err(|reason| IoError::BadImage {
                 path: path.to_path_buf(),
                 reason,
             })
         }
-        cause => Err(cause_to_error(path, cause)),
-    })
+        Err(cause) => Err(cause_to_error(path, cause)),
+    }
 }
 
 /// The EXIF orientation of a photograph when it is not the identity
@@ -123,9 +134,9 @@ fn cause_to_error(path: &Path, cause: ImageError) -> IoError {
 
 /// Decodes a TIFF with the `tiff` crate directly: grey, grey+alpha, RGB or
 /// RGBA with unsigned 8/16/32-bit or float 32/64-bit samples, returned as
-/// float RGB (integers divided by their type's maximum). The error says what
-/// the file holds.
-fn decode_tiff_samples(path: &Path) -> Result<DynamicImage, String> {
+/// float RGB (integers divided by their type's maximum), with whether the
+/// samples were floats. The error says what the file holds.
+fn decode_tiff_samples(path: &Path) -> Result<(DynamicImage, bool), String> {
     use tiff::ColorType;
     use tiff::decoder::{Decoder, DecodingResult};
     let file = fs::File::open(path).map_err(|e| e.to_string())?;
@@ -140,23 +151,26 @@ fn decode_tiff_samples(path: &Path) -> Result<DynamicImage, String> {
         ColorType::RGBA(_) => (4, true),
         other => return Err(format!("TIFF colour type {other:?} is not supported")),
     };
-    let values: Vec<f32> = match decoder.read_image().map_err(|e| format!("bad TIFF: {e}"))? {
-        DecodingResult::U8(v) => v.iter().map(|&s| f32::from(s) / 255.0).collect(),
-        DecodingResult::U16(v) => v.iter().map(|&s| f32::from(s) / 65535.0).collect(),
-        DecodingResult::U32(v) => v
-            .iter()
-            .map(|&s| (f64::from(s) / f64::from(u32::MAX)) as f32)
-            .collect(),
-        DecodingResult::F32(v) => v,
-        DecodingResult::F64(v) => v.iter().map(|&s| s as f32).collect(),
-        _ => {
-            return Err(
-                "TIFF samples are signed, 64-bit integer or half float; unsigned 8/16/32-bit \
+    let (values, float): (Vec<f32>, bool) =
+        match decoder.read_image().map_err(|e| format!("bad TIFF: {e}"))? {
+            DecodingResult::U8(v) => (v.iter().map(|&s| f32::from(s) / 255.0).collect(), false),
+            DecodingResult::U16(v) => (v.iter().map(|&s| f32::from(s) / 65535.0).collect(), false),
+            DecodingResult::U32(v) => (
+                v.iter()
+                    .map(|&s| (f64::from(s) / f64::from(u32::MAX)) as f32)
+                    .collect(),
+                false,
+            ),
+            DecodingResult::F32(v) => (v, true),
+            DecodingResult::F64(v) => (v.iter().map(|&s| s as f32).collect(), true),
+            _ => {
+                return Err(
+                    "TIFF samples are signed, 64-bit integer or half float; unsigned 8/16/32-bit \
                  and float 32/64-bit are supported"
-                    .into(),
-            );
-        }
-    };
+                        .into(),
+                );
+            }
+        };
     let pixels = (w as usize) * (h as usize);
     if values.len() != pixels * channels {
         return Err(format!(
@@ -175,7 +189,7 @@ fn decode_tiff_samples(path: &Path) -> Result<DynamicImage, String> {
         })
         .collect();
     image::Rgb32FImage::from_raw(w, h, rgb_values)
-        .map(DynamicImage::ImageRgb32F)
+        .map(|image| (DynamicImage::ImageRgb32F(image), float))
         .ok_or_else(|| format!("the TIFF's {w}x{h} pixels do not match its samples"))
 }
 
@@ -212,7 +226,25 @@ fn samples_to_grey<T: Copy + Into<f64>>(
     })
 }
 
-fn image_to_grey(path: &Path, image: DynamicImage, srgb: bool) -> Result<Grid<f64>, IoError> {
+/// What a float image's samples held (see [`read_photo`]): a float image
+/// has no fixed white, so its values are read on their own scale.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FloatSamples {
+    /// Pixels with a negative sample (noise below a dark frame's level),
+    /// read as 0.
+    pub negative_pixels: usize,
+    /// Their share of the image's pixels.
+    pub negative_share: f64,
+}
+
+/// An image's linear grey values: integer samples on [0, 1], float samples
+/// (`float`) on their own scale with [`FloatSamples`].
+fn image_to_grey(
+    path: &Path,
+    image: DynamicImage,
+    float: bool,
+    srgb: bool,
+) -> Result<(Grid<f64>, Option<FloatSamples>), IoError> {
     let (w, h) = (image.width() as usize, image.height() as usize);
     if w == 0 || h == 0 {
         return Err(IoError::BadImage {
@@ -245,18 +277,28 @@ fn image_to_grey(path: &Path, image: DynamicImage, srgb: bool) -> Result<Grid<f6
         DynamicImage::ImageRgba16(b) => {
             samples_to_grey(path, (w, h, 4), b.as_raw(), true, 65535.0, srgb)?
         }
-        DynamicImage::ImageRgb32F(b) => float_to_grey(path, w, h, b.as_raw(), 3, srgb)?,
-        DynamicImage::ImageRgba32F(b) => float_to_grey(path, w, h, b.as_raw(), 4, srgb)?,
+        DynamicImage::ImageRgb32F(b) if float => {
+            return own_scale_to_grey(path, (w, h, 3), b.as_raw(), srgb);
+        }
+        DynamicImage::ImageRgba32F(b) if float => {
+            return own_scale_to_grey(path, (w, h, 4), b.as_raw(), srgb);
+        }
+        // Integer TIFF samples the `tiff` crate decoded, divided by their
+        // type's maximum.
+        DynamicImage::ImageRgb32F(b) => unit_float_to_grey(path, w, h, b.as_raw(), 3, srgb)?,
+        DynamicImage::ImageRgba32F(b) => unit_float_to_grey(path, w, h, b.as_raw(), 4, srgb)?,
         other => {
             // Layouts added to `image` later: go through normalised float RGB.
             let rgb = other.to_rgb32f();
-            float_to_grey(path, w, h, rgb.as_raw(), 3, srgb)?
+            unit_float_to_grey(path, w, h, rgb.as_raw(), 3, srgb)?
         }
     };
-    Ok(grid)
+    Ok((grid, None))
 }
 
-fn float_to_grey(
+/// Float samples already on [0, 1] (integers divided by their type's
+/// maximum): clamped to it, NaN refused.
+fn unit_float_to_grey(
     path: &Path,
     width: usize,
     height: usize,
@@ -276,19 +318,77 @@ fn float_to_grey(
     samples_to_grey(path, (width, height, channels), raw, true, 1.0, srgb)
 }
 
-/// Reads a PNG, TIFF or JPEG (8-bit, 16-bit or float) as linear grey values
-/// in [0, 1].
+/// A float image's samples (`channels` per pixel, the first three red,
+/// green and blue; a grey image's three equal) as linear grey on their own
+/// scale: no fixed white, so nothing is clamped at the top; a negative
+/// sample is read as 0 and counted; NaN and infinite samples are refused,
+/// naming the file and the first such pixel.
+fn own_scale_to_grey(
+    path: &Path,
+    (width, height, channels): (usize, usize, usize),
+    raw: &[f32],
+    srgb: bool,
+) -> Result<(Grid<f64>, Option<FloatSamples>), IoError> {
+    let pixels = || raw.chunks_exact(channels).map(|px| &px[..3]);
+    let not_finite = pixels()
+        .filter(|px| px.iter().any(|v| !v.is_finite()))
+        .count();
+    if let Some(first) = pixels().position(|px| px.iter().any(|v| !v.is_finite())) {
+        let column = first % width.max(1);
+        let row = first / width.max(1);
+        return Err(IoError::BadImage {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{not_finite} of its pixels hold NaN or infinite values (the first at column \
+                 {column}, row {row}): a photograph's values must be finite; mask them out and \
+                 write them as 0"
+            ),
+        });
+    }
+    let mut negative_pixels = 0usize;
+    let data = pixels()
+        .map(|px| {
+            negative_pixels += usize::from(px.iter().any(|&v| v < 0.0));
+            let lin = |v: f32| {
+                let v = f64::from(v).max(0.0);
+                if srgb { srgb_to_linear(v) } else { v }
+            };
+            if px[0] == px[1] && px[1] == px[2] {
+                // Grey: its own value, exactly.
+                lin(px[0])
+            } else {
+                LUMA_709[0] * lin(px[0]) + LUMA_709[1] * lin(px[1]) + LUMA_709[2] * lin(px[2])
+            }
+        })
+        .collect();
+    let grid = Grid::from_vec(width, height, data).ok_or_else(|| IoError::BadImage {
+        path: path.to_path_buf(),
+        reason: format!(
+            "the decoder gave {} samples for {width}x{height} pixels of {channels} channel(s)",
+            raw.len()
+        ),
+    })?;
+    let float = FloatSamples {
+        negative_pixels,
+        negative_share: negative_pixels as f64 / grid.len().max(1) as f64,
+    };
+    Ok((grid, Some(float)))
+}
+
+/// Reads a PNG, TIFF or JPEG (8-bit, 16-bit or float) as linear grey values.
 ///
 /// Integer samples are divided by the maximum of their type (8-bit by 255,
-/// 16-bit by 65535); float samples are clamped to [0, 1] and NaN is rejected.
-/// When `srgb` is true every channel (grey included) is first linearised with
-/// the sRGB transfer function. Colour is converted to luminance with the
-/// Rec. 709 weights (0.2126, 0.7152, 0.0722) on the linear channel values.
-/// Alpha is ignored. The format is recognised from the content, falling back
-/// to the extension. Empty images are an error.
+/// 16-bit by 65535), so lie in [0, 1]. Float samples have no fixed white:
+/// they are read on their own scale (nothing clamped at the top), a
+/// negative sample as 0 ([`read_photo`] says how many), and NaN or infinite
+/// samples are refused. When `srgb` is true every channel (grey included)
+/// is first linearised with the sRGB transfer function. Colour is converted
+/// to luminance with the Rec. 709 weights (0.2126, 0.7152, 0.0722) on the
+/// linear channel values. Alpha is ignored. The format is recognised from
+/// the content, falling back to the extension. Empty images are an error.
 pub fn read_image(path: &Path, srgb: bool) -> Result<Grid<f64>, IoError> {
-    let image = decode_image(path)?;
-    image_to_grey(path, image, srgb)
+    let (image, float) = decode_image(path)?;
+    Ok(image_to_grey(path, image, float, srgb)?.0)
 }
 
 /// How a photograph's values are decoded to linear light (`--srgb`).
@@ -308,7 +408,7 @@ pub enum SrgbMode {
 /// What [`SrgbMode::Auto`] decides for `path`, and why (for reports and the
 /// viewer). `None` when the file cannot be decoded.
 pub fn srgb_decision(path: &Path, mode: SrgbMode) -> Result<(bool, String), IoError> {
-    let image = decode_image(path)?;
+    let (image, _) = decode_image(path)?;
     Ok(decide_srgb(path, &image, mode))
 }
 
@@ -370,29 +470,50 @@ fn png_marked_linear(path: &Path) -> bool {
     }
 }
 
-/// Reads a photograph as linear grey values, deciding the sRGB decoding by
-/// `mode`; returns the image and whether sRGB decoding was applied, with the
-/// reason.
-pub fn read_photo(path: &Path, mode: SrgbMode) -> Result<(Grid<f64>, bool, String), IoError> {
-    let mut image = decode_image(path)?;
+/// A photograph as [`read_photo`] reads it.
+#[derive(Clone, Debug)]
+pub struct DecodedPhoto {
+    /// Linear grey values: an integer image's on [0, 1] (value / its type's
+    /// maximum), a float image's on its own scale (see [`read_image`]).
+    pub image: Grid<f64>,
+    /// Whether sRGB decoding was applied.
+    pub srgb: bool,
+    /// Why.
+    pub srgb_reason: String,
+    /// For a float image, what its samples held; `None` for integer
+    /// samples.
+    pub float: Option<FloatSamples>,
+}
+
+/// Reads a photograph as linear grey values (as [`read_image`]), upright
+/// (its EXIF orientation applied), deciding the sRGB decoding by `mode`.
+pub fn read_photo(path: &Path, mode: SrgbMode) -> Result<DecodedPhoto, IoError> {
+    let (mut image, float) = decode_image(path)?;
     // Upright, as photo viewers show it (and as masks are drawn on it).
     if let Some(orientation) = exif_orientation(path) {
         image.apply_orientation(orientation);
     }
-    let (srgb, why) = decide_srgb(path, &image, mode);
-    Ok((image_to_grey(path, image, srgb)?, srgb, why))
+    let (srgb, srgb_reason) = decide_srgb(path, &image, mode);
+    let (image, float) = image_to_grey(path, image, float, srgb)?;
+    Ok(DecodedPhoto {
+        image,
+        srgb,
+        srgb_reason,
+        float,
+    })
 }
 
 /// Reads a mask/confidence image as values in [0, 1]: grey value divided by
 /// the maximum of its type, luminance (Rec. 709) for colour, never
-/// sRGB-decoded; alpha is ignored.
+/// sRGB-decoded; alpha is ignored. A float image's values are clamped to
+/// [0, 1].
 ///
 /// # Errors
 /// Besides the reading errors, a mask with transparent pixels is refused:
 /// its grey values are the mask, and a transparent pixel's grey says
 /// nothing (a cut-out's alpha would be silently ignored).
 pub fn read_mask(path: &Path) -> Result<Grid<f64>, IoError> {
-    let image = decode_image(path)?;
+    let (image, float) = decode_image(path)?;
     if image.color().has_alpha() && image.to_luma_alpha16().pixels().any(|p| p.0[1] < u16::MAX) {
         return Err(IoError::BadImage {
             path: path.to_path_buf(),
@@ -401,7 +522,11 @@ pub fn read_mask(path: &Path) -> Result<Grid<f64>, IoError> {
                 .into(),
         });
     }
-    image_to_grey(path, image, false)
+    let (grid, samples) = image_to_grey(path, image, float, false)?;
+    Ok(match samples {
+        Some(_) => grid.map(|v| v.clamp(0.0, 1.0)),
+        None => grid,
+    })
 }
 
 fn image_dims(path: &Path, width: usize, height: usize) -> Result<(u32, u32), IoError> {
@@ -586,9 +711,9 @@ mod tests {
         let path = dir.path().join("noisy8.png");
         let image = Grid::from_fn(8, 6, |c, r| (c + r) as f64 / 20.0);
         write_png8(&path, &image).unwrap();
-        let (read, srgb, why) = read_photo(&path, SrgbMode::Auto).unwrap();
-        assert!(!srgb, "{why}");
-        for (a, b) in read.as_slice().iter().zip(image.as_slice()) {
+        let photo = read_photo(&path, SrgbMode::Auto).unwrap();
+        assert!(!photo.srgb, "{}", photo.srgb_reason);
+        for (a, b) in photo.image.as_slice().iter().zip(image.as_slice()) {
             assert!((a - b).abs() <= 0.5 / 255.0 + 1e-12, "{a} vs {b}");
         }
     }
@@ -721,7 +846,7 @@ mod tests {
             assert!((v - k as f64 / 11.0).abs() < 1e-6, "{k}: {v}");
         }
         // Read as linear by the automatic sRGB decision.
-        assert!(!read_photo(&float_path, SrgbMode::Auto).unwrap().1);
+        assert!(!read_photo(&float_path, SrgbMode::Auto).unwrap().srgb);
 
         let uint_path = dir.path().join("grey32u.tif");
         let values: Vec<u32> = (0..w * h).map(|k| k * (u32::MAX / 11)).collect();
@@ -743,6 +868,49 @@ mod tests {
             .unwrap();
         let e = read_image(&signed_path, false).unwrap_err().to_string();
         assert!(e.contains("grey16i.tif") && e.contains("signed"), "{e}");
+    }
+
+    /// A float TIFF is read on its own scale (issue 48 item 11): nothing
+    /// clamped at 1, a negative value read as 0 and counted, NaN and
+    /// infinity refused naming the file; a float mask still reads on
+    /// [0, 1].
+    #[test]
+    fn h5_float_tiffs_keep_their_scale_and_refuse_non_finite_values() {
+        use tiff::encoder::{TiffEncoder, colortype};
+        let dir = tempdir().unwrap();
+        let write = |name: &str, values: &[f32]| {
+            let path = dir.path().join(name);
+            let mut encoder = TiffEncoder::new(fs::File::create(&path).unwrap()).unwrap();
+            encoder
+                .write_image::<colortype::Gray32Float>(2, 2, values)
+                .unwrap();
+            path
+        };
+        let path = write("hdr.tif", &[3.0, 0.001, -0.5, 1024.0]);
+        let photo = read_photo(&path, SrgbMode::Auto).unwrap();
+        assert_eq!(
+            photo.image.as_slice(),
+            &[3.0, f64::from(0.001f32), 0.0, 1024.0]
+        );
+        let float = photo.float.unwrap();
+        assert_eq!((float.negative_pixels, float.negative_share), (1, 0.25));
+        assert_eq!(
+            read_mask(&path).unwrap().as_slice(),
+            &[1.0, f64::from(0.001f32), 0.0, 1.0]
+        );
+        // Integer samples are not float ones.
+        let png = dir.path().join("a.png");
+        write_png16(&png, &ramp(2, 2)).unwrap();
+        assert_eq!(read_photo(&png, SrgbMode::Auto).unwrap().float, None);
+
+        for (name, bad) in [("inf.tif", f32::INFINITY), ("nan.tif", f32::NAN)] {
+            let path = write(name, &[0.5, 0.5, 0.5, bad]);
+            let e = read_photo(&path, SrgbMode::Auto).unwrap_err().to_string();
+            assert!(
+                e.contains(name) && e.contains("NaN or infinite") && e.contains("column 1, row 1"),
+                "{e}"
+            );
+        }
     }
 
     #[test]
@@ -786,7 +954,7 @@ mod tests {
         );
         assert_eq!(image_size(&path).unwrap(), (3, 2));
         assert_eq!(photo_size(&path).unwrap(), (2, 3));
-        let (grid, _, _) = read_photo(&path, SrgbMode::Off).unwrap();
+        let grid = read_photo(&path, SrgbMode::Off).unwrap().image;
         assert_eq!(grid.size(), (2, 3));
         // Turned a quarter clockwise: the stored bottom-left pixel (13) is
         // the top-left, the stored top-left (10) the top-right.

@@ -1,8 +1,8 @@
 //! Reading and writing the files sfs-studio works with, one module per
-//! format: [`image`] (grey images and masks: PNG, TIFF, JPEG), [`npy`]
-//! (NumPy arrays), [`mesh`] (PLY and OBJ meshes of a depth map), [`json`]
-//! (any serde value) and [`atomic`] (a file replaced all at once). The
-//! camera file is [`crate::camera_file`]'s.
+//! format: [`image`] (grey images and masks: PNG, TIFF with integer or float
+//! samples, JPEG), [`npy`] (NumPy arrays), [`mesh`] (PLY and OBJ meshes of a
+//! depth map), [`json`] (any serde value) and [`atomic`] (a file replaced
+//! all at once). The camera file is [`crate::camera_file`]'s.
 //!
 //! Every error names the file (or folder) it concerns.
 
@@ -14,9 +14,9 @@ pub mod mesh;
 pub mod npy;
 
 pub use self::image::{
-    SrgbMode, depth_range, exif_orientation, image_size, photo_size, read_image, read_mask,
-    read_photo, srgb_decision, write_depth_png16, write_mask_png, write_png8, write_png16,
-    write_rgb_png8,
+    DecodedPhoto, FloatSamples, SrgbMode, depth_range, exif_orientation, image_size, photo_size,
+    read_image, read_mask, read_photo, srgb_decision, write_depth_png16, write_mask_png,
+    write_png8, write_png16, write_rgb_png8,
 };
 pub use atomic::write_atomic;
 pub use error::IoError;

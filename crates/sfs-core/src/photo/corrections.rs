@@ -3,13 +3,18 @@
 //! values, and each one's own corrected image kept when asked for), an
 //! ambient (dark) frame subtracted, vignetting (cos^4 or a flat-field image)
 //! and a known albedo divided out, then area-averaged to the working size.
+//!
+//! Float photographs (no fixed white) are loaded on their own scale: nothing
+//! is saturated by its value, and the ambient frame and the other
+//! photographs of a sum must be float too (on the same scale); the pipeline
+//! then scales the result ([`super::prepare`]).
 
 use std::path::{Path, PathBuf};
 
 use crate::camera::Intrinsics;
 use crate::cancel::{Cancel, Uncancelled};
 use crate::grid::Grid;
-use crate::io::{self, IoError, SrgbMode};
+use crate::io::{self, FloatSamples, IoError, SrgbMode};
 use crate::solver::problem::SATURATED;
 
 /// Albedo values below this are not trusted (division would amplify noise):
@@ -81,7 +86,8 @@ pub(super) struct Each {
     /// as for the sum), when [`Corrections::keep_each`].
     pub image: Option<Grid<f64>>,
     /// Where it was saturated: a working pixel any of whose source pixels
-    /// was decoded at or above [`SATURATED`].
+    /// was decoded at or above [`SATURATED`] (nowhere for a float
+    /// photograph).
     pub clipped: Grid<bool>,
 }
 
@@ -101,26 +107,82 @@ pub(super) struct Photo {
     pub ambient_clamped: f64,
     /// Several photographs: where any of them was saturated, at the working
     /// size (the sum's value says nothing: it may pass 1 where none was);
-    /// `None` for one photograph, whose own values say it.
+    /// `None` for one photograph, whose own values say it. Float
+    /// photographs: nowhere (a float has no clipping level), for one too.
     pub clipped: Option<Grid<bool>>,
     /// Several photographs: each one, in the order given; empty for one.
     pub each: Vec<Each>,
+    /// Whether the photographs hold float samples: the image is on their
+    /// own scale (no fixed white), not on [0, 1].
+    pub float: bool,
+    /// Each float file read (photograph, ambient frame, flat field, albedo)
+    /// that had negative samples, read as 0: the file and what it held.
+    pub negatives: Vec<(PathBuf, FloatSamples)>,
 }
 
+/// How the photographs of a load were decoded, which every photograph-like
+/// file must match, and the float files' negative samples met so far.
+struct Decoding<'a> {
+    /// The first photograph.
+    first: &'a Path,
+    /// Its sRGB decoding.
+    mode: SrgbMode,
+    /// Whether its samples are floats.
+    float: bool,
+    /// Float files with negative samples.
+    negatives: Vec<(PathBuf, FloatSamples)>,
+}
+
+impl Decoding<'_> {
+    /// Notes a float file's negative samples (once per file).
+    fn record(&mut self, path: &Path, float: Option<FloatSamples>) {
+        if let Some(samples) = float.filter(|f| f.negative_pixels > 0)
+            && !self.negatives.iter().any(|(p, _)| p == path)
+        {
+            self.negatives.push((path.to_path_buf(), samples));
+        }
+    }
+
+    /// Refuses a photograph or ambient frame `path` whose samples are not
+    /// of the first photograph's kind (float or integer): the two scales
+    /// are unrelated.
+    fn check_kind(&self, path: &Path, what: &str, float: bool) -> Result<(), IoError> {
+        if float == self.float {
+            return Ok(());
+        }
+        let kind = |f: bool| if f { "float" } else { "integer" };
+        Err(IoError::BadImage {
+            path: path.to_path_buf(),
+            reason: format!(
+                "the {what} holds {} samples but the photograph {} holds {} ones: a float \
+                 image has no fixed white, so the two are on unrelated scales; give files of \
+                 one kind",
+                kind(float),
+                self.first.display(),
+                kind(self.float)
+            ),
+        })
+    }
+}
+
+/// Reads `path` (the `what`) decoded in `mode`, refusing another size than
+/// `size`; returns the values and, for a float image, what its samples
+/// held.
 fn read_sized(
     path: &Path,
     what: &str,
     size: (usize, usize),
     mode: SrgbMode,
-) -> Result<Grid<f64>, IoError> {
+) -> Result<(Grid<f64>, Option<FloatSamples>), IoError> {
     // A `.npy` map (the albedo.npy a solve writes) is read as its values.
     let npy = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
-    let grid = if npy {
-        io::read_npy(path)?
+    let (grid, float) = if npy {
+        (io::read_npy(path)?, None)
     } else {
-        io::read_photo(path, mode)?.0
+        let photo = io::read_photo(path, mode)?;
+        (photo.image, photo.float)
     };
     if grid.size() != size {
         return Err(IoError::BadImage {
@@ -134,7 +196,7 @@ fn read_sized(
             ),
         });
     }
-    Ok(grid)
+    Ok((grid, float))
 }
 
 /// An image with the corrections applied, at the photograph's size.
@@ -147,20 +209,24 @@ struct Corrected {
 }
 
 /// Applies the corrections of `setup` to `image`, the sum of `frames`
-/// photographs of `size` pixels decoded in `mode`: the ambient frame
-/// subtracted `frames` times (clamped at 0), the flat field or cos^4 and
-/// the albedo divided out. The frames are read here, one at a time.
+/// photographs of `size` pixels decoded as `decoding` says: the ambient
+/// frame (of the photographs' kind) subtracted `frames` times (clamped at
+/// 0), the flat field or cos^4 and the albedo divided out. The frames are
+/// read here, one at a time.
 fn correct(
     mut image: Grid<f64>,
     frames: usize,
     setup: &Corrections<'_>,
     size: (usize, usize),
-    mode: SrgbMode,
+    decoding: &mut Decoding<'_>,
     camera: Option<Intrinsics>,
 ) -> Result<Corrected, IoError> {
+    let mode = decoding.mode;
     let mut clamped = 0usize;
     if let Some(path) = setup.ambient {
-        let ambient = read_sized(path, "ambient frame", size, mode)?;
+        let (ambient, float) = read_sized(path, "ambient frame", size, mode)?;
+        decoding.check_kind(path, "ambient frame", float.is_some())?;
+        decoding.record(path, float);
         let frames = frames as f64;
         image = image.zip_map(&ambient, |a, b| {
             let v = a - frames * b;
@@ -171,7 +237,8 @@ fn correct(
         });
     }
     if let Vignetting::FlatField(path) = setup.vignetting {
-        let flat = read_sized(path, "flat field", size, mode)?;
+        let (flat, float) = read_sized(path, "flat field", size, mode)?;
+        decoding.record(path, float);
         let mean = flat.as_slice().iter().sum::<f64>() / flat.len().max(1) as f64;
         if mean.is_nan() || mean <= 0.0 {
             return Err(IoError::BadImage {
@@ -187,7 +254,8 @@ fn correct(
     }
     let mut lost = None;
     if let Some(path) = setup.albedo {
-        let albedo = read_sized(path, "albedo", size, SrgbMode::Off)?;
+        let (albedo, float) = read_sized(path, "albedo", size, SrgbMode::Off)?;
+        decoding.record(path, float);
         image = image.zip_map(&albedo, |a, b| if *b >= MIN_ALBEDO { a / b } else { 0.0 });
         lost = Some(albedo.map(|&b| if b >= MIN_ALBEDO { 1.0 } else { 0.0 }));
     }
@@ -214,27 +282,44 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
             reason: "no photograph given".into(),
         });
     };
-    let (mut image, srgb, why) = io::read_photo(first, setup.srgb)?;
+    let io::DecodedPhoto {
+        mut image,
+        srgb,
+        srgb_reason: why,
+        float,
+    } = io::read_photo(first, setup.srgb)?;
     let size = image.size();
     let mode = if srgb { SrgbMode::On } else { SrgbMode::Off };
+    let mut decoding = Decoding {
+        first,
+        mode,
+        float: float.is_some(),
+        negatives: Vec::new(),
+    };
+    decoding.record(first, float);
+    // A float has no clipping level: saturation is not inferred from its
+    // values.
+    let is_float = decoding.float;
+    let saturated = |v: f64| !is_float && v >= SATURATED;
     let (w, h) = working_size(size.0, size.1, setup.max_side);
     let resize = |grid: &Grid<f64>| resize_area(grid, w, h, Cancel::NEVER).uncancelled();
     // One of several photographs: where it is saturated (a working pixel
     // with any saturated source pixel: area weights are positive), and its
     // own corrected image when asked for.
-    let one_of_several = |photo: &Grid<f64>| -> Result<Each, IoError> {
-        let clipped = resize(&photo.map(|&v| if v >= SATURATED { 1.0 } else { 0.0 }));
-        let image = if setup.keep_each {
-            let own = correct(photo.clone(), 1, setup, size, mode, camera)?;
-            Some(resize(&own.image))
-        } else {
-            None
+    let one_of_several =
+        |photo: &Grid<f64>, decoding: &mut Decoding<'_>| -> Result<Each, IoError> {
+            let clipped = resize(&photo.map(|&v| if saturated(v) { 1.0 } else { 0.0 }));
+            let image = if setup.keep_each {
+                let own = correct(photo.clone(), 1, setup, size, decoding, camera)?;
+                Some(resize(&own.image))
+            } else {
+                None
+            };
+            Ok(Each {
+                image,
+                clipped: clipped.map(|&v| v > 0.0),
+            })
         };
-        Ok(Each {
-            image,
-            clipped: clipped.map(|&v| v > 0.0),
-        })
-    };
     let several = setup.images.len() > 1;
     // Saturation is judged on the photographs as taken: a sum may pass 1
     // where none was saturated, and so may one photograph once an albedo or
@@ -242,10 +327,10 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
     // saturated as taken is kept here).
     let raised = setup.albedo.is_some() || !matches!(setup.vignetting, Vignetting::None);
     let taken_clipped = (!several && raised)
-        .then(|| resize(&image.map(|&v| if v >= SATURATED { 1.0 } else { 0.0 })).map(|&v| v > 0.0));
+        .then(|| resize(&image.map(|&v| if saturated(v) { 1.0 } else { 0.0 })).map(|&v| v > 0.0));
     let mut each = Vec::new();
     if several {
-        each.push(one_of_several(&image)?);
+        each.push(one_of_several(&image, &mut decoding)?);
     }
     for path in &setup.images[1..] {
         let what = format!(
@@ -253,11 +338,20 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
             path.display(),
             first.display()
         );
-        let more = read_sized(path, &what, size, mode)?;
-        each.push(one_of_several(&more)?);
+        let (more, more_float) = read_sized(path, &what, size, mode)?;
+        decoding.check_kind(path, "photograph", more_float.is_some())?;
+        decoding.record(path, more_float);
+        each.push(one_of_several(&more, &mut decoding)?);
         image = image.zip_map(&more, |a, b| a + b);
     }
-    let corrected = correct(image, setup.images.len(), setup, size, mode, camera)?;
+    let corrected = correct(
+        image,
+        setup.images.len(),
+        setup,
+        size,
+        &mut decoding,
+        camera,
+    )?;
     let ambient_clamped = match setup.ambient {
         Some(_) => corrected.clamped as f64 / corrected.image.len().max(1) as f64,
         None => 0.0,
@@ -270,6 +364,8 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         Some(Grid::from_fn(w, h, |c, r| {
             each.iter().any(|one: &Each| *one.clipped.at(c, r))
         }))
+    } else if is_float {
+        Some(Grid::filled(w, h, false))
     } else {
         taken_clipped
     };
@@ -280,5 +376,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         ambient_clamped,
         clipped,
         each,
+        float: is_float,
+        negatives: decoding.negatives,
     })
 }

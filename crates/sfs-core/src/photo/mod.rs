@@ -113,6 +113,13 @@ pub struct PhotoReport {
     /// a camera file or when the lights were given.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub rig_lights: Vec<PointLight>,
+    /// Float photographs (no fixed white): the power of two their values
+    /// and the lights' intensities were multiplied by, so that the
+    /// brightest trusted object pixel lies in [1/2, 1) (exact; a given
+    /// intensity scale keeps its meaning in the files' units). `None` for
+    /// integer photographs, read on [0, 1].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub float_scale: Option<f64>,
     /// Several photographs: the power of two their sum (and the lights'
     /// intensities) was divided by so that no trusted value the photographs
     /// did not clip reaches the top of the range (1 when none did); the
@@ -364,7 +371,7 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
     let own_lights = lights_per_photograph(input, &decided.lights);
     check_memory(input, full_size, own_lights)?;
     let vignetting = &input.vignetting;
-    let photo = corrections::load(
+    let mut photo = corrections::load(
         &corrections::Corrections {
             images: &input.images,
             srgb: input.srgb,
@@ -400,6 +407,44 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
             Some(c) => c.zip_map(lost, |a, b| a.min(*b)),
             None => lost.clone(),
         });
+    }
+    let mut lights = decided.lights;
+    let float_scale = photo.float.then(|| {
+        scale_float_photo(
+            &mut photo,
+            &mut lights,
+            object_mask.as_ref(),
+            confidence.as_ref(),
+        )
+    });
+    if let Some(scale) = float_scale {
+        let which = match input.images.as_slice() {
+            [one] => format!("{} holds", one.display()),
+            _ => "the photographs hold".into(),
+        };
+        let scaled = if scale == 1.0 {
+            "its brightest trusted object pixel already lies in [1/2, 1)".to_owned()
+        } else {
+            format!(
+                "multiplied by 2^{} (exact) so that the brightest trusted object pixel lies in \
+                 [1/2, 1), the lights' intensities alike (a given intensity scale keeps its \
+                 meaning in the file's units)",
+                scale.log2().round() as i64
+            )
+        };
+        decided.notes.push(format!(
+            "{which} float samples, which have no fixed white: read on their own scale ({scaled}); \
+             no pixel is taken for saturated by its value"
+        ));
+    }
+    for (path, samples) in &photo.negatives {
+        decided.notes.push(format!(
+            "{} holds negative values (noise below a dark level?) at {} pixels ({:.2} % of the \
+             image): read as 0",
+            path.display(),
+            samples.negative_pixels,
+            100.0 * samples.negative_share
+        ));
     }
     let mut clipped_share = None;
     if let Some(clipped) = &photo.clipped {
@@ -441,7 +486,6 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
         suggestion = Some(counts);
     }
     let mut image = photo.image;
-    let mut lights = decided.lights;
     let mut sum_divisor = None;
     if let Some(clipped) = &photo.clipped {
         let divisor = sum_divisor_for(&image, clipped, object_mask.as_ref(), confidence.as_ref());
@@ -540,6 +584,7 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
         },
         lights: lights.clone(),
         rig_lights: decided.rig_lights,
+        float_scale,
         sum_divisor,
         clipped_share,
         notes: decided.notes,
@@ -748,6 +793,69 @@ fn untrust_clipped(
         ));
     }
     Ok(share)
+}
+
+/// Scales a float photograph (`photo`: its values on their own scale) by
+/// the power of two that puts its brightest trusted object pixel (on the
+/// object, confidence > 0) in [1/2, 1): the image, each photograph of a sum
+/// and the lights' intensities (`lights`; none: the centred light, added
+/// with that intensity), so the model still explains the image with the
+/// same intensity scale. Returns the factor (1 when no trusted pixel is
+/// lit). Exact: a power of two scales every value alike.
+fn scale_float_photo(
+    photo: &mut corrections::Photo,
+    lights: &mut Vec<PointLight>,
+    object: Option<&Grid<bool>>,
+    confidence: Option<&Grid<f64>>,
+) -> f64 {
+    let image = &photo.image;
+    let top = (0..image.len())
+        .filter(|&q| {
+            object.is_none_or(|o| o.as_slice()[q])
+                && confidence.is_none_or(|c| c.as_slice()[q] > 0.0)
+        })
+        .map(|q| image.as_slice()[q])
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let scale = power_of_two_into_half_one(top);
+    if scale != 1.0 {
+        photo.image = photo.image.map(|v| v * scale);
+        for each in &mut photo.each {
+            if let Some(own) = &mut each.image {
+                *own = own.map(|v| v * scale);
+            }
+        }
+        if lights.is_empty() {
+            lights.push(PointLight {
+                intensity: scale,
+                ..PointLight::CENTRED
+            });
+        } else {
+            for light in lights.iter_mut() {
+                light.intensity *= scale;
+            }
+        }
+    }
+    scale
+}
+
+/// The power of two `2^-e` with `value * 2^-e` in [1/2, 1); 1 for a value
+/// that is not positive and finite. The exponent stays within +-1000, far
+/// beyond any photograph's values, so the factor is a normal number.
+fn power_of_two_into_half_one(value: f64) -> f64 {
+    if !(value > 0.0 && value.is_finite()) {
+        return 1.0;
+    }
+    const LIMIT: i32 = 1000;
+    let mut exponent = (value.log2().floor() as i32).saturating_add(1);
+    // `log2` may round across a power of two: settle on the exact one.
+    while exponent > -LIMIT && value * 2f64.powi(-exponent) < 0.5 {
+        exponent -= 1;
+    }
+    while exponent < LIMIT && value * 2f64.powi(-exponent) >= 1.0 {
+        exponent += 1;
+    }
+    2f64.powi(-exponent.clamp(-LIMIT, LIMIT))
 }
 
 /// The power of two a sum must be divided by so that no pixel the solver
@@ -971,6 +1079,166 @@ mod tests {
         assert!((*prepared.problem.image.at(9, 0) - 0.8).abs() < 1e-4);
         // NaN (the background of a solve's albedo.npy) is not trusted.
         assert!((prepared.report.albedo_untrusted_share - 0.5).abs() < 1e-12);
+    }
+
+    /// Writes `image` as a grey 32-bit float TIFF.
+    fn write_float_tiff(path: &Path, image: &Grid<f64>) {
+        use tiff::encoder::{TiffEncoder, colortype};
+        let values: Vec<f32> = image.as_slice().iter().map(|&v| v as f32).collect();
+        let mut encoder = TiffEncoder::new(std::fs::File::create(path).unwrap()).unwrap();
+        encoder
+            .write_image::<colortype::Gray32Float>(
+                image.width() as u32,
+                image.height() as u32,
+                &values,
+            )
+            .unwrap();
+    }
+
+    /// A float image has no fixed white: the Sombrero at 3x ("saturated")
+    /// and at 0.001x ("too dark", "near-black") solves to the depth of 1x,
+    /// with the intensity scale found from the object's distance, and
+    /// without a saturation or darkness warning (issue 48 item 11).
+    #[test]
+    fn h5_a_float_photograph_solves_alike_at_any_exposure() {
+        use crate::photograph_solve::PhotographSolve;
+        use crate::solver::Method;
+        let dir = tempdir().unwrap();
+        let scene = crate::scene::sombrero::sombrero(48, 48);
+        let distance = 1.5 * crate::solver::calibrate::median_depth(&scene.depth_gt);
+        let solve = |exposure: f64| {
+            let path = dir.path().join(format!("sombrero-{exposure}.tif"));
+            write_float_tiff(&path, &scene.image.map(|v| v * exposure));
+            let prepared = prepare(&PhotoInput {
+                camera: CameraSpec::Focal {
+                    focal_px: scene.camera.focal_px,
+                    cx_px: Some(scene.camera.principal_x_px),
+                    cy_px: Some(scene.camera.principal_y_px),
+                },
+                ..PhotoInput::new(&path)
+            })
+            .unwrap();
+            let mut job = PhotographSolve::of_prepared(
+                &prepared,
+                crate::params::SolverParams::default(),
+                Method::Linearised,
+            );
+            job.distance = Some(distance);
+            assert_eq!(job.refusal(), None, "{exposure}x");
+            let solved = job.run(&mut ()).unwrap();
+            (prepared, solved)
+        };
+        let (_, one) = solve(1.0);
+        for exposure in [3.0, 0.001] {
+            let (prepared, solved) = solve(exposure);
+            // Scaled by a power of two into [1/2, 1), said in the report.
+            let scale = prepared.report.float_scale.unwrap();
+            assert_eq!(scale.log2().fract(), 0.0, "{scale}");
+            let top = prepared
+                .problem
+                .image
+                .as_slice()
+                .iter()
+                .fold(0.0, |a: f64, &b| a.max(b));
+            assert!((0.5..1.0).contains(&top), "{exposure}x: brightest {top}");
+            assert!(
+                prepared
+                    .report
+                    .notes
+                    .iter()
+                    .any(|n| n.contains("float samples")),
+                "{:?}",
+                prepared.report.notes
+            );
+            for warning in &solved.warnings {
+                assert!(
+                    !warning.contains("saturated")
+                        && !warning.contains("dark")
+                        && !warning.contains("near-black"),
+                    "{exposure}x: {warning}"
+                );
+            }
+            assert_eq!(solved.fit.saturated_share, 0.0, "{exposure}x");
+            assert_eq!(solved.fit.near_black_share, 0.0, "{exposure}x");
+            for (a, b) in solved
+                .solution
+                .depth
+                .as_slice()
+                .iter()
+                .zip(one.solution.depth.as_slice())
+                .filter(|(a, _)| a.is_finite())
+            {
+                // The 32-bit floats' rounding (3e-7 measured).
+                assert!((a / b - 1.0).abs() < 2e-6, "{exposure}x: depth {a} vs {b}");
+            }
+        }
+    }
+
+    /// Negative float pixels (noise below a dark frame) are read as 0 and
+    /// said, with their share; an ambient frame of another kind than the
+    /// photograph (integer beside float) is refused, naming it.
+    #[test]
+    fn h5_negative_float_pixels_are_read_as_zero_and_said() {
+        let dir = tempdir().unwrap();
+        let path = dir.path().join("dark-subtracted.tif");
+        let image = Grid::from_fn(20, 10, |c, r| {
+            if c < 5 && r < 2 {
+                -0.01
+            } else {
+                0.2 + 0.01 * c as f64
+            }
+        });
+        write_float_tiff(&path, &image);
+        let input = PhotoInput {
+            camera: CameraSpec::Focal {
+                focal_px: 20.0,
+                cx_px: None,
+                cy_px: None,
+            },
+            ..PhotoInput::new(&path)
+        };
+        let prepared = prepare(&input).unwrap();
+        let note = prepared
+            .report
+            .notes
+            .iter()
+            .find(|n| n.contains("negative"))
+            .unwrap_or_else(|| panic!("{:?}", prepared.report.notes));
+        assert!(
+            note.contains("dark-subtracted.tif")
+                && note.contains("5.00 %")
+                && note.contains("10 pixels"),
+            "{note}"
+        );
+        assert_eq!(*prepared.problem.image.at(0, 0), 0.0);
+        // 0.39 -> 0.78: scaled by 2, the light with it.
+        assert_eq!(prepared.report.float_scale, Some(2.0));
+        assert_eq!(prepared.problem.lights.len(), 1);
+        assert_eq!(prepared.problem.lights[0].intensity, 2.0);
+
+        let ambient = dir.path().join("ambient.png");
+        write_png16(&ambient, &Grid::filled(20, 10, 0.01)).unwrap();
+        let e = prepare(&PhotoInput {
+            ambient: Some(ambient),
+            ..input
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("ambient.png") && e.contains("integer samples"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn h5_powers_of_two_put_a_value_in_half_one() {
+        for value in [1e-30, 0.001, 0.25, 0.5, 0.75, 1.0, 3.0, 1024.0, 1e30] {
+            let scale = power_of_two_into_half_one(value);
+            assert_eq!(scale.log2().fract(), 0.0, "{value}");
+            assert!((0.5..1.0).contains(&(value * scale)), "{value}: {scale}");
+        }
+        assert_eq!(power_of_two_into_half_one(0.0), 1.0);
+        assert_eq!(power_of_two_into_half_one(f64::INFINITY), 1.0);
     }
 
     #[test]

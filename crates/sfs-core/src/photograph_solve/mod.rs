@@ -162,6 +162,7 @@ impl PhotographSolve {
             },
             lights: problem.lights.clone(),
             rig_lights: Vec::new(),
+            float_scale: None,
             sum_divisor: None,
             clipped_share: None,
             notes: Vec::new(),
