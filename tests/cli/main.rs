@@ -9,6 +9,7 @@ mod depth_unit;
 #[cfg(feature = "gui")]
 mod fronts;
 mod photographs;
+mod photometric_fit;
 mod solve;
 mod synth;
 mod usage;
