@@ -17,8 +17,8 @@ use sfs_core::scene::photometric::{
 };
 use sfs_core::scene::sombrero::sombrero_lit;
 use sfs_core::solver::photometric::{
-    PhotometricParams, PhotometricProblem, PhotometricSolution, SetPhoto, solve_photometric,
-    validate, warnings,
+    PhotometricParams, PhotometricProblem, PhotometricSolution, SetPhoto, misfit_warning,
+    solve_photometric, validate, warnings,
 };
 
 /// The Sombrero at `side` px under `leds` LEDs with a patch albedo and
@@ -93,6 +93,12 @@ fn eight_leds_recover_shape_and_albedo() {
     // The albedo's patches come back as patches, not as shading: the ratio
     // of the two albedos on either side of a patch edge is the truth's.
     assert!(solution.albedo.as_slice().iter().any(|a| a.is_finite()));
+    // The clean set fits: no photograph or light is judged wrong.
+    assert!(
+        misfit_warning(&solution).is_none() && solution.light_warnings.is_empty(),
+        "{:?}",
+        warnings(&solution)
+    );
     // Each photograph is explained and mostly used.
     for photo in &solution.photos {
         assert!(
