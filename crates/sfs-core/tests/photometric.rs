@@ -676,65 +676,11 @@ struct CorpusRow {
     photo: usize,
     faulty: bool,
     fit_residual: f64,
-    fit_ratio: f64,
+    misfit_ratio: f64,
     relative_residual: f64,
     robust_share: f64,
     warned: bool,
-    sys0: f64,
-    sys1: f64,
-}
-
-/// Systematic misfit of photograph `j`: `I ~ P (a + b u + c v)` fitted by
-/// least squares over its lit trusted observations (`u`, `v` the pixel's
-/// place, -1 to 1); `|P (a - 1 + b u + c v)| / |I|`, with the scale alone
-/// and with the plane.
-fn systematic(image: &Grid<f64>, photo: &sfs_core::solver::photometric::PhotoResult) -> (f64, f64) {
-    use sfs_core::solver::photometric::{LEFT_OUT_ROBUST, USED};
-    let (w, h) = image.size();
-    let mut m = [[0.0f64; 3]; 3];
-    let mut rhs = [0.0f64; 3];
-    let (mut ip, mut pp, mut ii) = (0.0, 0.0, 0.0);
-    let mut samples = Vec::new();
-    for r in 0..h {
-        for c in 0..w {
-            let why = *photo.left_out.at(c, r);
-            if why != USED && why != LEFT_OUT_ROBUST {
-                continue;
-            }
-            let i = *image.at(c, r);
-            let p = i - *photo.residual.at(c, r);
-            let (u, v) = (
-                2.0 * c as f64 / w as f64 - 1.0,
-                2.0 * r as f64 / h as f64 - 1.0,
-            );
-            let basis = [p, p * u, p * v];
-            for a in 0..3 {
-                rhs[a] += basis[a] * i;
-                for b in 0..3 {
-                    m[a][b] += basis[a] * basis[b];
-                }
-            }
-            ip += i * p;
-            pp += p * p;
-            ii += i * i;
-            samples.push(basis);
-        }
-    }
-    if pp <= 0.0 || ii <= 0.0 {
-        return (f64::NAN, f64::NAN);
-    }
-    let a0 = ip / pp;
-    let sys0 = (a0 - 1.0).abs() * (pp / ii).sqrt();
-    let mat = glam::DMat3::from_cols_array_2d(&m);
-    let x = mat.inverse() * glam::DVec3::from_array(rhs);
-    let sum: f64 = samples
-        .iter()
-        .map(|b| {
-            let d = b[0] * (x.x - 1.0) + b[1] * x.y + b[2] * x.z;
-            d * d
-        })
-        .sum();
-    (sys0, (sum / ii).sqrt())
+    systematic_misfit: f64,
 }
 
 /// The judgement's rates over a randomized corpus (docs/photometric-fit.md):
@@ -839,11 +785,10 @@ fn fit_corpus() {
                 photo: k,
                 faulty: fault.is_some_and(|f| f.photo() == k),
                 fit_residual: photo.fit_residual,
-                fit_ratio: photo.misfit_ratio,
+                misfit_ratio: photo.misfit_ratio,
                 relative_residual: photo.relative_residual,
                 robust_share: photo.robust_share,
-                sys0: systematic(&faulty.photos[k].image, photo).0,
-                sys1: photo.systematic_misfit,
+                systematic_misfit: photo.systematic_misfit,
                 warned: all.iter().any(|w| {
                     w.starts_with(&photo.name)
                         && (w.contains("does not fit")
@@ -856,12 +801,12 @@ fn fit_corpus() {
     }
     if let Ok(path) = std::env::var("SFS_FIT_CORPUS_CSV") {
         let mut csv = String::from(
-            "case,scene,leds,noise_255,fault,photo,faulty,fit_residual,fit_ratio,\
-             relative_residual,robust_share,warned,sys0,sys1\n",
+            "case,scene,leds,noise_255,fault,photo,faulty,fit_residual,misfit_ratio,\
+             relative_residual,robust_share,warned,systematic_misfit\n",
         );
         for r in &rows {
             csv.push_str(&format!(
-                "{},{},{},{},{},{},{},{:.6},{:.4},{:.6},{:.4},{},{:.6},{:.6}\n",
+                "{},{},{},{},{},{},{},{:.6},{:.4},{:.6},{:.4},{},{:.6}\n",
                 r.case,
                 r.scene,
                 r.leds,
@@ -870,12 +815,11 @@ fn fit_corpus() {
                 r.photo,
                 r.faulty,
                 r.fit_residual,
-                r.fit_ratio,
+                r.misfit_ratio,
                 r.relative_residual,
                 r.robust_share,
                 r.warned,
-                r.sys0,
-                r.sys1
+                r.systematic_misfit
             ));
         }
         std::fs::write(&path, csv).expect("write the corpus csv");
@@ -901,12 +845,12 @@ fn fit_corpus() {
         let bad: Vec<f64> = of
             .iter()
             .filter(|r| r.faulty)
-            .map(|r| r.fit_ratio)
+            .map(|r| r.misfit_ratio)
             .collect();
         let good_max = of
             .iter()
             .filter(|r| !r.faulty)
-            .map(|r| r.fit_ratio)
+            .map(|r| r.misfit_ratio)
             .fold(0.0, f64::max);
         let bad_min = bad.iter().copied().fold(f64::INFINITY, f64::min);
         let warned = of.iter().filter(|r| r.faulty && r.warned).count();

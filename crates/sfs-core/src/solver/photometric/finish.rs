@@ -199,7 +199,7 @@ fn smooth_misfit(observations: impl Iterator<Item = (f64, f64, f64, f64)>) -> f6
 /// Photograph `j`'s value over the median of the others' (the mean of the
 /// middle two for an even count); NaN when it or that median is not a
 /// positive number.
-pub(super) fn ratio_to_the_others(values: &[f64], j: usize) -> f64 {
+fn ratio_to_the_others(values: &[f64], j: usize) -> f64 {
     let mut others: Vec<f64> = values
         .iter()
         .enumerate()
@@ -237,5 +237,45 @@ pub(super) fn check_finite(solution: &PhotometricSolution) -> Result<(), SolveEr
     match depth_divergence(&values) {
         Some(why) => Err(SolveError::Diverged(why)),
         None => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A photograph at half the predicted brightness leaves a smooth misfit
+    /// of its whole brightness, one brighter to the right a slope; a
+    /// residual that alternates from pixel to pixel (noise) none to speak
+    /// of.
+    #[test]
+    fn the_smooth_misfit_sees_a_scale_and_a_slope_but_not_noise() {
+        let at = |k: usize| (k % 16) as f64 / 8.0 - 1.0;
+        let grid = |k: usize| (at(k), at(k / 16));
+        let halved = smooth_misfit((0..256).map(|k| {
+            let (u, v) = grid(k);
+            (0.5, 1.0, u, v)
+        }));
+        assert!((halved - 1.0).abs() < 1e-9, "{halved}");
+        let sloped = smooth_misfit((0..256).map(|k| {
+            let (u, v) = grid(k);
+            (1.0 + 0.2 * u, 1.0, u, v)
+        }));
+        assert!(sloped > 0.05 && sloped < 0.2, "{sloped}");
+        let noisy = smooth_misfit((0..256).map(|k| {
+            let (u, v) = grid(k);
+            (if (k + k / 16) % 2 == 0 { 1.1 } else { 0.9 }, 1.0, u, v)
+        }));
+        assert!(noisy < 0.01, "{noisy}");
+    }
+
+    /// The ratio is to the median of the others (the middle two's mean).
+    #[test]
+    fn the_ratio_is_to_the_others_median() {
+        let values = [0.4, 0.1, 0.2, 0.3, f64::NAN];
+        assert!((ratio_to_the_others(&values, 0) - 0.4 / 0.2).abs() < 1e-12);
+        assert!((ratio_to_the_others(&values, 1) - 0.1 / 0.3).abs() < 1e-12);
+        assert!(ratio_to_the_others(&values, 4).is_nan());
+        assert!(ratio_to_the_others(&[0.1], 0).is_nan());
     }
 }
