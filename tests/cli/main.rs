@@ -11,6 +11,7 @@ mod floats;
 mod fronts;
 mod options;
 mod photographs;
+mod photometric_fit;
 mod solve;
 mod synth;
 mod usage;

@@ -99,12 +99,30 @@ impl PhotometricParams {
 pub struct PhotoResult {
     /// The photograph.
     pub name: String,
+    /// Its light as given (the report lists the lights with the input).
+    #[serde(skip)]
+    pub light: PointLight,
     /// Its intensity (given, or estimated and normalised to a geometric
     /// mean of 1 over the set).
     pub intensity: f64,
     /// Relative residual `||prediction - I|| / ||I||` over its used
     /// observations.
     pub relative_residual: f64,
+    /// Relative residual `||prediction - I|| / ||I||` over every trusted
+    /// observation its light reaches on the solved surface, those the
+    /// robust estimator weighted down included. NaN when there is none.
+    pub fit_residual: f64,
+    /// The smooth part of that misfit, relative to the photograph's
+    /// brightness: the prediction scaled by the best factor `a + b u + c v`
+    /// across the image (`u`, `v` from -1 to 1), minus the prediction. A
+    /// light whose intensity or position is not what the camera file says
+    /// leaves such a misfit; noise and local model errors do not. NaN when
+    /// there is no observation.
+    pub systematic_misfit: f64,
+    /// [`systematic_misfit`](Self::systematic_misfit) over the median of
+    /// the other photographs' (NaN when either is not a positive number);
+    /// judged by [`super::misfit_warning`].
+    pub misfit_ratio: f64,
     /// Share of the object's observations used.
     pub used_share: f64,
     /// Share left out as attached or cast shadow.
@@ -138,6 +156,11 @@ pub struct PhotometricSolution {
     pub albedo_relative: bool,
     /// Each photograph's fit.
     pub photos: Vec<PhotoResult>,
+    /// The lights that cannot light the object as solved (behind the
+    /// camera, beyond the object, pointing away: the single-image path's
+    /// rule, [`crate::light::lights_that_miss`]), each message led by the
+    /// photograph's name.
+    pub light_warnings: Vec<String>,
     /// Whether the intensities were estimated (semi-calibrated).
     pub intensities_estimated: bool,
     /// The smoothness weight used.
