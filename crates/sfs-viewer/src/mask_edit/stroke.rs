@@ -104,6 +104,7 @@ impl Masks {
         if !from.iter().chain(&to).all(|v| v.is_finite()) {
             return false;
         }
+        let segment = [from, to];
         let changed = match start {
             Snapshot::Confidence(s) => stamp(
                 self.confidence.as_mut_slice(),
@@ -111,7 +112,7 @@ impl Masks {
                 coverage,
                 size,
                 brush,
-                [from, to],
+                segment,
             ),
             Snapshot::Object(s) => stamp(
                 self.object.as_mut_slice(),
@@ -119,7 +120,7 @@ impl Masks {
                 coverage,
                 size,
                 brush,
-                [from, to],
+                segment,
             ),
         };
         if let Some(rect) = changed {
