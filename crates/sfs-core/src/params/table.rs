@@ -197,72 +197,84 @@ fn word(value: ParamValue) -> &'static str {
     }
 }
 
-// The table's common kinds, one field of [`SolverParams`] each: a real
-// number without `auto` (`real_param!`), a whole number (`count_param!`) and
-// an enum of words (`choice_param!`: word => variant, the first variant
-// standing for a value that is not one of the words). Each expands to a
-// `ParamSpec` literal whose `get` and `set` read and write the field.
-macro_rules! real_param {
-    (
-        $name:literal, $label:literal,
-        $field:ident, $range:expr, log = $log:literal, slider = $slider:expr,
-        $help:literal $(,)?
-    ) => {
-        number_param!(
-            $name,
-            $label,
-            $field,
-            $slider,
-            $help,
-            ParamKind::Real {
-                min: $range.0,
-                max: $range.1,
-                log: $log,
-                auto: false
-            },
-            Real,
-            real
-        )
-    };
+/// A number field of [`SolverParams`] as the table reads and writes it.
+trait Field {
+    /// The field's value.
+    fn value(self) -> ParamValue;
+    /// A checked value as the field's type.
+    fn read(value: ParamValue) -> Self;
 }
 
-macro_rules! count_param {
-    (
-        $name:literal, $label:literal,
-        $field:ident, $range:expr, slider = $slider:expr,
-        $help:literal $(,)?
-    ) => {
-        number_param!(
-            $name,
-            $label,
-            $field,
-            $slider,
-            $help,
-            ParamKind::Count {
-                min: $range.0,
-                max: $range.1
-            },
-            Count,
-            count
-        )
-    };
+impl Field for f64 {
+    fn value(self) -> ParamValue {
+        ParamValue::Real(self)
+    }
+    fn read(value: ParamValue) -> f64 {
+        real(value)
+    }
 }
 
-// `real_param!` and `count_param!`'s entry: `$value` the `ParamValue` variant
-// `get` wraps the field in, `$read` the function `set` reads it back with.
-macro_rules! number_param {
+impl Field for usize {
+    fn value(self) -> ParamValue {
+        ParamValue::Count(self)
+    }
+    fn read(value: ParamValue) -> usize {
+        count(value)
+    }
+}
+
+/// A real number in `[min, max]` on a linear slider, without `auto`.
+const fn linear((min, max): (f64, f64)) -> ParamKind {
+    ParamKind::Real {
+        min,
+        max,
+        log: false,
+        auto: false,
+    }
+}
+
+/// A real number in `[min, max]` on a logarithmic slider, without `auto`.
+const fn logarithmic((min, max): (f64, f64)) -> ParamKind {
+    ParamKind::Real {
+        min,
+        max,
+        log: true,
+        auto: false,
+    }
+}
+
+/// A whole number in `[min, max]`.
+const fn whole((min, max): (usize, usize)) -> ParamKind {
+    ParamKind::Count { min, max }
+}
+
+// The table's common kinds, one field of [`SolverParams`] each:
+// `field_param!` a real or whole number (the field's type, through
+// [`Field`], says which; the kind from [`linear`], [`logarithmic`] or
+// [`whole`]) and `choice_param!` an enum of words (word => variant, the
+// first variant standing for a value that is not one of the words). Each
+// expands to a `ParamSpec` literal whose `get` and `set` read and write the
+// field.
+macro_rules! field_param {
     (
-        $name:literal, $label:literal, $field:ident, $slider:expr, $help:literal,
-        $kind:expr, $value:ident, $read:ident
+        $name:literal, $label:literal,
+        $field:ident, $kind:expr, slider = $slider:expr,
+        $help:literal $(,)?
     ) => {
+        field_param!(@spec $name, $label, $help, $kind, $slider,
+            |p| Field::value(p.$field),
+            |p, v| p.$field = Field::read(v))
+    };
+    (@spec $name:literal, $label:literal, $help:literal, $kind:expr, $slider:expr,
+        $get:expr, $set:expr) => {
         ParamSpec {
             name: $name,
             label: $label,
             help: $help,
             kind: $kind,
             slider: $slider,
-            get: |p| ParamValue::$value(p.$field),
-            set: |p, v| p.$field = $read(v),
+            get: $get,
+            set: $set,
         }
     };
 }
@@ -274,25 +286,15 @@ macro_rules! choice_param {
         [$first:literal => $first_variant:path $(, $word:literal => $variant:path)* $(,)?],
         $help:literal $(,)?
     ) => {
-        ParamSpec {
-            name: $name,
-            label: $label,
-            help: $help,
-            kind: ParamKind::Choice(&[$first $(, $word)*]),
-            slider: None,
-            get: |p| {
-                ParamValue::Choice(match p.$field {
-                    $first_variant => $first,
-                    $($variant => $word,)*
-                })
-            },
-            set: |p, v| {
-                p.$field = match word(v) {
-                    $($word => $variant,)*
-                    _ => $first_variant,
-                }
-            },
-        }
+        field_param!(@spec $name, $label, $help, ParamKind::Choice(&[$first $(, $word)*]), None,
+            |p| ParamValue::Choice(match p.$field {
+                $first_variant => $first,
+                $($variant => $word,)*
+            }),
+            |p, v| p.$field = match word(v) {
+                $($word => $variant,)*
+                _ => $first_variant,
+            })
     };
 }
 
@@ -325,9 +327,9 @@ pub const PARAMS: &[ParamSpec] = &[
             }
         },
     },
-    real_param! {
+    field_param! {
         "lambda", "lambda",
-        lambda, (1e-12, 1e12), log = true, slider = Some((0.1, 1e4)),
+        lambda, logarithmic((1e-12, 1e12)), slider = Some((0.1, 1e4)),
         "Charbonnier contrast of the smoothness term, in --units: below it smoothing is \
          quadratic, above it creases are kept. Default 30 relative (the paper's 1e-3 \
          pixel units on its Sombrero)."
@@ -339,28 +341,28 @@ pub const PARAMS: &[ParamSpec] = &[
          the same values give the same result at any image size, exposure and unit of \
          depth) or 'paper' (per full-resolution pixel and depth units, as in the paper)."
     },
-    real_param! {
+    field_param! {
         "eta", "eta",
-        eta, (0.1, 0.99), log = false, slider = Some((0.5, 0.98)),
+        eta, linear((0.1, 0.99)), slider = Some((0.5, 0.98)),
         "Pyramid factor between levels (paper 0.9). Bounded by 0.99: the number of \
          levels grows as 1/(1 - eta)."
     },
-    count_param! {
+    field_param! {
         "kappa", "kappa",
-        kappa, (1, 1000), slider = Some((1.0, 20.0)),
+        kappa, whole((1, 1000)), slider = Some((1.0, 20.0)),
         "Outer (Gauss-Newton) iterations per level, at least (paper 5); refining a start \
          across holes, kappa-holes."
     },
-    count_param! {
+    field_param! {
         "kappa-max", "kappa max",
-        kappa_max, (1, 1000), slider = None,
+        kappa_max, whole((1, 1000)), slider = None,
         "Outer iterations per level at most: after kappa a level goes on while its \
          energy falls by more than level-tolerance per iteration. Default 5 (= kappa, \
          the paper's fixed count: converging every coarse level was measured worse)."
     },
-    count_param! {
+    field_param! {
         "kappa-holes", "kappa (holes)",
-        kappa_holes, (1, 1000), slider = None,
+        kappa_holes, whole((1, 1000)), slider = None,
         "Outer iterations refining a full-resolution start across holes (object pixels \
          of confidence below 0.5), at least; kappa-max rises to it. Default 10: the fill \
          travels farther than a start without holes, and every step is cropped."
@@ -377,20 +379,20 @@ pub const PARAMS: &[ParamSpec] = &[
         get: |p| ParamValue::Choice(if p.shadow_bound { "on" } else { "off" }),
         set: |p, v| p.shadow_bound = word(v) == "on",
     },
-    real_param! {
+    field_param! {
         "level-tolerance", "level tolerance",
-        level_tolerance, (0.0, 1.0), log = false, slider = None,
+        level_tolerance, linear((0.0, 1.0)), slider = None,
         "Relative energy decrease per outer iteration below which a level stops \
          (after kappa iterations). Default 1e-3."
     },
-    count_param! {
+    field_param! {
         "inner-iters", "inner iterations",
-        inner_iterations, (1, 1000), slider = Some((1.0, 30.0)),
+        inner_iterations, whole((1, 1000)), slider = Some((1.0, 30.0)),
         "Fixed-point iterations l_max on the Charbonnier weights Psi' (paper 9)."
     },
-    count_param! {
+    field_param! {
         "sor-iters", "SOR sweeps",
-        sor_iterations, (1, 1000), slider = Some((1.0, 50.0)),
+        sor_iterations, whole((1, 1000)), slider = Some((1.0, 50.0)),
         "SOR sweeps per inner iteration, at most with a linear tolerance (paper 10; \
          linear solver 'sor')."
     },
@@ -406,38 +408,38 @@ pub const PARAMS: &[ParamSpec] = &[
          V-cycles with Galerkin coarse levels and SOR smoothing; 'sor': the paper's SOR \
          sweeps."
     },
-    count_param! {
+    field_param! {
         "cycles", "V-cycles",
-        cycles, (1, 1000), slider = None,
+        cycles, whole((1, 1000)), slider = None,
         "Multigrid V-cycles per inner iteration, at most (default 4)."
     },
-    count_param! {
+    field_param! {
         "smoothing-sweeps", "smoothing sweeps",
-        smoothing_sweeps, (1, 100), slider = None,
+        smoothing_sweeps, whole((1, 100)), slider = None,
         "SOR sweeps before and after each coarse correction of a V-cycle (default 2)."
     },
-    real_param! {
+    field_param! {
         "linear-tolerance", "linear tolerance",
-        linear_tolerance, (0.0, 1.0), log = false, slider = None,
+        linear_tolerance, linear((0.0, 1.0)), slider = None,
         "Inexact Newton: each linear solve stops once its residual fell by this factor \
          (default 0: the fixed sweep or cycle count, the paper's)."
     },
-    real_param! {
+    field_param! {
         "inner-tolerance", "inner tolerance",
-        inner_tolerance, (0.0, 1.0), log = false, slider = None,
+        inner_tolerance, linear((0.0, 1.0)), slider = None,
         "Refining a full-resolution start, the inner iterations stop when the \
          Charbonnier weights Psi' moved by less than this (relative) since the last \
          linear solve and the later ones would only polish the step (default 0.05); 0 \
          runs all of them (the paper's)."
     },
-    real_param! {
+    field_param! {
         "omega", "omega",
-        omega, (0.01, 1.99), log = false, slider = Some((0.1, 1.95)),
+        omega, linear((0.01, 1.99)), slider = Some((0.1, 1.95)),
         "SOR over-relaxation, in (0, 2) (not given in the paper; default 1.5)."
     },
-    real_param! {
+    field_param! {
         "dz-limit", "dz limit",
-        dz_limit, (1e-9, 1e9), log = true, slider = Some((1e-4, 0.1)),
+        dz_limit, logarithmic((1e-9, 1e9)), slider = Some((1e-4, 0.1)),
         "Largest depth change per pixel and outer iteration: a fraction of the pixel's \
          depth in relative units (default 0.005), depth units in paper units (paper \
          0.01)."
@@ -486,9 +488,9 @@ pub const PARAMS: &[ParamSpec] = &[
             }
         },
     },
-    count_param! {
+    field_param! {
         "min-level-side", "coarsest side",
-        min_level_side, (3, 1 << 20), slider = None,
+        min_level_side, whole((3, 1 << 20)), slider = None,
         "Smallest side of the coarsest pyramid level, pixels (default 16)."
     },
     choice_param! {
@@ -503,9 +505,9 @@ pub const PARAMS: &[ParamSpec] = &[
         "'backtracking' (default): crop, then halve the step until the energy does not \
          rise; 'crop': the paper's per-pixel crop alone."
     },
-    real_param! {
+    field_param! {
         "anti-alias", "anti-alias",
-        anti_alias_sigma, (0.0, 10.0), log = false, slider = None,
+        anti_alias_sigma, linear((0.0, 10.0)), slider = None,
         "Pyramid anti-aliasing sigma_0 (0, the default: point-sample every level from \
          the full image, keeping bright peaks). Bounded by 10: the blur's kernel grows \
          with it."
@@ -523,28 +525,28 @@ pub const PARAMS: &[ParamSpec] = &[
         get: |p| ParamValue::Choice(p.reflectance.name()),
         set: |p, v| p.reflectance = ReflectanceChoice::from_name(word(v)).unwrap_or_default(),
     },
-    real_param! {
+    field_param! {
         "roughness", "roughness (rad)",
-        roughness_rad, crate::material::ROUGHNESS.range, log = false, slider = Some((0.0, 1.0)),
+        roughness_rad, linear(crate::material::ROUGHNESS.range), slider = Some((0.0, 1.0)),
         "Oren-Nayar roughness sigma: the spread of the surface's facet slopes, radians \
          (default 0.3; 0 is Lambert; at most 1). Rough surfaces stay lit towards the rim \
          and look flatter facing the light. Fast marching needs it below about 0.61."
     },
-    real_param! {
+    field_param! {
         "specular", "specular k_s",
-        specular, crate::material::SPECULAR.range, log = false, slider = Some((0.0, 2.0)),
+        specular, linear(crate::material::SPECULAR.range), slider = Some((0.0, 2.0)),
         "Blinn-Phong specular weight k_s against a diffuse weight of 1 (default 0.3; 0 \
          is Lambert; at most 10)."
     },
-    real_param! {
+    field_param! {
         "shininess", "shininess n",
-        shininess, crate::material::SHININESS.range, log = true, slider = Some((1.0, 200.0)),
+        shininess, logarithmic(crate::material::SHININESS.range), slider = Some((1.0, 200.0)),
         "Blinn-Phong shininess exponent n (default 20): larger gives a smaller, sharper \
          highlight (10: a broad sheen, 30: skin or plastic, 100: polished). In [1, 1000]."
     },
-    real_param! {
+    field_param! {
         "albedo-edge", "albedo edge (log step)",
-        albedo_edge, (0.02, 2.0), log = true, slider = Some((0.05, 1.0)),
+        albedo_edge, logarithmic((0.02, 2.0)), slider = Some((0.05, 1.0)),
         "The albedo prior's weight, used by --albedo auto: the smallest step of log \
          brightness between neighbouring pixels taken as a change of albedo rather than \
          of shading (an L0 penalty tau^2 on the log albedo's gradient; default 0.2, a \

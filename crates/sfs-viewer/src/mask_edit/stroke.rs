@@ -105,23 +105,10 @@ impl Masks {
             return false;
         }
         let segment = [from, to];
+        let (confidence, object) = (self.confidence.as_mut_slice(), self.object.as_mut_slice());
         let changed = match start {
-            Snapshot::Confidence(s) => stamp(
-                self.confidence.as_mut_slice(),
-                s,
-                coverage,
-                size,
-                brush,
-                segment,
-            ),
-            Snapshot::Object(s) => stamp(
-                self.object.as_mut_slice(),
-                s,
-                coverage,
-                size,
-                brush,
-                segment,
-            ),
+            Snapshot::Confidence(s) => stamp(confidence, s, coverage, size, brush, segment),
+            Snapshot::Object(s) => stamp(object, s, coverage, size, brush, segment),
         };
         if let Some(rect) = changed {
             *dirty = Some(rect.union(*dirty));
