@@ -364,12 +364,7 @@ mod tests {
             b.unwrap_or_else(|| panic!("the viewer has the confidence")),
         );
         assert_eq!(a.size(), b.size());
-        let worst = a
-            .as_slice()
-            .iter()
-            .zip(b.as_slice())
-            .map(|(x, y)| (x - y).abs())
-            .fold(0.0, f64::max);
+        let worst = a.max_abs_difference(&b);
         assert!(worst < 1e-6, "confidence differs by {worst}");
         // A confidence file that cannot be read is left out with a note;
         // the image still opens.

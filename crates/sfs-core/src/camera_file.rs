@@ -462,18 +462,9 @@ impl CameraFile {
                 .iter()
                 .zip(&lights)
                 .map(|((k, e), l)| {
-                    format!(
-                        "light {} at ({:.1}, {:.1}, {:.1}) {units}{}",
-                        e.led.unwrap_or(*k as u32 + 1),
-                        l.position[0],
-                        l.position[1],
-                        l.position[2],
-                        if l.direction.is_some() && l.mu > 0.0 {
-                            format!(", mu {}", l.mu)
-                        } else {
-                            String::new()
-                        }
-                    )
+                    let led = e.led.unwrap_or(*k as u32 + 1);
+                    let (position, aim) = (l.position_text(), l.aim_text());
+                    format!("light {led} at {position} {units}{aim}")
                 })
                 .collect::<Vec<_>>()
                 .join("; "),

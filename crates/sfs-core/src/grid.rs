@@ -195,6 +195,16 @@ impl Grid<f64> {
             .filter(|v| v.is_finite() && *v > 0.0)
             .collect()
     }
+
+    /// The largest `|a - b|` over the pixels of this grid and `other` in
+    /// pixel order, as far as the shorter goes (0 for none; NaN skipped).
+    pub fn max_abs_difference(&self, other: &Grid<f64>) -> f64 {
+        self.data
+            .iter()
+            .zip(&other.data)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+    }
 }
 
 /// Per-pixel weights in [0, 1] read by index (`row * width + column`): a

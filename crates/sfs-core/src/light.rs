@@ -57,6 +57,21 @@ impl PointLight {
         self.position == [0.0; 3] && (self.direction.is_none() || self.mu == 0.0)
     }
 
+    /// The position to one decimal, `(x, y, z)`, for summaries.
+    pub fn position_text(&self) -> String {
+        let [x, y, z] = self.position;
+        format!("({x:.1}, {y:.1}, {z:.1})")
+    }
+
+    /// `, mu MU` for an aimed anisotropic light, else nothing, for summaries.
+    pub fn aim_text(&self) -> String {
+        if self.direction.is_some() && self.mu > 0.0 {
+            format!(", mu {}", self.mu)
+        } else {
+            String::new()
+        }
+    }
+
     /// Checks every field and normalises the direction; the error says which
     /// field of light `index` (from 1) is wrong and why.
     pub fn validated(mut self, index: usize) -> Result<Self, String> {

@@ -171,53 +171,43 @@ impl Model {
     }
 }
 
-/// Oren-Nayar's roughness `sigma`, radians.
-pub const ROUGHNESS: ModelParam = ModelParam {
-    name: "roughness",
-    range: (0.0, MAX_ROUGHNESS_RAD),
-    default: 0.3,
-    get: |m| match *m {
-        Material::OrenNayar { roughness_rad } => roughness_rad,
-        _ => f64::NAN,
-    },
-    set: |m, v| {
-        if let Material::OrenNayar { roughness_rad } = m {
-            *roughness_rad = v;
+// A `ModelParam` held in the field `$field` of the variant `$variant`:
+// `get` is NaN and `set` does nothing on any other material.
+macro_rules! variant_param {
+    ($name:literal, $range:expr, $default:expr, $variant:ident, $field:ident) => {
+        ModelParam {
+            name: $name,
+            range: $range,
+            default: $default,
+            get: |m| match *m {
+                Material::$variant { $field, .. } => $field,
+                _ => f64::NAN,
+            },
+            set: |m, v| {
+                if let Material::$variant { $field, .. } = m {
+                    *$field = v;
+                }
+            },
         }
-    },
-};
+    };
+}
+
+/// Oren-Nayar's roughness `sigma`, radians.
+pub const ROUGHNESS: ModelParam = variant_param!(
+    "roughness",
+    (0.0, MAX_ROUGHNESS_RAD),
+    0.3,
+    OrenNayar,
+    roughness_rad
+);
 
 /// Blinn-Phong's specular weight `k_s`.
-pub const SPECULAR: ModelParam = ModelParam {
-    name: "specular",
-    range: (0.0, MAX_SPECULAR),
-    default: 0.3,
-    get: |m| match *m {
-        Material::BlinnPhong { specular, .. } => specular,
-        _ => f64::NAN,
-    },
-    set: |m, v| {
-        if let Material::BlinnPhong { specular, .. } = m {
-            *specular = v;
-        }
-    },
-};
+pub const SPECULAR: ModelParam =
+    variant_param!("specular", (0.0, MAX_SPECULAR), 0.3, BlinnPhong, specular);
 
 /// Blinn-Phong's shininess exponent `n`.
-pub const SHININESS: ModelParam = ModelParam {
-    name: "shininess",
-    range: SHININESS_RANGE,
-    default: 20.0,
-    get: |m| match *m {
-        Material::BlinnPhong { shininess, .. } => shininess,
-        _ => f64::NAN,
-    },
-    set: |m, v| {
-        if let Material::BlinnPhong { shininess, .. } = m {
-            *shininess = v;
-        }
-    },
-};
+pub const SHININESS: ModelParam =
+    variant_param!("shininess", SHININESS_RANGE, 20.0, BlinnPhong, shininess);
 
 /// The reflectance models, in the order the command line lists them and
 /// `reflectance auto` tries them. Adding a model: its [`Material`] variant

@@ -390,17 +390,13 @@ impl Runner {
 
     /// Runs one set's job and reports its end.
     fn serve_set(&self, job: JobId, request: &SetRequest) -> Result<(), Stop> {
-        let shared = &self.outbox.shared;
-        if !self.begin(job, planned_set_sizes(&request.problem, &request.params))? {
+        let sizes = planned_set_sizes(&request.problem, &request.params);
+        let Some((outcome, _)) = self.run_job(job, sizes, |observer| {
+            (self.set_fn)(&request.problem, &request.params, observer)
+        })?
+        else {
             return Ok(());
-        }
-        let mut observer = ChannelObserver::new(job, &self.outbox);
-        let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
-            (self.set_fn)(&request.problem, &request.params, &mut observer)
-        }));
-        if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
-            return Err(Stop);
-        }
+        };
         self.outbox
             .deliver(end_event(job, outcome, |solution| Event::SetFinished {
                 job,
@@ -410,20 +406,16 @@ impl Runner {
 
     /// Runs one job and reports its end.
     fn serve(&self, job: JobId, request: &SolveRequest) -> Result<(), Stop> {
-        let shared = &self.outbox.shared;
-        if !self.begin(job, planned_level_sizes(&request.problem, &request.params))? {
-            return Ok(());
-        }
-        let mut observer = ChannelObserver::new(job, &self.outbox);
-        let outcome = panic::catch_unwind(AssertUnwindSafe(|| {
-            (self.solve_fn)(request, &mut observer).map_err(|e| match e {
+        let sizes = planned_level_sizes(&request.problem, &request.params);
+        let Some((outcome, mut observer)) = self.run_job(job, sizes, |observer| {
+            (self.solve_fn)(request, observer).map_err(|e| match e {
                 PhotographSolveError::Solve(e) => e,
                 other => SolveError::Input(other.to_string()),
             })
-        }));
-        if observer.stopped || shared.shutdown.load(Ordering::SeqCst) {
-            return Err(Stop);
-        }
+        })?
+        else {
+            return Ok(());
+        };
         if let Ok(Ok(solved)) = &outcome
             && solved.depth_unit.as_ref().is_some_and(|u| u.fit.is_some())
             && let Some(level) = rescaled_level(observer.last_level.take(), &solved.solution)
@@ -437,6 +429,26 @@ impl Runner {
                 job,
                 solved: Box::new(solved),
             }))
+    }
+
+    /// Begins a job (`Ok(None)`: superseded before it began) and runs
+    /// `solve` with its observer, a panic caught; `Err(Stop)` on shutdown or
+    /// when the observer stopped, else the outcome and the observer.
+    fn run_job<T>(
+        &self,
+        job: JobId,
+        level_sizes: Vec<(usize, usize)>,
+        solve: impl FnOnce(&mut ChannelObserver<'_>) -> Result<T, SolveError>,
+    ) -> Result<Option<(Outcome<T>, ChannelObserver<'_>)>, Stop> {
+        if !self.begin(job, level_sizes)? {
+            return Ok(None);
+        }
+        let mut observer = ChannelObserver::new(job, &self.outbox);
+        let outcome = panic::catch_unwind(AssertUnwindSafe(|| solve(&mut observer)));
+        if observer.stopped || self.outbox.shared.shutdown.load(Ordering::SeqCst) {
+            return Err(Stop);
+        }
+        Ok(Some((outcome, observer)))
     }
 
     /// A job's start: `Err(Stop)` on shutdown, `Ok(false)` for a job
@@ -456,13 +468,12 @@ impl Runner {
     }
 }
 
+/// How a job's solve ended: a result, or the panic it raised.
+type Outcome<T> = std::thread::Result<Result<T, SolveError>>;
+
 /// The event that ends a job: `finished` of its result, `Cancelled`, or
 /// `Failed` with the error or the panic's message.
-fn end_event<T>(
-    job: JobId,
-    outcome: std::thread::Result<Result<T, SolveError>>,
-    finished: impl FnOnce(T) -> Event,
-) -> Event {
+fn end_event<T>(job: JobId, outcome: Outcome<T>, finished: impl FnOnce(T) -> Event) -> Event {
     match outcome {
         Ok(Ok(result)) => finished(result),
         Ok(Err(SolveError::Cancelled)) => Event::Cancelled { job },

@@ -197,6 +197,107 @@ fn word(value: ParamValue) -> &'static str {
     }
 }
 
+/// A number field of [`SolverParams`] as the table reads and writes it.
+trait Field {
+    /// The field's value.
+    fn value(self) -> ParamValue;
+    /// A checked value as the field's type.
+    fn read(value: ParamValue) -> Self;
+}
+
+impl Field for f64 {
+    fn value(self) -> ParamValue {
+        ParamValue::Real(self)
+    }
+    fn read(value: ParamValue) -> f64 {
+        real(value)
+    }
+}
+
+impl Field for usize {
+    fn value(self) -> ParamValue {
+        ParamValue::Count(self)
+    }
+    fn read(value: ParamValue) -> usize {
+        count(value)
+    }
+}
+
+/// A real number in `[min, max]` on a linear slider, without `auto`.
+const fn linear((min, max): (f64, f64)) -> ParamKind {
+    ParamKind::Real {
+        min,
+        max,
+        log: false,
+        auto: false,
+    }
+}
+
+/// A real number in `[min, max]` on a logarithmic slider, without `auto`.
+const fn logarithmic((min, max): (f64, f64)) -> ParamKind {
+    ParamKind::Real {
+        min,
+        max,
+        log: true,
+        auto: false,
+    }
+}
+
+/// A whole number in `[min, max]`.
+const fn whole((min, max): (usize, usize)) -> ParamKind {
+    ParamKind::Count { min, max }
+}
+
+// The table's common kinds, one field of [`SolverParams`] each:
+// `field_param!` a real or whole number (the field's type, through
+// [`Field`], says which; the kind from [`linear`], [`logarithmic`] or
+// [`whole`]) and `choice_param!` an enum of words (word => variant, the
+// first variant standing for a value that is not one of the words). Each
+// expands to a `ParamSpec` literal whose `get` and `set` read and write the
+// field.
+macro_rules! field_param {
+    (
+        $name:literal, $label:literal,
+        $field:ident, $kind:expr, slider = $slider:expr,
+        $help:literal $(,)?
+    ) => {
+        field_param!(@spec $name, $label, $help, $kind, $slider,
+            |p| Field::value(p.$field),
+            |p, v| p.$field = Field::read(v))
+    };
+    (@spec $name:literal, $label:literal, $help:literal, $kind:expr, $slider:expr,
+        $get:expr, $set:expr) => {
+        ParamSpec {
+            name: $name,
+            label: $label,
+            help: $help,
+            kind: $kind,
+            slider: $slider,
+            get: $get,
+            set: $set,
+        }
+    };
+}
+
+macro_rules! choice_param {
+    (
+        $name:literal, $label:literal,
+        $field:ident,
+        [$first:literal => $first_variant:path $(, $word:literal => $variant:path)* $(,)?],
+        $help:literal $(,)?
+    ) => {
+        field_param!(@spec $name, $label, $help, ParamKind::Choice(&[$first $(, $word)*]), None,
+            |p| ParamValue::Choice(match p.$field {
+                $first_variant => $first,
+                $($variant => $word,)*
+            }),
+            |p, v| p.$field = match word(v) {
+                $($word => $variant,)*
+                _ => $first_variant,
+            })
+    };
+}
+
 /// Every parameter of [`SolverParams`] but the initial depth (a map or a
 /// method, given separately). Bounds keep every solve finite and its size
 /// sane: no parameter accepted here can make the solver hang, overflow or
@@ -226,90 +327,45 @@ pub const PARAMS: &[ParamSpec] = &[
             }
         },
     },
-    ParamSpec {
-        name: "lambda",
-        label: "lambda",
-        help: "Charbonnier contrast of the smoothness term, in --units: below it smoothing is \
-               quadratic, above it creases are kept. Default 30 relative (the paper's 1e-3 \
-               pixel units on its Sombrero).",
-        kind: ParamKind::Real {
-            min: 1e-12,
-            max: 1e12,
-            log: true,
-            auto: false,
-        },
-        slider: Some((0.1, 1e4)),
-        get: |p| ParamValue::Real(p.lambda),
-        set: |p, v| p.lambda = real(v),
+    field_param! {
+        "lambda", "lambda",
+        lambda, logarithmic((1e-12, 1e12)), slider = Some((0.1, 1e4)),
+        "Charbonnier contrast of the smoothness term, in --units: below it smoothing is \
+         quadratic, above it creases are kept. Default 30 relative (the paper's 1e-3 \
+         pixel units on its Sombrero)."
     },
-    ParamSpec {
-        name: "units",
-        label: "units",
-        help: "Units of alpha, lambda, dz-limit and h-z: 'relative' (default; dimensionless, \
-               the same values give the same result at any image size, exposure and unit of \
-               depth) or 'paper' (per full-resolution pixel and depth units, as in the paper).",
-        kind: ParamKind::Choice(&["relative", "paper"]),
-        slider: None,
-        get: |p| {
-            ParamValue::Choice(match p.units {
-                Units::Relative => "relative",
-                Units::Paper => "paper",
-            })
-        },
-        set: |p, v| {
-            p.units = if word(v) == "paper" {
-                Units::Paper
-            } else {
-                Units::Relative
-            }
-        },
+    choice_param! {
+        "units", "units",
+        units, ["relative" => Units::Relative, "paper" => Units::Paper],
+        "Units of alpha, lambda, dz-limit and h-z: 'relative' (default; dimensionless, \
+         the same values give the same result at any image size, exposure and unit of \
+         depth) or 'paper' (per full-resolution pixel and depth units, as in the paper)."
     },
-    ParamSpec {
-        name: "eta",
-        label: "eta",
-        help: "Pyramid factor between levels (paper 0.9). Bounded by 0.99: the number of \
-               levels grows as 1/(1 - eta).",
-        kind: ParamKind::Real {
-            min: 0.1,
-            max: 0.99,
-            log: false,
-            auto: false,
-        },
-        slider: Some((0.5, 0.98)),
-        get: |p| ParamValue::Real(p.eta),
-        set: |p, v| p.eta = real(v),
+    field_param! {
+        "eta", "eta",
+        eta, linear((0.1, 0.99)), slider = Some((0.5, 0.98)),
+        "Pyramid factor between levels (paper 0.9). Bounded by 0.99: the number of \
+         levels grows as 1/(1 - eta)."
     },
-    ParamSpec {
-        name: "kappa",
-        label: "kappa",
-        help: "Outer (Gauss-Newton) iterations per level, at least (paper 5); refining a start \
-               across holes, kappa-holes.",
-        kind: ParamKind::Count { min: 1, max: 1000 },
-        slider: Some((1.0, 20.0)),
-        get: |p| ParamValue::Count(p.kappa),
-        set: |p, v| p.kappa = count(v),
+    field_param! {
+        "kappa", "kappa",
+        kappa, whole((1, 1000)), slider = Some((1.0, 20.0)),
+        "Outer (Gauss-Newton) iterations per level, at least (paper 5); refining a start \
+         across holes, kappa-holes."
     },
-    ParamSpec {
-        name: "kappa-max",
-        label: "kappa max",
-        help: "Outer iterations per level at most: after kappa a level goes on while its \
-               energy falls by more than level-tolerance per iteration. Default 5 (= kappa, \
-               the paper's fixed count: converging every coarse level was measured worse).",
-        kind: ParamKind::Count { min: 1, max: 1000 },
-        slider: None,
-        get: |p| ParamValue::Count(p.kappa_max),
-        set: |p, v| p.kappa_max = count(v),
+    field_param! {
+        "kappa-max", "kappa max",
+        kappa_max, whole((1, 1000)), slider = None,
+        "Outer iterations per level at most: after kappa a level goes on while its \
+         energy falls by more than level-tolerance per iteration. Default 5 (= kappa, \
+         the paper's fixed count: converging every coarse level was measured worse)."
     },
-    ParamSpec {
-        name: "kappa-holes",
-        label: "kappa (holes)",
-        help: "Outer iterations refining a full-resolution start across holes (object pixels \
-               of confidence below 0.5), at least; kappa-max rises to it. Default 10: the fill \
-               travels farther than a start without holes, and every step is cropped.",
-        kind: ParamKind::Count { min: 1, max: 1000 },
-        slider: None,
-        get: |p| ParamValue::Count(p.kappa_holes),
-        set: |p, v| p.kappa_holes = count(v),
+    field_param! {
+        "kappa-holes", "kappa (holes)",
+        kappa_holes, whole((1, 1000)), slider = None,
+        "Outer iterations refining a full-resolution start across holes (object pixels \
+         of confidence below 0.5), at least; kappa-max rises to it. Default 10: the fill \
+         travels farther than a start without holes, and every step is cropped."
     },
     ParamSpec {
         name: "shadow-bound",
@@ -323,143 +379,70 @@ pub const PARAMS: &[ParamSpec] = &[
         get: |p| ParamValue::Choice(if p.shadow_bound { "on" } else { "off" }),
         set: |p, v| p.shadow_bound = word(v) == "on",
     },
-    ParamSpec {
-        name: "level-tolerance",
-        label: "level tolerance",
-        help: "Relative energy decrease per outer iteration below which a level stops \
-               (after kappa iterations). Default 1e-3.",
-        kind: ParamKind::Real {
-            min: 0.0,
-            max: 1.0,
-            log: false,
-            auto: false,
-        },
-        slider: None,
-        get: |p| ParamValue::Real(p.level_tolerance),
-        set: |p, v| p.level_tolerance = real(v),
+    field_param! {
+        "level-tolerance", "level tolerance",
+        level_tolerance, linear((0.0, 1.0)), slider = None,
+        "Relative energy decrease per outer iteration below which a level stops \
+         (after kappa iterations). Default 1e-3."
     },
-    ParamSpec {
-        name: "inner-iters",
-        label: "inner iterations",
-        help: "Fixed-point iterations l_max on the Charbonnier weights Psi' (paper 9).",
-        kind: ParamKind::Count { min: 1, max: 1000 },
-        slider: Some((1.0, 30.0)),
-        get: |p| ParamValue::Count(p.inner_iterations),
-        set: |p, v| p.inner_iterations = count(v),
+    field_param! {
+        "inner-iters", "inner iterations",
+        inner_iterations, whole((1, 1000)), slider = Some((1.0, 30.0)),
+        "Fixed-point iterations l_max on the Charbonnier weights Psi' (paper 9)."
     },
-    ParamSpec {
-        name: "sor-iters",
-        label: "SOR sweeps",
-        help: "SOR sweeps per inner iteration, at most with a linear tolerance (paper 10; \
-               linear solver 'sor').",
-        kind: ParamKind::Count { min: 1, max: 1000 },
-        slider: Some((1.0, 50.0)),
-        get: |p| ParamValue::Count(p.sor_iterations),
-        set: |p, v| p.sor_iterations = count(v),
+    field_param! {
+        "sor-iters", "SOR sweeps",
+        sor_iterations, whole((1, 1000)), slider = Some((1.0, 50.0)),
+        "SOR sweeps per inner iteration, at most with a linear tolerance (paper 10; \
+         linear solver 'sor')."
     },
-    ParamSpec {
-        name: "linear-solver",
-        label: "linear solver",
-        help: "'auto' (default): multigrid where a full-resolution start is refined across \
-               holes (object pixels of confidence below 0.5), SOR elsewhere; 'multigrid': \
-               V-cycles with Galerkin coarse levels and SOR smoothing; 'sor': the paper's SOR \
-               sweeps.",
-        kind: ParamKind::Choice(&["auto", "multigrid", "sor"]),
-        slider: None,
-        get: |p| {
-            ParamValue::Choice(match p.linear_solver {
-                LinearSolver::Auto => "auto",
-                LinearSolver::Multigrid => "multigrid",
-                LinearSolver::Sor => "sor",
-            })
-        },
-        set: |p, v| {
-            p.linear_solver = match word(v) {
-                "sor" => LinearSolver::Sor,
-                "multigrid" => LinearSolver::Multigrid,
-                _ => LinearSolver::Auto,
-            }
-        },
+    choice_param! {
+        "linear-solver", "linear solver",
+        linear_solver, [
+            "auto" => LinearSolver::Auto,
+            "multigrid" => LinearSolver::Multigrid,
+            "sor" => LinearSolver::Sor,
+        ],
+        "'auto' (default): multigrid where a full-resolution start is refined across \
+         holes (object pixels of confidence below 0.5), SOR elsewhere; 'multigrid': \
+         V-cycles with Galerkin coarse levels and SOR smoothing; 'sor': the paper's SOR \
+         sweeps."
     },
-    ParamSpec {
-        name: "cycles",
-        label: "V-cycles",
-        help: "Multigrid V-cycles per inner iteration, at most (default 4).",
-        kind: ParamKind::Count { min: 1, max: 1000 },
-        slider: None,
-        get: |p| ParamValue::Count(p.cycles),
-        set: |p, v| p.cycles = count(v),
+    field_param! {
+        "cycles", "V-cycles",
+        cycles, whole((1, 1000)), slider = None,
+        "Multigrid V-cycles per inner iteration, at most (default 4)."
     },
-    ParamSpec {
-        name: "smoothing-sweeps",
-        label: "smoothing sweeps",
-        help: "SOR sweeps before and after each coarse correction of a V-cycle (default 2).",
-        kind: ParamKind::Count { min: 1, max: 100 },
-        slider: None,
-        get: |p| ParamValue::Count(p.smoothing_sweeps),
-        set: |p, v| p.smoothing_sweeps = count(v),
+    field_param! {
+        "smoothing-sweeps", "smoothing sweeps",
+        smoothing_sweeps, whole((1, 100)), slider = None,
+        "SOR sweeps before and after each coarse correction of a V-cycle (default 2)."
     },
-    ParamSpec {
-        name: "linear-tolerance",
-        label: "linear tolerance",
-        help: "Inexact Newton: each linear solve stops once its residual fell by this factor \
-               (default 0: the fixed sweep or cycle count, the paper's).",
-        kind: ParamKind::Real {
-            min: 0.0,
-            max: 1.0,
-            log: false,
-            auto: false,
-        },
-        slider: None,
-        get: |p| ParamValue::Real(p.linear_tolerance),
-        set: |p, v| p.linear_tolerance = real(v),
+    field_param! {
+        "linear-tolerance", "linear tolerance",
+        linear_tolerance, linear((0.0, 1.0)), slider = None,
+        "Inexact Newton: each linear solve stops once its residual fell by this factor \
+         (default 0: the fixed sweep or cycle count, the paper's)."
     },
-    ParamSpec {
-        name: "inner-tolerance",
-        label: "inner tolerance",
-        help: "Refining a full-resolution start, the inner iterations stop when the \
-               Charbonnier weights Psi' moved by less than this (relative) since the last \
-               linear solve and the later ones would only polish the step (default 0.05); 0 \
-               runs all of them (the paper's).",
-        kind: ParamKind::Real {
-            min: 0.0,
-            max: 1.0,
-            log: false,
-            auto: false,
-        },
-        slider: None,
-        get: |p| ParamValue::Real(p.inner_tolerance),
-        set: |p, v| p.inner_tolerance = real(v),
+    field_param! {
+        "inner-tolerance", "inner tolerance",
+        inner_tolerance, linear((0.0, 1.0)), slider = None,
+        "Refining a full-resolution start, the inner iterations stop when the \
+         Charbonnier weights Psi' moved by less than this (relative) since the last \
+         linear solve and the later ones would only polish the step (default 0.05); 0 \
+         runs all of them (the paper's)."
     },
-    ParamSpec {
-        name: "omega",
-        label: "omega",
-        help: "SOR over-relaxation, in (0, 2) (not given in the paper; default 1.5).",
-        kind: ParamKind::Real {
-            min: 0.01,
-            max: 1.99,
-            log: false,
-            auto: false,
-        },
-        slider: Some((0.1, 1.95)),
-        get: |p| ParamValue::Real(p.omega),
-        set: |p, v| p.omega = real(v),
+    field_param! {
+        "omega", "omega",
+        omega, linear((0.01, 1.99)), slider = Some((0.1, 1.95)),
+        "SOR over-relaxation, in (0, 2) (not given in the paper; default 1.5)."
     },
-    ParamSpec {
-        name: "dz-limit",
-        label: "dz limit",
-        help: "Largest depth change per pixel and outer iteration: a fraction of the pixel's \
-               depth in relative units (default 0.005), depth units in paper units (paper \
-               0.01).",
-        kind: ParamKind::Real {
-            min: 1e-9,
-            max: 1e9,
-            log: true,
-            auto: false,
-        },
-        slider: Some((1e-4, 0.1)),
-        get: |p| ParamValue::Real(p.dz_limit),
-        set: |p, v| p.dz_limit = real(v),
+    field_param! {
+        "dz-limit", "dz limit",
+        dz_limit, logarithmic((1e-9, 1e9)), slider = Some((1e-4, 0.1)),
+        "Largest depth change per pixel and outer iteration: a fraction of the pixel's \
+         depth in relative units (default 0.005), depth units in paper units (paper \
+         0.01)."
     },
     ParamSpec {
         name: "derivatives",
@@ -505,75 +488,29 @@ pub const PARAMS: &[ParamSpec] = &[
             }
         },
     },
-    ParamSpec {
-        name: "min-level-side",
-        label: "coarsest side",
-        help: "Smallest side of the coarsest pyramid level, pixels (default 16).",
-        kind: ParamKind::Count {
-            min: 3,
-            max: 1 << 20,
-        },
-        slider: None,
-        get: |p| ParamValue::Count(p.min_level_side),
-        set: |p, v| p.min_level_side = count(v),
+    field_param! {
+        "min-level-side", "coarsest side",
+        min_level_side, whole((3, 1 << 20)), slider = None,
+        "Smallest side of the coarsest pyramid level, pixels (default 16)."
     },
-    ParamSpec {
-        name: "domain",
-        label: "domain",
-        help: "'paper' (default): every pixel carries depth, the background only has \
-               confidence 0; 'object': only object-mask pixels do (docs/mask-and-confidence.md).",
-        kind: ParamKind::Choice(&["paper", "object"]),
-        slider: None,
-        get: |p| {
-            ParamValue::Choice(match p.domain {
-                DomainMode::Paper => "paper",
-                DomainMode::Object => "object",
-            })
-        },
-        set: |p, v| {
-            p.domain = if word(v) == "object" {
-                DomainMode::Object
-            } else {
-                DomainMode::Paper
-            }
-        },
+    choice_param! {
+        "domain", "domain",
+        domain, ["paper" => DomainMode::Paper, "object" => DomainMode::Object],
+        "'paper' (default): every pixel carries depth, the background only has \
+         confidence 0; 'object': only object-mask pixels do (docs/mask-and-confidence.md)."
     },
-    ParamSpec {
-        name: "step-control",
-        label: "step control",
-        help: "'backtracking' (default): crop, then halve the step until the energy does not \
-               rise; 'crop': the paper's per-pixel crop alone.",
-        kind: ParamKind::Choice(&["backtracking", "crop"]),
-        slider: None,
-        get: |p| {
-            ParamValue::Choice(match p.step_control {
-                StepControl::Backtracking => "backtracking",
-                StepControl::Crop => "crop",
-            })
-        },
-        set: |p, v| {
-            p.step_control = if word(v) == "crop" {
-                StepControl::Crop
-            } else {
-                StepControl::Backtracking
-            }
-        },
+    choice_param! {
+        "step-control", "step control",
+        step_control, ["backtracking" => StepControl::Backtracking, "crop" => StepControl::Crop],
+        "'backtracking' (default): crop, then halve the step until the energy does not \
+         rise; 'crop': the paper's per-pixel crop alone."
     },
-    ParamSpec {
-        name: "anti-alias",
-        label: "anti-alias",
-        help: "Pyramid anti-aliasing sigma_0 (0, the default: point-sample every level from \
-               the full image, keeping bright peaks). Bounded by 10: the blur's kernel grows \
-               with it.",
-        kind: ParamKind::Real {
-            min: 0.0,
-            max: 10.0,
-            log: false,
-            auto: false,
-        },
-        slider: None,
-        get: |p| ParamValue::Real(p.anti_alias_sigma),
-        set: |p, v| p.anti_alias_sigma = real(v),
+    field_param! {
+        "anti-alias", "anti-alias",
+        anti_alias_sigma, linear((0.0, 10.0)), slider = None,
+        "Pyramid anti-aliasing sigma_0 (0, the default: point-sample every level from \
+         the full image, keeping bright peaks). Bounded by 10: the blur's kernel grows \
+         with it."
     },
     ParamSpec {
         name: "reflectance",
@@ -588,69 +525,33 @@ pub const PARAMS: &[ParamSpec] = &[
         get: |p| ParamValue::Choice(p.reflectance.name()),
         set: |p, v| p.reflectance = ReflectanceChoice::from_name(word(v)).unwrap_or_default(),
     },
-    ParamSpec {
-        name: "roughness",
-        label: "roughness (rad)",
-        help: "Oren-Nayar roughness sigma: the spread of the surface's facet slopes, radians \
-               (default 0.3; 0 is Lambert; at most 1). Rough surfaces stay lit towards the rim \
-               and look flatter facing the light. Fast marching needs it below about 0.61.",
-        kind: ParamKind::Real {
-            min: crate::material::ROUGHNESS.range.0,
-            max: crate::material::ROUGHNESS.range.1,
-            log: false,
-            auto: false,
-        },
-        slider: Some((0.0, 1.0)),
-        get: |p| ParamValue::Real(p.roughness_rad),
-        set: |p, v| p.roughness_rad = real(v),
+    field_param! {
+        "roughness", "roughness (rad)",
+        roughness_rad, linear(crate::material::ROUGHNESS.range), slider = Some((0.0, 1.0)),
+        "Oren-Nayar roughness sigma: the spread of the surface's facet slopes, radians \
+         (default 0.3; 0 is Lambert; at most 1). Rough surfaces stay lit towards the rim \
+         and look flatter facing the light. Fast marching needs it below about 0.61."
     },
-    ParamSpec {
-        name: "specular",
-        label: "specular k_s",
-        help: "Blinn-Phong specular weight k_s against a diffuse weight of 1 (default 0.3; 0 \
-               is Lambert; at most 10).",
-        kind: ParamKind::Real {
-            min: crate::material::SPECULAR.range.0,
-            max: crate::material::SPECULAR.range.1,
-            log: false,
-            auto: false,
-        },
-        slider: Some((0.0, 2.0)),
-        get: |p| ParamValue::Real(p.specular),
-        set: |p, v| p.specular = real(v),
+    field_param! {
+        "specular", "specular k_s",
+        specular, linear(crate::material::SPECULAR.range), slider = Some((0.0, 2.0)),
+        "Blinn-Phong specular weight k_s against a diffuse weight of 1 (default 0.3; 0 \
+         is Lambert; at most 10)."
     },
-    ParamSpec {
-        name: "shininess",
-        label: "shininess n",
-        help: "Blinn-Phong shininess exponent n (default 20): larger gives a smaller, sharper \
-               highlight (10: a broad sheen, 30: skin or plastic, 100: polished). In [1, 1000].",
-        kind: ParamKind::Real {
-            min: crate::material::SHININESS.range.0,
-            max: crate::material::SHININESS.range.1,
-            log: true,
-            auto: false,
-        },
-        slider: Some((1.0, 200.0)),
-        get: |p| ParamValue::Real(p.shininess),
-        set: |p, v| p.shininess = real(v),
+    field_param! {
+        "shininess", "shininess n",
+        shininess, logarithmic(crate::material::SHININESS.range), slider = Some((1.0, 200.0)),
+        "Blinn-Phong shininess exponent n (default 20): larger gives a smaller, sharper \
+         highlight (10: a broad sheen, 30: skin or plastic, 100: polished). In [1, 1000]."
     },
-    ParamSpec {
-        name: "albedo-edge",
-        label: "albedo edge (log step)",
-        help: "The albedo prior's weight, used by --albedo auto: the smallest step of log \
-               brightness between neighbouring pixels taken as a change of albedo rather than \
-               of shading (an L0 penalty tau^2 on the log albedo's gradient; default 0.2, a \
-               ratio of 1.22; a step must also exceed five times its noise). Lower finds \
-               fainter marks and takes more shading for albedo. In [0.02, 2].",
-        kind: ParamKind::Real {
-            min: 0.02,
-            max: 2.0,
-            log: true,
-            auto: false,
-        },
-        slider: Some((0.05, 1.0)),
-        get: |p| ParamValue::Real(p.albedo_edge),
-        set: |p, v| p.albedo_edge = real(v),
+    field_param! {
+        "albedo-edge", "albedo edge (log step)",
+        albedo_edge, logarithmic((0.02, 2.0)), slider = Some((0.05, 1.0)),
+        "The albedo prior's weight, used by --albedo auto: the smallest step of log \
+         brightness between neighbouring pixels taken as a change of albedo rather than \
+         of shading (an L0 penalty tau^2 on the log albedo's gradient; default 0.2, a \
+         ratio of 1.22; a step must also exceed five times its noise). Lower finds \
+         fainter marks and takes more shading for albedo. In [0.02, 2]."
     },
 ];
 

@@ -11,8 +11,12 @@ use crate::grid::Grid;
 use crate::model::{self, Energy, Reflectance};
 
 use super::prepare::{Prepared, level_energy, level_result};
-use super::problem::{LevelReport, SolveError, SolveObserver, check_cancelled};
+use super::problem::{
+    LevelReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
+    on_object,
+};
 use super::pyramid::{self, PyramidLevel};
+use crate::params::SolverParams;
 
 /// One level as the loop hands it to a scheme.
 pub(crate) struct LevelStep<'a> {
@@ -71,6 +75,46 @@ pub(crate) struct Walk {
     /// With the shadow bound asked for and a shadow taken out: the pixels
     /// it moved onto their grazing rays; `None` when it did not run.
     pub shadow_bound_moved: Option<usize>,
+}
+
+impl Walk {
+    /// The solve's result: the depth and reprojection on the object, the
+    /// walk's energies and reports, `prepared`'s start, alpha, lambda,
+    /// scales and shadow, the scheme's `iterations` and `phases`.
+    pub(crate) fn into_solution(
+        self,
+        problem: &Problem,
+        params: &SolverParams,
+        prepared: &mut Prepared<'_>,
+        start: Instant,
+        iterations: usize,
+        phases: PhaseTimes,
+    ) -> Result<Solution, SolveError> {
+        let shadow = prepared.shadow.take();
+        let (depth, reprojection) = on_object(problem, self.depth, self.reprojection);
+        Solution {
+            depth,
+            reprojection,
+            initial_energy: self.initial_energy,
+            final_energy: self.final_energy,
+            levels: self.reports,
+            phases,
+            initial_depth: prepared.initial_depth,
+            seconds: start.elapsed().as_secs_f64(),
+            iterations,
+            budget_exhausted: self.budget_exhausted,
+            shadow,
+            alpha: prepared.alpha_used,
+            alpha_px: prepared.alpha,
+            lambda_px: prepared.lambda,
+            scales: prepared.scales,
+            material: params.material(),
+            material_fit: None,
+            albedo_fit: None,
+            unused_parameters: Vec::new(),
+        }
+        .checked()
+    }
 }
 
 /// Runs `scheme` coarse to fine over `prepared`'s levels from its initial

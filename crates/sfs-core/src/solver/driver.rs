@@ -19,7 +19,7 @@ use super::multigrid::Multigrid;
 use super::prepare::{Crop, Prepared, level_energy, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
-    free_on_pool, on_object, rows_per_task,
+    free_on_pool, rows_per_task,
 };
 use super::sor;
 use super::system::LinearSystem;
@@ -100,31 +100,11 @@ fn solve_on_worker<M: Reflectance>(
         },
         scheme.effects,
     );
-    let shadow = prepared.shadow.take();
-    let (depth, reprojection) = on_object(problem, walk.depth, walk.reprojection);
     let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
-    Solution {
-        depth,
-        reprojection,
-        initial_energy: walk.initial_energy,
-        final_energy: walk.final_energy,
-        levels: walk.reports,
-        phases,
-        initial_depth: prepared.initial_depth,
-        seconds: start.elapsed().as_secs_f64(),
-        iterations,
-        budget_exhausted: false,
-        shadow,
-        alpha: prepared.alpha_used,
-        alpha_px: prepared.alpha,
-        lambda_px: prepared.lambda,
-        scales: prepared.scales,
-        material: params.material(),
-        material_fit: None,
-        albedo_fit: None,
-        unused_parameters,
-    }
-    .checked()
+    let mut solution =
+        walk.into_solution(problem, params, &mut prepared, start, iterations, phases)?;
+    solution.unused_parameters = unused_parameters;
+    Ok(solution)
 }
 
 /// Of several full-resolution starts (holes leave fast marching's start

@@ -57,7 +57,6 @@ use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::prepare::{Prepared, level_energy, level_result, prepare};
 use super::problem::{
     IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
-    on_object,
 };
 use super::pyramid::PyramidLevel;
 
@@ -402,29 +401,15 @@ fn run<M: Reflectance>(
         observer,
         &mut scheme,
     )?;
-    let (depth, reprojection) = on_object(problem, walk.depth, walk.reprojection);
-    Solution {
-        depth,
-        reprojection,
-        initial_energy: walk.initial_energy,
-        final_energy: walk.final_energy,
-        levels: walk.reports,
-        phases: PhaseTimes::default(),
-        initial_depth: prepared.initial_depth,
-        seconds: start.elapsed().as_secs_f64(),
-        iterations: scheme.total_steps,
-        budget_exhausted: walk.budget_exhausted,
-        shadow: prepared.shadow.take(),
-        alpha: prepared.alpha_used,
-        alpha_px: prepared.alpha,
-        lambda_px: prepared.lambda,
-        scales: prepared.scales,
-        material: params.material(),
-        material_fit: None,
-        albedo_fit: None,
-        unused_parameters: Vec::new(),
-    }
-    .checked()
+    let iterations = scheme.total_steps;
+    walk.into_solution(
+        problem,
+        params,
+        &mut prepared,
+        start,
+        iterations,
+        PhaseTimes::default(),
+    )
 }
 
 /// One level of the explicit scheme: alternating data and smoothness

@@ -361,12 +361,7 @@ mod tests {
             let filled =
                 thin_plate_fill(&mut depth, &domain, &known, Cancel::NEVER).expect("not cancelled");
             assert!(filled > 2000);
-            let worst = depth
-                .as_slice()
-                .iter()
-                .zip(truth.as_slice())
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let worst = depth.max_abs_difference(&truth);
             // Exact to 1e-5 of the depth (the steps stop short of exact).
             assert!(worst < 1e-5 * 50.0, "worst error {worst}");
         }

@@ -365,25 +365,16 @@ impl Problem {
                 "image contains an invalid value {bad_value} (values must be finite and >= 0)"
             ));
         }
+        let wrong_size = |what: &str, (mw, mh): (usize, usize)| {
+            bad(format!("{what} is {mw}x{mh} but the image is {w}x{h}"))
+        };
         let object = match &self.object_mask {
-            Some(m) if m.size() != (w, h) => {
-                return bad(format!(
-                    "object mask is {}x{} but the image is {w}x{h}",
-                    m.width(),
-                    m.height()
-                ));
-            }
+            Some(m) if m.size() != (w, h) => return wrong_size("object mask", m.size()),
             Some(m) => m.clone(),
             None => Grid::filled(w, h, true),
         };
         let given = match &self.confidence {
-            Some(c) if c.size() != (w, h) => {
-                return bad(format!(
-                    "confidence is {}x{} but the image is {w}x{h}",
-                    c.width(),
-                    c.height()
-                ));
-            }
+            Some(c) if c.size() != (w, h) => return wrong_size("confidence", c.size()),
             Some(c) => {
                 if c.as_slice().iter().any(|v| !(0.0..=1.0).contains(v)) {
                     return bad("confidence values must lie in [0, 1]".into());

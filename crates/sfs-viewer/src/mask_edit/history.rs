@@ -52,23 +52,31 @@ impl Masks {
     /// Undoes the last edit (ending a stroke in progress first); false when
     /// there is nothing to undo.
     pub fn undo(&mut self) -> bool {
-        self.end_stroke();
-        let Some(change) = self.history.undo.pop_back() else {
-            return false;
-        };
-        self.apply(&change, false);
-        self.history.redo.push(change);
-        true
+        self.step(false)
     }
 
     /// Redoes the last undone edit; false when there is none.
     pub fn redo(&mut self) -> bool {
+        self.step(true)
+    }
+
+    /// Redoes (`forward`) or undoes one edit, moving it to the other list.
+    fn step(&mut self, forward: bool) -> bool {
         self.end_stroke();
-        let Some(change) = self.history.redo.pop() else {
+        let change = if forward {
+            self.history.redo.pop()
+        } else {
+            self.history.undo.pop_back()
+        };
+        let Some(change) = change else {
             return false;
         };
-        self.apply(&change, true);
-        self.history.undo.push_back(change);
+        self.apply(&change, forward);
+        if forward {
+            self.history.undo.push_back(change);
+        } else {
+            self.history.redo.push(change);
+        }
         true
     }
 }

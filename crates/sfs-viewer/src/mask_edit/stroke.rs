@@ -104,23 +104,11 @@ impl Masks {
         if !from.iter().chain(&to).all(|v| v.is_finite()) {
             return false;
         }
+        let segment = [from, to];
+        let (confidence, object) = (self.confidence.as_mut_slice(), self.object.as_mut_slice());
         let changed = match start {
-            Snapshot::Confidence(s) => stamp(
-                self.confidence.as_mut_slice(),
-                s,
-                coverage,
-                size,
-                brush,
-                [from, to],
-            ),
-            Snapshot::Object(s) => stamp(
-                self.object.as_mut_slice(),
-                s,
-                coverage,
-                size,
-                brush,
-                [from, to],
-            ),
+            Snapshot::Confidence(s) => stamp(confidence, s, coverage, size, brush, segment),
+            Snapshot::Object(s) => stamp(object, s, coverage, size, brush, segment),
         };
         if let Some(rect) = changed {
             *dirty = Some(rect.union(*dirty));

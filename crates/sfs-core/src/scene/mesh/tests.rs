@@ -105,6 +105,14 @@ fn placed(p: [f64; 3], placement: &Placement) -> [f64; 3] {
     q
 }
 
+/// Every vertex of `mesh` where `placement` puts it.
+fn placed_positions(mesh: &TriangleMesh, placement: &Placement) -> Vec<[f64; 3]> {
+    mesh.positions
+        .iter()
+        .map(|&p| placed(p, placement))
+        .collect()
+}
+
 fn ray(scene: &Scene, column: usize, row: usize) -> DVec3 {
     let (x, y) = scene.camera.image_xy(column as f64, row as f64);
     let f = scene.camera.focal_px;
@@ -231,11 +239,7 @@ fn rotated_plane_follows_the_euler_convention() {
             ..placement
         },
     );
-    let corners: Vec<[f64; 3]> = square(0.0)
-        .positions
-        .iter()
-        .map(|&p| placed(p, &placement))
-        .collect();
+    let corners = placed_positions(&square(0.0), &placement);
     let mut covered = 0;
     for row in 0..50 {
         for column in 0..70 {
@@ -274,11 +278,7 @@ fn closed_cube_shows_its_front_surface() {
     };
     let mesh = cube();
     let scene = render(&mesh, 90, 70, &placement, "cube").unwrap();
-    let corners: Vec<[f64; 3]> = mesh
-        .positions
-        .iter()
-        .map(|&p| placed(p, &placement))
-        .collect();
+    let corners = placed_positions(&mesh, &placement);
     let mut double_hits = 0;
     for row in 0..70 {
         for column in 0..90 {

@@ -6,24 +6,14 @@
 /// Offsets `(dx, dy)` of the 17-point stencil; entry 0 is the pixel itself,
 /// entry 1 its left neighbour (the one SOR has just updated), the rest grouped
 /// by row so the sweep can address each row with one pointer.
+#[rustfmt::skip] // a line per row of the stencil
 pub const STENCIL: [(isize, isize); 17] = [
-    (0, 0),
-    (-1, 0),
-    (-2, -2),
-    (0, -2),
-    (2, -2),
-    (-1, -1),
-    (0, -1),
-    (1, -1),
-    (-2, 0),
-    (1, 0),
-    (2, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-    (-2, 2),
-    (0, 2),
-    (2, 2),
+    (0, 0), (-1, 0),
+    (-2, -2), (0, -2), (2, -2),
+    (-1, -1), (0, -1), (1, -1),
+    (-2, 0), (1, 0), (2, 0),
+    (-1, 1), (0, 1), (1, 1),
+    (-2, 2), (0, 2), (2, 2),
 ];
 
 /// Offsets of the 5-point slots `[centre, left, right, up, down]`.
@@ -36,15 +26,11 @@ pub const HALO: usize = 2;
 /// Offsets of the 8 *forward* stencil entries (after the pixel in row-major
 /// order). The matrix is symmetric: the coefficient of a backward offset `-o`
 /// in row `q` is the forward coefficient `o` stored with the pixel `q - o`.
+#[rustfmt::skip] // a line per row of the stencil
 pub const FORWARD: [(isize, isize); 8] = [
-    (1, 0),
-    (2, 0),
-    (-1, 1),
-    (0, 1),
-    (1, 1),
-    (-2, 2),
-    (0, 2),
-    (2, 2),
+    (1, 0), (2, 0),
+    (-1, 1), (0, 1), (1, 1),
+    (-2, 2), (0, 2), (2, 2),
 ];
 
 /// Planes per padded row of [`LinearSystem::coefficients`](super::LinearSystem::coefficients): the 8 forward

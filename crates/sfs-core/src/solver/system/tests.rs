@@ -9,7 +9,8 @@ use super::*;
 use crate::camera::Intrinsics;
 use crate::cancel::Uncancelled;
 use crate::grid::Confidence;
-use crate::model::{self, Lambertian, LevelGeometry};
+use crate::model::{Lambertian, LevelGeometry};
+use crate::solver::prepare::level_energy;
 
 /// A small level with a random-looking smooth depth and a domain hole.
 fn small_level(domain_hole: bool) -> (PyramidLevel<'static>, Grid<f64>) {
@@ -53,19 +54,9 @@ fn rhs_is_minus_half_the_energy_gradient_and_matrix_is_symmetric() {
             .add_smoothness(&level, alpha, lambda, Cancel::NEVER)
             .uncancelled();
         let energy = |z: &Grid<f64>| {
-            model::energy(
-                &model,
-                &level.geometry,
-                &level.image,
-                &level.confidence,
-                &level.domain,
-                z,
-                alpha,
-                lambda,
-                Cancel::NEVER,
-            )
-            .uncancelled()
-            .total
+            level_energy(&model, &level, z, alpha, lambda, Cancel::NEVER)
+                .uncancelled()
+                .total
         };
         let (w, h) = depth.size();
         for q in 0..w * h {
@@ -132,19 +123,9 @@ fn the_data_part_is_whole_across_the_blocks_of_rows() {
         .add_smoothness(&level, 0.0, 1.0, Cancel::NEVER)
         .uncancelled();
     let data_energy = |z: &Grid<f64>| {
-        model::energy(
-            &model,
-            &level.geometry,
-            &level.image,
-            &level.confidence,
-            &level.domain,
-            z,
-            0.0,
-            1.0,
-            Cancel::NEVER,
-        )
-        .uncancelled()
-        .data
+        level_energy(&model, &level, z, 0.0, 1.0, Cancel::NEVER)
+            .uncancelled()
+            .data
     };
     let edge = rows_per_task(w).max(MIN_DATA_BLOCK_ROWS);
     for r in [edge - 2, edge - 1, edge, edge + 1, 2 * edge - 1, 2 * edge] {

@@ -58,18 +58,8 @@ impl Panels {
             ui.weak("light: at the optical centre (the paper's)");
         } else {
             for (k, light) in c.lights.iter().enumerate() {
-                ui.weak(format!(
-                    "light {}: ({:.1}, {:.1}, {:.1}){}",
-                    k + 1,
-                    light.position[0],
-                    light.position[1],
-                    light.position[2],
-                    if light.direction.is_some() && light.mu > 0.0 {
-                        format!(", mu {}", light.mu)
-                    } else {
-                        String::new()
-                    }
-                ));
+                let (position, aim) = (light.position_text(), light.aim_text());
+                ui.weak(format!("light {}: {position}{aim}", k + 1));
             }
             changed |= ui
                 .checkbox(&mut c.use_lights, "solve with the lights where they are")
