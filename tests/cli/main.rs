@@ -10,5 +10,6 @@ mod depth_unit;
 mod fronts;
 mod photographs;
 mod solve;
+mod solve_many;
 mod synth;
 mod usage;
