@@ -554,3 +554,66 @@ fn initial_depth(
     }
     Ok(InitialDepth::Map(map))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One point or a list of points, as Python writes them.
+    #[test]
+    fn tuples_take_one_or_a_list() {
+        let mut options =
+            Options::from_json(r#"{"known_depth": [1, 2, 3], "light": [[0, 0, 0], [1, 0, 0]]}"#)
+                .expect("json");
+        assert_eq!(
+            options.tuples::<3>("known_depth").expect("one"),
+            [[1.0, 2.0, 3.0]]
+        );
+        assert_eq!(options.tuples::<3>("light").expect("list").len(), 2);
+        let mut bad = Options::from_json(r#"{"light": [1, 2]}"#).expect("json");
+        let err = bad.tuples::<3>("light").expect_err("two numbers");
+        assert!(err.0.contains("--light: expected 3 numbers"), "{}", err.0);
+    }
+
+    /// The table's options by their snake-case names; anything else is
+    /// refused with the accepted names.
+    #[test]
+    fn table_options_are_taken_by_name_and_the_rest_refused() {
+        let mut options =
+            Options::from_json(r#"{"kappa_max": 8, "alpha": "auto", "colour": "red"}"#)
+                .expect("json");
+        let table = options.table();
+        let names: Vec<&str> = table.iter().map(|(spec, _)| spec.name).collect();
+        assert!(
+            names.contains(&"kappa-max") && names.contains(&"alpha"),
+            "{names:?}"
+        );
+        let params = table_params(&table).expect("params");
+        assert_eq!(params.kappa_max, 8);
+        let err = options.finish(SOLVE_OPTIONS).expect_err("colour");
+        assert!(
+            err.0.starts_with("unknown option colour (--colour)"),
+            "{}",
+            err.0
+        );
+        assert!(
+            err.0.contains("max_side") && err.0.contains("kappa_max"),
+            "{}",
+            err.0
+        );
+    }
+
+    /// A model's parameter without its model is refused by name, as on the
+    /// command line.
+    #[test]
+    fn a_models_parameter_without_its_model_is_refused() {
+        let mut options = Options::from_json(r#"{"roughness": 0.3}"#).expect("json");
+        let err = table_params(&options.table()).expect_err("no oren-nayar");
+        assert!(
+            err.0
+                .contains("--roughness belongs to --reflectance oren-nayar"),
+            "{}",
+            err.0
+        );
+    }
+}
