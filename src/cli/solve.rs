@@ -134,7 +134,7 @@ pub struct SolveArgs {
     #[arg(
         long,
         required_unless_present = "out_dir",
-        default_value = "",
+        default_value = ".",
         hide_default_value = true
     )]
     pub out: PathBuf,
