@@ -12,13 +12,14 @@ use sfs_core::io::{self, SrgbMode};
 use sfs_core::memory;
 use sfs_core::metrics;
 use sfs_core::model_fit;
+use sfs_core::output::many;
 use sfs_core::params::{self as parameters, AlbedoChoice, InitialDepth, SolverParams};
 use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput, ScaleSpec, Vignetting};
 use sfs_core::photograph_solve::{KnownDistance, PhotographSolve, SolvedPhotograph, shown};
 use sfs_core::solver::{self, IterationReport, SolveObserver};
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
-#[derive(Debug, Args)]
+#[derive(Clone, Debug, Args)]
 #[command(allow_negative_numbers = true)]
 pub struct SolveArgs {
     /// Input photograph(s): 8/16-bit PNG, TIFF or JPEG, read as linear values
@@ -130,8 +131,20 @@ pub struct SolveArgs {
     /// Output folder (created if needed): depth.npy, depth16.png,
     /// reprojection.png, residual.png, occlusion_edges.png, mesh.ply,
     /// report.json.
-    #[arg(long)]
+    #[arg(
+        long,
+        required_unless_present = "out_dir",
+        default_value = ".",
+        hide_default_value = true
+    )]
     pub out: PathBuf,
+    /// Many photographs, each solved alone (instead of --out): the
+    /// photographs given, those of a folder (PNG, JPEG, TIFF) or of a
+    /// pattern (`'DIR/*.png'`), each into DIR/NAME (its file name less the
+    /// extension), with one progress bar and one summary table (file,
+    /// seconds, fit, warnings) on stdout.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["out", "photometric_stereo", "init_depth"])]
+    pub out_dir: Option<PathBuf>,
     /// Photometric stereo: the photographs are a set of one object, each
     /// taken by a light of its own (a camera file whose `lights` name each
     /// image, or one --light per photograph in order); solved for depth,
@@ -500,9 +513,95 @@ impl SolveArgs {
     }
 }
 
-/// Runs `solve` on one photograph (`cli::run` hands `--photometric-stereo`
-/// to `cli::photometric`).
+/// Runs `solve` on one photograph, or with `--out-dir` on each photograph
+/// given (`cli::run` hands `--photometric-stereo` to `cli::photometric`).
 pub fn run(args: &SolveArgs) -> Result<()> {
+    match &args.out_dir {
+        Some(dir) => run_many(args, dir),
+        None => solve_one(args, true).map(|_| ()),
+    }
+}
+
+/// `solve --out-dir DIR`: each photograph solved alone into `DIR/NAME`
+/// (the core's [`many`] names them and makes the table), a progress bar over
+/// the photographs, the summary table on stdout; an error if any failed.
+fn run_many(args: &SolveArgs, out_dir: &Path) -> Result<()> {
+    let photos = many::photographs(&args.images)?;
+    if photos.is_empty() {
+        bail!(
+            "no photograph (PNG, JPEG or TIFF) in {}",
+            args.images[0].display()
+        );
+    }
+    let names = many::folder_names(&photos);
+    let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
+        let bar = indicatif::ProgressBar::new(photos.len() as u64);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {pos}/{len} {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        bar
+    });
+    let mut rows = Vec::with_capacity(photos.len());
+    for (photo, name) in photos.iter().zip(&names) {
+        if let Some(bar) = &bar {
+            bar.set_message(name.clone());
+        }
+        let mut one = args.clone();
+        one.images = vec![photo.clone()];
+        one.out = out_dir.join(name);
+        one.out_dir = None;
+        one.quiet = true;
+        let start = std::time::Instant::now();
+        let solved = solve_one(&one, false);
+        let seconds = start.elapsed().as_secs_f64();
+        rows.push(match solved {
+            Ok(outcome) => many::Row {
+                file: photo.clone(),
+                seconds,
+                fit: Some(outcome.fit),
+                warnings: outcome.warnings,
+                error: None,
+            },
+            Err(e) => many::Row {
+                file: photo.clone(),
+                seconds,
+                fit: None,
+                warnings: Vec::new(),
+                error: Some(format!("{e:#}")),
+            },
+        });
+        if let Some(bar) = &bar {
+            bar.inc(1);
+        }
+    }
+    if let Some(bar) = &bar {
+        bar.finish_and_clear();
+    }
+    print!("{}", many::table(&rows));
+    let failed = rows.iter().filter(|r| r.error.is_some()).count();
+    if failed > 0 {
+        bail!(
+            "{failed} of {} photographs could not be solved (the table says why)",
+            rows.len()
+        );
+    }
+    Ok(())
+}
+
+/// What one photograph's solve gives the summary table.
+struct Outcome {
+    /// The model fit: RIE over trusted pixels.
+    fit: f64,
+    /// The solve's warnings (with the darkness warning).
+    warnings: Vec<String>,
+}
+
+/// One photograph's solve into `args.out`; `say_warnings`: print the
+/// warnings on stderr (a solve of many puts them in its table instead).
+fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
     if args.ps_smoothness != "auto" || args.ps_robust_scale != "auto" {
         bail!("--ps-smoothness and --ps-robust-scale need --photometric-stereo");
     }
@@ -547,9 +646,10 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         bail!("cannot solve {}: {reason}", args.images[0].display());
     }
     let camera = job.problem.camera;
+    let darkness =
+        model_fit::darkness_warning(&job.problem.image, job.problem.object_mask.as_ref());
     if !args.quiet
-        && let Some(warning) =
-            model_fit::darkness_warning(&job.problem.image, job.problem.object_mask.as_ref())
+        && let Some(warning) = &darkness
     {
         eprintln!("warning: {warning}");
     }
@@ -632,44 +732,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         )?),
         None => None,
     };
-    let residual = solved.residual();
-    io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
-    io::write_png16(&stage.path("reprojection.png"), &solution.reprojection)?;
-    io::write_png16(&stage.path("input_linear.png"), &problem.image)?;
-    // Residual in [-0.5, 0.5] I_ref mapped to [0, 1]: grey 0.5 = explained.
-    io::write_png8(
-        &stage.path("residual.png"),
-        &residual.map(|v| if v.is_finite() { 0.5 + v } else { 0.5 }),
-    )?;
-    if let Some(c) = &problem.confidence
-        && solved.confidence_derived
-    {
-        io::write_png8(&stage.path("confidence_used.png"), c)?;
-    }
-    if let Some(shadow) = &solution.shadow {
-        io::write_mask_png(&stage.path("shadow.png"), shadow)?;
-    }
-    io::write_mask_png(&stage.path("occlusion_edges.png"), &solved.occlusion_edges)?;
-    if let Some(fit) = &solution.albedo_fit {
-        // Relative: the object's 90th percentile is 1.
-        let used = fit.used_albedo(&solution.depth);
-        io::write_npy_f32(&stage.path("albedo.npy"), &used)?;
-        io::write_png16(
-            &stage.path("albedo.png"),
-            &used.map(|a| if a.is_finite() { *a } else { 0.0 }),
-        )?;
-    }
-    io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
-    io::write_depth_ply(
-        &stage.path("mesh.ply"),
-        &solution.depth,
-        &camera,
-        Some(&solution.reprojection),
-    )?;
-    io::write_json(
-        &stage.path("report.json"),
-        &solved.report(errors.map(|e| (e.rse, e.rie))),
-    )?;
+    sfs_core::output::write_solved(&mut stage, &solved, errors.map(|e| (e.rse, e.rie)))?;
     stage
         .commit()
         .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
@@ -678,10 +741,18 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     }
     // Warnings are never quiet (--quiet drops the progress, notes and
     // summary only).
-    for warning in &solved.warnings {
-        eprintln!("warning: {warning}");
+    if say_warnings {
+        for warning in &solved.warnings {
+            eprintln!("warning: {warning}");
+        }
     }
-    Ok(())
+    Ok(Outcome {
+        fit: solved.fit.rie_trusted,
+        warnings: darkness
+            .into_iter()
+            .chain(solved.warnings.clone())
+            .collect(),
+    })
 }
 
 /// The notes, the one-line summary and the fits on stderr.

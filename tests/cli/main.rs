@@ -13,5 +13,6 @@ mod options;
 mod photographs;
 mod photometric_fit;
 mod solve;
+mod solve_many;
 mod synth;
 mod usage;

@@ -30,6 +30,7 @@ pub mod metrics;
 pub mod model;
 pub mod model_fit;
 pub mod occlusion;
+pub mod output;
 pub mod params;
 pub mod photo;
 pub mod photograph_solve;
