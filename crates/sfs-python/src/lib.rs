@@ -146,10 +146,10 @@ fn read_image<'py>(
             )));
         }
     };
-    let (image, _, _) = py
+    let photo = py
         .detach(|| io::read_photo(&path, mode))
         .map_err(|e| PyErr::from(Failure::from(e)))?;
-    Ok(array2(py, &image))
+    Ok(array2(py, &photo.image))
 }
 
 /// Writes a float32 H x W array as a one-channel float32 TIFF (read back
