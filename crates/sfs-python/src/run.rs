@@ -23,8 +23,8 @@ use sfs_core::photograph_solve::{PhotographSolve, shown};
 use sfs_core::solver::photometric::{self as ps, PhotometricParams};
 use sfs_core::solver::{IterationReport, LevelResult, SolveObserver};
 
+use crate::convert::{Failure, array2, array3};
 use crate::options::{Options, SOLVE_OPTIONS, SolveOptions, flag};
-use crate::{Failure, array2, array3};
 
 /// One step of a solve's progress: done, total, what is being done.
 type Step = (u64, u64, String);

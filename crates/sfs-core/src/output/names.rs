@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use super::OutputStage;
+use super::stage::OutputStage;
 use crate::io::IoError;
 
 /// The most photographs of a set whose numbered files are named here
