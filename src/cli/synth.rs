@@ -117,6 +117,7 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
 
 /// Runs `synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
+    refuse_unused(args)?;
     if args.ps_leds.is_some() {
         return run_set(args);
     }
@@ -298,6 +299,26 @@ fn run_set(args: &SynthArgs) -> Result<()> {
         args.albedo_pattern,
         args.out.display()
     );
+    Ok(())
+}
+
+/// Refuses options this scene leaves without effect (a value away from its
+/// default: `--rotation` or `--distance` with the analytic Sombrero, which
+/// place a mesh; `--seed` without `--noise`, which it seeds).
+fn refuse_unused(args: &SynthArgs) -> Result<()> {
+    if args.scene == "sombrero" && args.rotation != [180.0, 0.0, 0.0] {
+        anyhow::bail!(
+            "--rotation turns a mesh; the Sombrero is analytic and has none (give an OBJ mesh)"
+        );
+    }
+    if args.scene == "sombrero" && args.distance != 2.0 {
+        anyhow::bail!(
+            "--distance places a mesh; the Sombrero is analytic, at its own distance (give an OBJ mesh)"
+        );
+    }
+    if args.noise.is_none() && args.seed != 1 {
+        anyhow::bail!("--seed seeds the noise and no --noise was given");
+    }
     Ok(())
 }
 

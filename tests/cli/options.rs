@@ -269,3 +269,70 @@ fn every_option_changes_the_result_or_is_refused_or_reported_unused() {
         silent.join("\n")
     );
 }
+
+/// The other schemes and `synth`: what the adversarial probe of issue 48
+/// found accepted and ignored (bit-identical output, nothing said).
+#[test]
+fn the_other_schemes_report_what_they_leave_unused_and_synth_refuses_it() {
+    let tmp = tempdir().expect("temporary folder");
+    let scene = tmp.path().join("scene");
+    let synth = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "synth".to_owned(),
+            "sombrero".into(),
+            "--size".into(),
+            "32x32".into(),
+            "--out".into(),
+            s(out),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        sfs(&args)
+    };
+    assert_success(&synth(&[], &scene), "synth sombrero");
+    for (extra, named) in [
+        (&["--rotation", "0,90,0"][..], "--rotation"),
+        (&["--distance", "3"][..], "--distance"),
+        (&["--seed", "7"][..], "--seed"),
+    ] {
+        let run = synth(extra, &tmp.path().join("refused"));
+        assert!(!run.status.success(), "synth {extra:?} was accepted");
+        assert!(stderr(&run).contains(named), "{}", stderr(&run));
+    }
+    for (extra, said) in [
+        (
+            &["--method", "explicit", "--sor-iters", "3"][..],
+            "unused option --sor-iters 3: the explicit scheme",
+        ),
+        (
+            &["--method", "fast-marching", "--init-depth", "3"][..],
+            "unused option --init-depth 3: fast marching",
+        ),
+        (
+            &["--method", "fast-marching", "--units", "paper"][..],
+            "unused option --units paper: fast marching",
+        ),
+    ] {
+        let out = tmp.path().join("solve");
+        let mut args = vec![
+            "solve".to_owned(),
+            s(&scene.join("image16.png")),
+            "--camera".into(),
+            s(&scene.join("scene.json")),
+            "-q".into(),
+            "--out".into(),
+            s(&out),
+        ];
+        args.extend(extra.iter().map(|a| a.to_string()));
+        let run = sfs(&args);
+        assert_success(&run, &format!("solve {extra:?}"));
+        assert!(stderr(&run).contains(said), "{extra:?}: {}", stderr(&run));
+        let report = read_json(&out.join("report.json"));
+        let entry = said.trim_start_matches("unused option ");
+        let listed = report["unused_options"].as_array().is_some_and(|list| {
+            list.iter()
+                .any(|u| u.as_str().is_some_and(|u| u.starts_with(entry)))
+        });
+        assert!(listed, "{extra:?}: {}", report["unused_options"]);
+        let _ = std::fs::remove_dir_all(&out);
+    }
+}

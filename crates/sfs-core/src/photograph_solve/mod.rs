@@ -294,6 +294,21 @@ impl PhotographSolve {
                     .into(),
             );
         }
+        if matches!(self.method, Method::FastMarching(_)) {
+            if let Some(start) = &self.initial_depth_given {
+                unused.push(format!(
+                    "--init-depth {start}: fast marching computes the depth from the image \
+                     alone, from no start"
+                ));
+            }
+            if self.problem.confidence.is_some() {
+                unused.push(
+                    "--confidence / --auto-confidence: fast marching weighs every object pixel \
+                     alike (it has no confidence)"
+                        .into(),
+                );
+            }
+        }
         unused
     }
 

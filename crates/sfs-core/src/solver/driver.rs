@@ -304,6 +304,9 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             let adaptive = refines_warm_start && params.inner_tolerance > 0.0;
             // The default tolerance's decisions, for the unused options.
             let adaptive_default = refines_warm_start && defaults.inner_tolerance > 0.0;
+            // Where the inner iterations ended: stopped by the tolerance at
+            // this index, or `None` after all of them (for the unused options).
+            let mut stopped_at: Option<usize> = None;
             for inner in 0..params.inner_iterations {
                 let t1 = Instant::now();
                 let change = system.update_weights(
@@ -330,6 +333,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     self.effects.inner_stop_differed = true;
                 }
                 if stops {
+                    stopped_at = Some(inner);
                     break;
                 }
                 let t2 = Instant::now();
@@ -358,6 +362,13 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                             || residual_norm(&system, observer)? > LOCAL_REACH * start_residual;
                 }
             }
+            // The default count would have ended the same way where the
+            // tolerance stopped below it; a loop that ran its whole count
+            // ends elsewhere with another count.
+            self.effects.inner_count_differed |= match stopped_at {
+                Some(at) => at > defaults.inner_iterations,
+                None => params.inner_iterations != defaults.inner_iterations,
+            };
             let t3 = Instant::now();
             let z_floor = self.z_floor;
             let (max_step, energy) = match params.step_control {

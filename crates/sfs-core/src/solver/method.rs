@@ -63,8 +63,14 @@ pub fn solve_method(
             observer,
         ),
     }?;
-    if matches!(method, Method::FastMarching(_)) {
-        solution.unused_parameters = super::unused::unused_by_fast_marching(params);
+    match method {
+        Method::FastMarching(_) => {
+            solution.unused_parameters = super::unused::unused_by_fast_marching(params);
+        }
+        Method::Explicit(_) => {
+            solution.unused_parameters = super::unused::unused_by_explicit(params);
+        }
+        Method::Linearised => {}
     }
     solution.material_fit = fit;
     if let Some(albedo) = albedo {

@@ -26,6 +26,9 @@ pub(crate) struct Effects {
     /// With `step-control crop`: a step raised the energy (backtracking
     /// would have halved it).
     pub energy_rose: bool,
+    /// Some outer iteration's inner iterations ended at another count than
+    /// the default `inner-iters` would have ended them.
+    pub inner_count_differed: bool,
 }
 
 /// How the solve ran, resolved for its problem.
@@ -93,6 +96,10 @@ pub(crate) fn unused_parameters(
                 "no level stopped at another iteration than with the default (the energy did \
                  not settle within --level-tolerance before kappa-max iterations)",
             ),
+            "inner-iters" if !effects.inner_count_differed => Some(
+                "every outer iteration's inner iterations ended where they would have with the \
+                 default count (stopped early by --inner-tolerance)",
+            ),
             "inner-tolerance" if !path.refines_warm_start || params.inner_iterations < 2 => Some(
                 "it stops the inner iterations of a full-resolution start's refinement early, \
                  and this solve ran none to stop (one inner iteration, or a pyramid)",
@@ -122,15 +129,54 @@ pub(crate) fn unused_parameters(
 
 /// `--NAME VALUE: why` for every parameter of the energy set away from its
 /// default, for a method that solves no energy (fast marching): everything
-/// but the reflectance model's.
+/// but the reflectance model's (`--units paper` included).
 pub(crate) fn unused_by_fast_marching(params: &SolverParams) -> Vec<String> {
     given(params)
         .into_iter()
+        .chain(
+            (params.units != crate::params::Units::Relative)
+                .then(|| ("units", "--units paper".to_owned())),
+        )
         .filter(|(name, _)| {
             crate::material::model_of_param(name).is_none() && *name != "reflectance"
         })
         .map(|(_, option)| {
             format!("{option}: fast marching solves no energy and has no such parameter")
+        })
+        .collect()
+}
+
+/// The linearised scheme's own parameters (its outer and inner iterations,
+/// linear solver and step control), which the explicit scheme does not
+/// have.
+const LINEARISED_ONLY: [&str; 13] = [
+    "kappa",
+    "kappa-max",
+    "kappa-holes",
+    "level-tolerance",
+    "inner-iters",
+    "sor-iters",
+    "omega",
+    "linear-solver",
+    "cycles",
+    "smoothing-sweeps",
+    "linear-tolerance",
+    "inner-tolerance",
+    "step-control",
+];
+
+/// `--NAME VALUE: why` for the linearised scheme's own parameters set away
+/// from their defaults, for the explicit scheme (gradient descent with its
+/// own budget).
+pub(crate) fn unused_by_explicit(params: &SolverParams) -> Vec<String> {
+    given(params)
+        .into_iter()
+        .filter(|(name, _)| LINEARISED_ONLY.contains(name))
+        .map(|(_, option)| {
+            format!(
+                "{option}: the explicit scheme descends the energy's gradient with its own \
+                 budget; it has no Gauss-Newton iterations, linear solver or step control"
+            )
         })
         .collect()
 }
@@ -157,6 +203,14 @@ mod tests {
         let s = spec(name).expect("in the table");
         (s.set)(&mut params, s.parse(value).expect("valid"));
         params
+    }
+
+    #[test]
+    fn the_explicit_scheme_reports_the_linearised_schemes_own_parameters() {
+        let unused = unused_by_explicit(&set("sor-iters", "3"));
+        assert_eq!(unused.len(), 1, "{unused:?}");
+        assert!(unused[0].starts_with("--sor-iters 3: the explicit scheme"));
+        assert!(unused_by_explicit(&set("alpha", "0.01")).is_empty());
     }
 
     #[test]
@@ -189,13 +243,19 @@ mod tests {
             level_stop_differed: true,
             inner_stop_differed: true,
             energy_rose: true,
+            inner_count_differed: true,
         };
         let pyramid = Path {
             refines_warm_start: false,
             kappa: 1,
             ..path()
         };
-        for (name, value) in [("kappa", "1"), ("step-control", "crop"), ("eta", "0.5")] {
+        for (name, value) in [
+            ("kappa", "1"),
+            ("step-control", "crop"),
+            ("eta", "0.5"),
+            ("inner-iters", "3"),
+        ] {
             let unused = unused_parameters(&set(name, value), pyramid, acted);
             assert!(unused.is_empty(), "{name}: {unused:?}");
         }
