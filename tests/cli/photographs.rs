@@ -305,3 +305,33 @@ fn a_ground_truth_folder_is_checked_before_the_solve() {
         ],
     );
 }
+
+/// Issue 48's probe: the shared face's set at `--max-side 16` was refused
+/// as "a black photograph" where the cause is the working size (20 object
+/// pixels); the refusal now names the working size and `--max-side`.
+#[test]
+fn an_unlit_photograph_on_a_tiny_working_size_names_the_working_size() {
+    let real =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/real/near_ps_human1");
+    if !real.join("calibration.json").is_file() {
+        eprintln!("skipped: {} does not exist", real.display());
+        return;
+    }
+    let tmp = tempdir().unwrap();
+    let out = tmp.path().join("out");
+    let mut args = vec!["solve".to_owned(), "--photometric-stereo".into()];
+    args.extend([1, 2, 3, 4, 6, 7, 8].map(|k| s(&real.join(format!("led{k}.png")))));
+    for (flag, file) in [
+        ("--camera", "calibration.json"),
+        ("--mask", "mask.png"),
+        ("--ambient", "ambient.png"),
+    ] {
+        args.extend([flag.to_owned(), s(&real.join(file))]);
+    }
+    args.extend(["--max-side".into(), "16".into(), "--out".into(), s(&out)]);
+    expect_failure(
+        &args,
+        &out,
+        &["no lit object pixel", "working size", "--max-side"],
+    );
+}

@@ -418,6 +418,11 @@ pub fn level_sizes(width: usize, height: usize, params: &PhotometricParams) -> V
     super::pyramid::level_sizes(width, height, 0.5, params.min_side.max(3))
 }
 
+/// An object with fewer trusted pixels than this (20 x 20) at the working
+/// size is small enough that resampling may have hidden a photograph's
+/// light: the refusal of an unlit photograph says so.
+const FEW_OBJECT_PIXELS: usize = 400;
+
 /// Solves the set: depth, normals, albedo and each photograph's fit,
 /// every level's depth to `observer` (its reprojection: the mean of the
 /// photographs' predictions).
@@ -447,10 +452,20 @@ pub fn solve_photometric(
     // the brightness (a render has no noise).
     let dark_level = (3.0 * sigma).max(0.02 * brightness);
     if let Some((j, trusted)) = unlit_photograph(&finest, sigma, brightness) {
+        // On a few pixels (a small working size) a lit rim can vanish in
+        // the resampling: say so rather than only blame the photograph.
+        let few = if trusted < FEW_OBJECT_PIXELS {
+            format!(
+                "; at the working size {width}x{height} the object has only {trusted} trusted \
+                 pixels, so a larger working size (--max-side) may show its light"
+            )
+        } else {
+            String::new()
+        };
         return Err(SolveError::Input(format!(
             "{}: no lit object pixel above the noise (fewer than {} of its {trusted} trusted \
              object pixels above {:.3e}): a black photograph, or its light does not reach the \
-             object; leave it out of the set",
+             object; leave it out of the set{few}",
             problem.photos[j].name,
             MIN_LIT_PIXELS,
             unlit_level(sigma, brightness)
