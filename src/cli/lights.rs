@@ -2,7 +2,7 @@
 //! (repeatable) with its direction, anisotropy and intensity in the same
 //! order, and `--light-index K` for the lights of a camera file.
 
-use anyhow::{Result, bail};
+use anyhow::Result;
 use clap::{Arg, ArgMatches, Args, Command, FromArgMatches};
 
 use sfs_core::light::PointLight;
@@ -37,54 +37,17 @@ pub struct LightArgs {
     pub indices: Vec<u32>,
 }
 
-/// One value per light from a list given once (for all) or once per light.
-fn per_light<T: Copy>(values: &[T], lights: usize, name: &str) -> Result<Vec<Option<T>>> {
-    match values.len() {
-        0 => Ok(vec![None; lights]),
-        1 => Ok(vec![Some(values[0]); lights]),
-        n if n == lights => Ok(values.iter().map(|&v| Some(v)).collect()),
-        n => bail!(
-            "--{name} is given {n} times for {lights} --light: give it once or once per light"
-        ),
-    }
-}
-
 impl LightArgs {
     /// The lights of `--light` and its companions (validated), or `None`
     /// without `--light`.
     pub fn lights(&self) -> Result<Option<Vec<PointLight>>> {
-        if self.positions.is_empty() {
-            if !(self.directions.is_empty() && self.mus.is_empty() && self.intensities.is_empty()) {
-                bail!("--light-dir, --light-mu and --light-intensity need --light X,Y,Z");
-            }
-            return Ok(None);
-        }
-        let n = self.positions.len();
-        let directions = per_light(&self.directions, n, "light-dir")?;
-        let mus = per_light(&self.mus, n, "light-mu")?;
-        let intensities = per_light(&self.intensities, n, "light-intensity")?;
-        let mut lights = Vec::with_capacity(n);
-        for k in 0..n {
-            let light = PointLight {
-                position: self.positions[k],
-                direction: directions[k],
-                mu: mus[k].unwrap_or(0.0),
-                intensity: intensities[k].unwrap_or(1.0),
-            };
-            if light.mu > 0.0 && light.direction.is_none() {
-                bail!(
-                    "--light-mu {} for light {} needs --light-dir",
-                    light.mu,
-                    k + 1
-                );
-            }
-            lights.push(
-                light
-                    .validated(k + 1)
-                    .map_err(|e| anyhow::anyhow!("--light: {e}"))?,
-            );
-        }
-        Ok(Some(lights))
+        sfs_core::light::lights_from_options(
+            &self.positions,
+            &self.directions,
+            &self.mus,
+            &self.intensities,
+        )
+        .map_err(anyhow::Error::msg)
     }
 }
 

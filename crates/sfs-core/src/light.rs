@@ -563,6 +563,64 @@ pub fn lights_that_miss(
     warnings
 }
 
+/// The lights of the `--light X,Y,Z` options with their companions
+/// (`--light-dir`, `--light-mu`, `--light-intensity`: each given once for
+/// all lights or once per light), validated; `None` without a position.
+/// Every front (the command line, Python) builds its lights here.
+///
+/// # Errors
+/// A companion without a position, a companion given neither once nor once
+/// per light, `mu` without a direction, or an invalid light.
+pub fn lights_from_options(
+    positions: &[[f64; 3]],
+    directions: &[[f64; 3]],
+    mus: &[f64],
+    intensities: &[f64],
+) -> Result<Option<Vec<PointLight>>, String> {
+    if positions.is_empty() {
+        if !(directions.is_empty() && mus.is_empty() && intensities.is_empty()) {
+            return Err("--light-dir, --light-mu and --light-intensity need --light X,Y,Z".into());
+        }
+        return Ok(None);
+    }
+    let n = positions.len();
+    fn per<T: Copy>(values: &[T], n: usize, name: &str) -> Result<Vec<Option<T>>, String> {
+        match values.len() {
+            0 => Ok(vec![None; n]),
+            1 => Ok(vec![Some(values[0]); n]),
+            k if k == n => Ok(values.iter().map(|&v| Some(v)).collect()),
+            k => Err(format!(
+                "--{name} is given {k} times for {n} --light: give it once or once per light"
+            )),
+        }
+    }
+    let directions = per(directions, n, "light-dir")?;
+    let mus = per(mus, n, "light-mu")?;
+    let intensities = per(intensities, n, "light-intensity")?;
+    let mut lights = Vec::with_capacity(n);
+    for k in 0..n {
+        let light = PointLight {
+            position: positions[k],
+            direction: directions[k],
+            mu: mus[k].unwrap_or(0.0),
+            intensity: intensities[k].unwrap_or(1.0),
+        };
+        if light.mu > 0.0 && light.direction.is_none() {
+            return Err(format!(
+                "--light-mu {} for light {} needs --light-dir",
+                light.mu,
+                k + 1
+            ));
+        }
+        lights.push(
+            light
+                .validated(k + 1)
+                .map_err(|e| format!("--light: {e}"))?,
+        );
+    }
+    Ok(Some(lights))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -249,50 +249,8 @@ fn given_lights(options: &mut Options) -> Result<Option<Vec<PointLight>>, Option
     let directions = options.tuples::<3>("light_dir")?;
     let mus = options.numbers("light_mu")?;
     let intensities = options.numbers("light_intensity")?;
-    if positions.is_empty() {
-        if !(directions.is_empty() && mus.is_empty() && intensities.is_empty()) {
-            return Err(OptionError(
-                "--light-dir, --light-mu and --light-intensity need --light X,Y,Z".into(),
-            ));
-        }
-        return Ok(None);
-    }
-    let n = positions.len();
-    fn per<T: Copy>(values: &[T], n: usize, name: &str) -> Result<Vec<Option<T>>, OptionError> {
-        match values.len() {
-            0 => Ok(vec![None; n]),
-            1 => Ok(vec![Some(values[0]); n]),
-            k if k == n => Ok(values.iter().map(|&v| Some(v)).collect()),
-            k => Err(OptionError(format!(
-                "--{name} is given {k} times for {n} --light: give it once or once per light"
-            ))),
-        }
-    }
-    let directions = per(&directions, n, "light-dir")?;
-    let mus = per(&mus, n, "light-mu")?;
-    let intensities = per(&intensities, n, "light-intensity")?;
-    let mut lights = Vec::with_capacity(n);
-    for k in 0..n {
-        let light = PointLight {
-            position: positions[k],
-            direction: directions[k],
-            mu: mus[k].unwrap_or(0.0),
-            intensity: intensities[k].unwrap_or(1.0),
-        };
-        if light.mu > 0.0 && light.direction.is_none() {
-            return Err(OptionError(format!(
-                "--light-mu {} for light {} needs --light-dir",
-                light.mu,
-                k + 1
-            )));
-        }
-        lights.push(
-            light
-                .validated(k + 1)
-                .map_err(|e| OptionError(format!("--light: {e}")))?,
-        );
-    }
-    Ok(Some(lights))
+    sfs_core::light::lights_from_options(&positions, &directions, &mus, &intensities)
+        .map_err(OptionError)
 }
 
 /// `srgb`: `on`, `off`, `auto`, or True/False.
