@@ -227,6 +227,23 @@ class _Files:
 # --- one photograph --------------------------------------------------------
 
 
+def _solve(native: Callable[..., dict], paths: list, camera_path: Optional[str],
+           options: dict, out: Optional[PathLike], progress: Progress, name: str) -> dict:
+    """A native solve of ``paths`` (one photograph's or a set's) with the
+    command line's ``options``, written to ``out`` when given."""
+    return _run(
+        lambda relay: native(
+            paths,
+            camera_path,
+            _options_json(options),
+            None if out is None else os.fspath(out),
+            relay,
+        ),
+        progress,
+        name,
+    )
+
+
 def solve(
     image: Any,
     camera: Any,
@@ -250,12 +267,8 @@ def solve(
         options["mask"] = files.image(mask, "mask.tiff", "mask")
         options["confidence"] = files.image(confidence, "confidence.tiff", "confidence")
         camera_path = files.camera(camera)
-        native = _run(
-            lambda relay: _native.solve_photograph(
-                paths, camera_path, _options_json(options), None, relay
-            ),
-            progress,
-            "solve",
+        native = _solve(
+            _native.solve_photograph, paths, camera_path, options, None, progress, "solve"
         )
     return Solution._of(native)
 
@@ -277,15 +290,8 @@ def solve_file(
     paths = [os.fspath(p) for p in paths]
     with _Files() as files:
         camera_path = files.camera(camera)
-        native = _run(
-            lambda relay: _native.solve_photograph(
-                paths,
-                camera_path,
-                _options_json(options),
-                None if out is None else os.fspath(out),
-                relay,
-            ),
-            progress,
+        native = _solve(
+            _native.solve_photograph, paths, camera_path, options, out, progress,
             os.path.basename(paths[0]),
         )
     return Solution._of(native)
@@ -298,6 +304,7 @@ def photometric_stereo(
     images: Sequence[Any],
     camera: Any,
     mask: Any = None,
+    out: Optional[PathLike] = None,
     *,
     progress: Progress = None,
     **options: Any,
@@ -307,7 +314,10 @@ def photometric_stereo(
     dict's lights are taken in the images' order), or ``light=[(x, y, z),
     ...]`` one per image. Depth, normals and albedo. Options: ``max_side``,
     ``ambient``, ``confidence``, ``ps_smoothness``, ``ps_robust_scale``,
-    ``ps_no_cast_shadows``, the light options."""
+    ``ps_no_cast_shadows``, the light options. With ``out``, the files of
+    ``sfs-studio solve --photometric-stereo --out OUT`` are written there
+    (depth, normals, albedo, mesh, residuals, report.json); ``report`` is
+    that report.json either way."""
     with _Files() as files:
         paths = [
             files.image(one, f"photo_{k + 1:02}.tiff", f"images[{k}]")
@@ -316,10 +326,8 @@ def photometric_stereo(
         options = dict(options)
         options["mask"] = files.image(mask, "mask.tiff", "mask")
         camera_path = files.camera(camera, paths)
-        native = _run(
-            lambda relay: _native.solve_set(paths, camera_path, _options_json(options), relay),
-            progress,
-            "photometric stereo",
+        native = _solve(
+            _native.solve_set, paths, camera_path, options, out, progress, "photometric stereo"
         )
     return Solution._of(native)
 

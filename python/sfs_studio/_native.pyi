@@ -23,6 +23,7 @@ def solve_set(
     images: Sequence[str],
     camera: Optional[str],
     options: str,
+    out: Optional[str] = None,
     progress: _Progress = None,
 ) -> dict[str, Any]: ...
 def synth_sombrero(width: int, height: int) -> dict[str, Any]: ...

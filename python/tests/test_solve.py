@@ -56,6 +56,11 @@ def assert_same_report(a, b, path="report", rel=1e-6):
         assert a == b, path
 
 
+def visible(folder) -> list:
+    """The files of an output folder, less the hidden lock."""
+    return sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+
+
 def test_read_image_is_linear_float32_of_the_photographs_size():
     image = sfs_studio.read_image(IMAGE)
     assert image.dtype == np.float32
@@ -72,7 +77,6 @@ def test_solve_file_equals_the_command_line(cli_sombrero, tmp_path):
     assert relative_difference(solution.depth, cli_depth) <= 1e-6
     assert relative_difference(np.load(out / "depth.npy"), cli_depth) <= 1e-6
     # The same files, the same report (less its timings).
-    visible = lambda d: sorted(p.name for p in d.iterdir() if not p.name.startswith("."))
     assert visible(out) == visible(cli_sombrero)
     cli_report = json.loads((cli_sombrero / "report.json").read_text())
     assert_same_report(
@@ -113,6 +117,14 @@ def test_bad_input_raises_the_command_lines_errors(tmp_path):
         sfs_studio.solve_file(IMAGE, camera=SCENE, albedo="0")
     with pytest.raises(ValueError, match="--roughness belongs to --reflectance oren-nayar"):
         sfs_studio.solve_file(IMAGE, camera=SCENE, roughness=0.3)
+    # The core's checks of what options mean together, as on the command
+    # line (the package once had its own copy without them).
+    with pytest.raises(ValueError, match="kappa = 10: exceeds kappa-max's value 5"):
+        sfs_studio.solve_file(IMAGE, camera=SCENE, kappa=10)
+    with pytest.raises(ValueError, match="--distance and --intensity-scale 2 both set"):
+        sfs_studio.solve_file(IMAGE, camera=SCENE, distance=3.0, intensity_scale=2)
+    with pytest.raises(ValueError, match="does not apply to photometric stereo"):
+        sfs_studio.photometric_stereo([IMAGE, IMAGE], SCENE, method="explicit")
     with pytest.raises(ValueError, match="--known-depth 999,999,"):
         sfs_studio.solve_file(IMAGE, camera=SCENE, known_depth=[(999, 999, 2.0)])
     missing = tmp_path / "missing.png"
@@ -193,6 +205,18 @@ def test_photometric_stereo_of_files_equals_the_command_line(cli, tmp_path):
     images = [scene / f"led{k:02}.png" for k in range(1, 5)]
     cli("solve", *images, "--photometric-stereo", "--camera", scene / "scene.json",
         "--mask", scene / "mask.png", "--out", out, "--quiet")
-    solution = sfs_studio.photometric_stereo(images, scene / "scene.json", mask=scene / "mask.png")
+    py_out = tmp_path / "py"
+    solution = sfs_studio.photometric_stereo(
+        images, scene / "scene.json", mask=scene / "mask.png", out=py_out
+    )
     assert relative_difference(solution.depth, np.load(out / "depth.npy")) <= 1e-6
+    # The same files and the command line's report.json (less its timings).
+    assert visible(py_out) == visible(out)
+    cli_report = json.loads((out / "report.json").read_text())
+    assert cli_report["mode"] == "photometric_stereo"
+    assert_same_report(
+        without_timings(json.loads((py_out / "report.json").read_text())),
+        without_timings(cli_report),
+    )
+    assert_same_report(without_timings(solution.report), without_timings(cli_report))
     assert np.allclose(solution.normals, np.load(out / "normals.npy"), atol=1e-6, equal_nan=True)

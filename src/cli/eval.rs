@@ -27,7 +27,7 @@ pub struct EvalArgs {
 /// Runs `eval`: prints `{"rse": .., "rie": ..}`.
 pub fn run(args: &EvalArgs) -> Result<()> {
     let depth = io::read_npy(&args.depth)?;
-    let gt = super::solve::read_ground_truth(&args.gt)?;
+    let gt = sfs_core::io::ground_truth::read_ground_truth(&args.gt)?;
     let camera_path = args.gt.join("scene.json");
     let camera = sfs_core::camera_file::read_camera(&camera_path)?;
     camera.validate(&camera_path)?;

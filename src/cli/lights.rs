@@ -142,7 +142,7 @@ impl MaterialArgs {
         for (spec, text) in &given {
             (spec.set)(&mut params, spec.parse(text)?);
         }
-        super::params::refuse_unused(&params, &given)?;
+        sfs_core::params::given::refuse_unused(&params, &given)?;
         Ok(params.fixed_material())
     }
 }

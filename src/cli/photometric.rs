@@ -7,47 +7,22 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use serde::Serialize;
 
 use super::solve::SolveArgs;
 use crate::output::OutputStage;
-use sfs_core::grid::Grid;
 use sfs_core::io;
-use sfs_core::params::photometric::{PS_ROBUST_SCALE, PS_SMOOTHNESS, PsRule, ps_spec};
+use sfs_core::output::set::{self as set_out, SetErrors, SingleReport};
 use sfs_core::photo::{self, CameraSpec, PhotoInput, PhotoReport};
-use sfs_core::scene::photometric::{albedo_error, mean_angle_deg};
-use sfs_core::solver::photometric::{
-    self as ps, PhotoResult, PhotometricParams, PhotometricSolution, SingleComparison,
-};
+use sfs_core::solver::photometric::{self as ps, PhotometricParams, PhotometricSolution};
 use sfs_core::solver::{self, LevelResult, SolveObserver};
 
-/// `--NAME TEXT` for the core's photometric-stereo parameter `name`
-/// ([`sfs_core::params::PS_PARAMS`]): `auto` (`None`) or a number under the
-/// entry's one rule and message (`--ps-robust-scale -1` said "non-negative",
-/// then 0 "positive"). `positive`: the rule the caller expects (above 0,
-/// else at least 0); a caller that disagrees with the table is refused.
-fn auto_or_number(text: &str, name: &str, positive: bool) -> Result<Option<f64>> {
-    let expected = if positive {
-        PsRule::Positive
-    } else {
-        PsRule::NonNegative
-    };
-    let Some(spec) = ps_spec(name).filter(|s| s.rule == expected) else {
-        bail!("--{name}: not a photometric-stereo parameter with the rule {expected:?}");
-    };
-    spec.parse(text)
-        .map_err(|_| anyhow::anyhow!("--{name} {text}: {}", spec.accepted()))
-}
-
-/// The set's settings from the options.
+/// The set's settings from the options (read by the core).
 fn params(args: &SolveArgs) -> Result<PhotometricParams> {
-    Ok(PhotometricParams {
-        alpha: auto_or_number(&args.ps_smoothness, PS_SMOOTHNESS.name, false)?,
-        // The Cauchy scale divides the residuals: it must be above 0.
-        robust_scale: auto_or_number(&args.ps_robust_scale, PS_ROBUST_SCALE.name, true)?,
-        cast_shadows: !args.ps_no_cast_shadows,
-        ..PhotometricParams::default()
-    })
+    Ok(sfs_core::photograph_solve::options::photometric_params(
+        &args.ps_smoothness,
+        &args.ps_robust_scale,
+        args.ps_no_cast_shadows,
+    )?)
 }
 
 /// Refuses the single-image options a set does not take.
@@ -253,67 +228,12 @@ impl SolveObserver for Levels {
     }
 }
 
-/// One photograph's entry in the report.
-#[derive(Serialize)]
-struct PhotoEntry<'a> {
-    /// Its residual picture.
-    residual_png: String,
-    #[serde(flatten)]
-    fit: &'a PhotoResult,
-}
-
-/// Errors against a render's ground truth (`--gt DIR`: `depth_gt.npy`, and
-/// `normals_gt.npy` and `albedo_gt.npy` when there).
-#[derive(Serialize)]
-struct SetErrors {
-    rse: f64,
-    mean_normal_error_deg: Option<f64>,
-    albedo_median_relative_error: Option<f64>,
-}
-
-/// The single-image solve of one photograph of the set, compared.
-#[derive(Serialize)]
-struct SingleReport {
-    image: PathBuf,
-    seconds: f64,
-    intensity_scale: f64,
-    intensity_scale_estimated: bool,
-    #[serde(flatten)]
-    comparison: Option<SingleComparison>,
-}
-
-/// `report.json` of a set.
-#[derive(Serialize)]
-struct SetReport<'a> {
-    mode: &'static str,
-    input: &'a PhotoReport,
-    parameters: serde_json::Value,
-    intensities_estimated: bool,
-    alpha_used: f64,
-    robust_scale_used: f64,
-    brightness: f64,
-    initial_depth: f64,
-    distances_tried: &'a [(f64, f64)],
-    levels: &'a [solver::LevelReport],
-    iterations: usize,
-    final_energy: &'a sfs_core::model::Energy,
-    seconds: f64,
-    depth_range: Option<[f64; 2]>,
-    depth16_png_range: Option<[f64; 2]>,
-    albedo_relative: bool,
-    albedo_png_white: f64,
-    photographs: Vec<PhotoEntry<'a>>,
-    single_image: Option<SingleReport>,
-    errors: Option<SetErrors>,
-    warnings: &'a [String],
-}
-
 /// Runs `solve --photometric-stereo`.
 pub fn run(args: &SolveArgs) -> Result<()> {
     refuse_single_options(args)?;
     let params = params(args)?;
     if let Some(dir) = &args.gt {
-        super::solve::check_ground_truth(dir, false)?;
+        sfs_core::io::ground_truth::check_ground_truth(dir, false)?;
     }
     let input = set_input(args)?;
     let compare = match &args.compare_single {
@@ -343,47 +263,6 @@ pub fn run(args: &SolveArgs) -> Result<()> {
     let solution = ps::solve_photometric(&problem, &params, &mut Levels { quiet: args.quiet })
         .with_context(|| format!("cannot solve the set of {} photographs", input.images.len()))?;
     let mut warnings = ps::warnings(&solution);
-
-    io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
-    let depth16 = io::write_depth_png16(&stage.path("depth16.png"), &solution.depth)?;
-    io::write_npy_f32_vec3(&stage.path("normals.npy"), &solution.normals)?;
-    io::write_rgb_png8(
-        &stage.path("normals.png"),
-        &solution.normals.map(|n| sfs_core::colour::normal_rgb(*n)),
-    )?;
-    io::write_npy_f32(&stage.path("albedo.npy"), &solution.albedo)?;
-    let white = albedo_white(&solution);
-    io::write_png16(
-        &stage.path("albedo.png"),
-        &solution
-            .albedo
-            .map(|a| if a.is_finite() { a / white } else { 0.0 }),
-    )?;
-    io::write_depth_ply(
-        &stage.path("mesh.ply"),
-        &solution.depth,
-        &camera,
-        Some(
-            &solution
-                .albedo
-                .map(|a| if a.is_finite() { a / white } else { 0.0 }),
-        ),
-    )?;
-    let mut photographs = Vec::new();
-    for (k, fit) in solution.photos.iter().enumerate() {
-        let name = format!("residual_{:02}.png", k + 1);
-        // I - R: grey 0.5 explained, +-0.5 is +-4 Cauchy scales.
-        let span = 8.0 * solution.robust_scale * solution.brightness;
-        io::write_png8(
-            &stage.path(&name),
-            &fit.residual
-                .map(|r| if r.is_finite() { 0.5 + r / span } else { 0.5 }),
-        )?;
-        photographs.push(PhotoEntry {
-            residual_png: name,
-            fit,
-        });
-    }
     let single = match compare {
         Some(k) => Some(solve_single(
             args, &input, k, &solution, camera, &mut stage,
@@ -399,107 +278,34 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         ));
     }
     let errors = match &args.gt {
-        Some(dir) => Some(ground_truth_errors(dir, &solution)?),
+        Some(dir) => Some(set_out::set_errors(dir, &solution)?),
         None => None,
     };
-    let range = ps::depth_range(&solution.depth);
-    let report = SetReport {
-        mode: "photometric_stereo",
-        input: &prepared.report,
-        parameters: serde_json::json!({
-            "smoothness": args.ps_smoothness,
-            "robust_scale": args.ps_robust_scale,
-            "cast_shadows": params.cast_shadows,
-            "iterations_per_level": params.iterations,
-            "lambda": params.lambda,
-        }),
-        intensities_estimated: solution.intensities_estimated,
-        alpha_used: solution.alpha,
-        robust_scale_used: solution.robust_scale,
-        brightness: solution.brightness,
-        initial_depth: solution.initial_depth,
-        distances_tried: &solution.distances_tried,
-        levels: &solution.levels,
-        iterations: solution.iterations,
-        final_energy: &solution.energy,
-        seconds: solution.seconds,
-        depth_range: range,
-        depth16_png_range: depth16.map(|(near, far)| [near, far]),
-        albedo_relative: solution.albedo_relative,
-        albedo_png_white: white,
-        photographs,
-        single_image: single,
-        errors,
-        warnings: &warnings,
-    };
-    io::write_json(&stage.path("report.json"), &report)?;
+    let report = set_out::set_report(
+        &prepared.report,
+        &params,
+        &solution,
+        single.as_ref(),
+        errors.as_ref(),
+        &warnings,
+    );
+    set_out::write_set(&mut stage, &camera, &solution, &report)?;
     stage
         .commit()
         .with_context(|| format!("cannot finish writing {}", args.out.display()))?;
     if !args.quiet {
-        print_summary(args, &prepared.report, &report, &solution);
+        print_summary(
+            args,
+            &prepared.report,
+            single.as_ref(),
+            errors.as_ref(),
+            &solution,
+        );
     }
     for warning in &warnings {
         eprintln!("warning: {warning}");
     }
     Ok(())
-}
-
-/// The albedo shown white in `albedo.png`: 1 for an absolute albedo, else
-/// its 99th percentile (the report says which).
-fn albedo_white(solution: &PhotometricSolution) -> f64 {
-    if !solution.albedo_relative {
-        return 1.0;
-    }
-    ps::positive_quantile(&solution.albedo, 0.99).unwrap_or(1.0)
-}
-
-/// Errors against `--gt DIR`.
-fn ground_truth_errors(dir: &Path, solution: &PhotometricSolution) -> Result<SetErrors> {
-    let depth = io::read_npy(&dir.join("depth_gt.npy"))?;
-    if depth.size() != solution.depth.size() {
-        bail!(
-            "ground truth in {} is {}x{} but the set is solved at {}x{}",
-            dir.display(),
-            depth.width(),
-            depth.height(),
-            solution.depth.width(),
-            solution.depth.height()
-        );
-    }
-    let rse = sfs_core::metrics::rse(&solution.depth, &depth)?;
-    let mask = depth.map(|z| z.is_finite());
-    let normals = read_normals(&dir.join("normals_gt.npy"), depth.size())?;
-    let albedo = match dir.join("albedo_gt.npy") {
-        path if path.is_file() => Some(io::read_npy(&path)?),
-        _ => None,
-    };
-    Ok(SetErrors {
-        rse,
-        mean_normal_error_deg: normals.map(|n| mean_angle_deg(&solution.normals, &n, &mask)),
-        albedo_median_relative_error: albedo
-            .filter(|a| a.size() == depth.size())
-            .map(|a| albedo_error(&solution.albedo, &a, &mask)),
-    })
-}
-
-/// `normals_gt.npy` (H x W x 3) when present.
-fn read_normals(path: &Path, size: (usize, usize)) -> Result<Option<Grid<[f64; 3]>>> {
-    if !path.is_file() {
-        return Ok(None);
-    }
-    let normals = io::read_npy_vec3(path)?;
-    if normals.size() != size {
-        bail!(
-            "{}: {}x{} normals for a {}x{} solve",
-            path.display(),
-            normals.width(),
-            normals.height(),
-            size.0,
-            size.1
-        );
-    }
-    Ok(Some(normals))
 }
 
 /// Solves photograph `k` of the set alone with the single-image method
@@ -547,7 +353,8 @@ fn solve_single(
 fn print_summary(
     args: &SolveArgs,
     input: &PhotoReport,
-    report: &SetReport<'_>,
+    single: Option<&SingleReport>,
+    errors: Option<&SetErrors>,
     solution: &PhotometricSolution,
 ) {
     for note in &input.notes {
@@ -564,7 +371,7 @@ fn print_summary(
         solution.iterations,
         args.out.display()
     );
-    if let Some([near, far]) = report.depth_range {
+    if let Some([near, far]) = ps::depth_range(&solution.depth) {
         eprintln!(
             "depth {near:.4}..{far:.4} {units} (2nd to 98th percentile; range {:.4} {units}), \
              started from {:.4} {units}",
@@ -590,7 +397,7 @@ fn print_summary(
             100.0 * photo.robust_share
         );
     }
-    if let Some(single) = &report.single_image
+    if let Some(single) = single
         && let Some(c) = &single.comparison
     {
         eprintln!(
@@ -607,7 +414,7 @@ fn print_summary(
             c.set_depth_range
         );
     }
-    if let Some(e) = &report.errors {
+    if let Some(e) = errors {
         eprintln!(
             "against the ground truth: RSE {:.5}{}{}",
             e.rse,
@@ -619,61 +426,5 @@ fn print_summary(
                     100.0 * v
                 ))
         );
-    }
-}
-
-#[cfg(test)]
-mod option_tests {
-    use super::auto_or_number;
-
-    /// `--ps-robust-scale -1` said "must be non-negative", then 0 "must be
-    /// positive": one rule, one message, for every bad value.
-    #[test]
-    fn the_robust_scale_has_one_rule_and_one_message() {
-        let message = |text: &str| {
-            auto_or_number(text, "ps-robust-scale", true)
-                .expect_err(text)
-                .to_string()
-        };
-        for text in ["-1", "0", "abc", "inf"] {
-            assert_eq!(
-                message(text),
-                format!("--ps-robust-scale {text}: must be `auto` or a positive number (above 0)")
-            );
-        }
-        assert_eq!(
-            auto_or_number("0.5", "ps-robust-scale", true).unwrap(),
-            Some(0.5)
-        );
-        assert_eq!(
-            auto_or_number("AUTO", "ps-robust-scale", true).unwrap(),
-            None
-        );
-        assert_eq!(
-            auto_or_number("0", "ps-smoothness", false).unwrap(),
-            Some(0.0)
-        );
-    }
-
-    /// One value out of range, refused by the command line as by the core's
-    /// validation and the viewer (their tests): the table's one rule.
-    #[test]
-    fn an_out_of_range_value_is_refused_by_the_core_rule() {
-        use sfs_core::params::photometric::PS_ROBUST_SCALE;
-        use sfs_core::solver::photometric::PhotometricParams;
-        let message = auto_or_number("0", "ps-robust-scale", true)
-            .expect_err("0 is out of range")
-            .to_string();
-        assert!(message.ends_with(PS_ROBUST_SCALE.accepted()), "{message}");
-        let core = PhotometricParams {
-            robust_scale: Some(0.0),
-            ..PhotometricParams::default()
-        };
-        assert_eq!(
-            core.validate().expect_err("refused").name,
-            "ps-robust-scale"
-        );
-        // A caller expecting another rule than the table's is refused.
-        assert!(auto_or_number("1", "ps-robust-scale", false).is_err());
     }
 }

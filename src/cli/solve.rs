@@ -7,15 +7,15 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 
-use sfs_core::grid::Grid;
-use sfs_core::io::{self, SrgbMode};
-use sfs_core::memory;
+use sfs_core::io::SrgbMode;
+use sfs_core::io::ground_truth::{self, check_ground_truth, read_ground_truth};
 use sfs_core::metrics;
 use sfs_core::model_fit;
 use sfs_core::output::many;
-use sfs_core::params::{self as parameters, AlbedoChoice, InitialDepth, SolverParams};
-use sfs_core::photo::{self, CameraSpec, LightSpec, PhotoInput, ScaleSpec, Vignetting};
-use sfs_core::photograph_solve::{KnownDistance, PhotographSolve, SolvedPhotograph, shown};
+use sfs_core::params::{self as parameters, InitialDepth, SolverParams};
+use sfs_core::photo::{self, PhotoInput};
+use sfs_core::photograph_solve::SolvedPhotograph;
+use sfs_core::photograph_solve::options::SolveOptions;
 use sfs_core::solver::{self, IterationReport, SolveObserver};
 
 /// Arguments of `solve`. Defaults are the paper's where it gives one.
@@ -179,9 +179,9 @@ pub struct SolveArgs {
     pub ps_no_cast_shadows: bool,
 }
 
-/// The default working size of `solve` (longest side, pixels): 1920x1080
-/// solves at full size, an 18 MP photograph at 2000x1333.
-pub const DEFAULT_MAX_SIDE: usize = 2000;
+/// The default working size of `solve` (longest side, pixels): the
+/// core's.
+pub use sfs_core::photograph_solve::options::DEFAULT_MAX_SIDE;
 
 /// `--srgb`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -230,175 +230,38 @@ impl MethodArg {
 }
 
 impl SolveArgs {
-    /// Solver parameters from the arguments (validated by the solver).
+    /// The options as the core reads them (the command line's syntax
+    /// ends here; every check in the user's terms is the core's).
+    pub fn options(&self) -> Result<SolveOptions> {
+        Ok(SolveOptions {
+            camera_file: self.camera.clone(),
+            focal_px: self.focal,
+            cx_px: self.cx,
+            cy_px: self.cy,
+            intensity_scale: self.intensity_scale.clone(),
+            known_depth: self.known_depth.clone(),
+            distance: self.distance,
+            lights: self.lights.lights()?,
+            light_index: self.lights.indices.clone(),
+            mask: self.mask.clone(),
+            confidence: self.confidence.clone(),
+            auto_confidence: self.auto_confidence,
+            srgb: self.srgb.mode(),
+            ambient: self.ambient.clone(),
+            vignetting: self.vignetting.clone(),
+            albedo: self.albedo.clone(),
+            max_side: self.max_side,
+            init_depth: self.init_depth.clone(),
+            method: self.method.method(),
+            table: self.params.given().to_vec(),
+        })
+    }
+
+    /// Solver parameters from the arguments for the working size
+    /// `image_size`.
     pub fn params(&self, image_size: (usize, usize)) -> Result<SolverParams> {
-        let mut params = self.params.to_params()?;
-        params.initial_depth = parse_initial_depth(self.init_depth.as_deref(), image_size)?;
-        params.albedo = self.albedo_choice();
-        Ok(params)
+        Ok(self.options()?.params(image_size)?)
     }
-
-    /// `--albedo FILE`: the map the pipeline divides out (`None` for `auto`
-    /// and `1`).
-    pub fn albedo_file(&self) -> Option<PathBuf> {
-        let text = self.albedo.trim();
-        if text.eq_ignore_ascii_case("auto") || text == "1" {
-            None
-        } else {
-            Some(PathBuf::from(text))
-        }
-    }
-
-    /// How the solver takes the albedo: estimated for `auto`, else 1 (a
-    /// given map is already divided out).
-    pub fn albedo_choice(&self) -> AlbedoChoice {
-        if self.albedo.trim().eq_ignore_ascii_case("auto") {
-            AlbedoChoice::Auto
-        } else {
-            AlbedoChoice::One
-        }
-    }
-
-    /// Refuses `--albedo` and `--vignetting` values that are neither one of
-    /// their words nor an existing file, naming the value and what is
-    /// accepted (`--albedo 0` said "cannot read image 0").
-    pub fn check_word_or_file_options(&self) -> Result<()> {
-        if let Some(file) = self.albedo_file() {
-            check_word_or_file(
-                "albedo",
-                &self.albedo,
-                &file,
-                "`auto`, `1` or FILE (an image, or a .npy such as the albedo.npy a solve writes)",
-            )?;
-        }
-        if let Some(text) = &self.vignetting
-            && !matches!(text.as_str(), "none" | "cos4")
-        {
-            check_word_or_file(
-                "vignetting",
-                text,
-                Path::new(text),
-                "`cos4`, `none` or FILE (a flat-field image)",
-            )?;
-        }
-        Ok(())
-    }
-
-    /// `--albedo-edge` is the albedo prior's weight, used by `--albedo auto`
-    /// only: given with `--albedo 1` or a known albedo map it would change
-    /// nothing, and is refused (as `--roughness` without its reflectance).
-    pub fn refuse_unused_albedo_edge(&self) -> Result<()> {
-        if self.albedo_choice() != AlbedoChoice::Auto
-            && self.params.given_names().any(|n| n == "albedo-edge")
-        {
-            bail!(
-                "--albedo-edge belongs to --albedo auto (the estimated albedo's prior); with \
-                 --albedo {} no albedo is estimated, so it would change nothing",
-                self.albedo
-            );
-        }
-        Ok(())
-    }
-}
-
-/// `--NAME TEXT`: `file` must exist, else the error lists what is
-/// `accepted`.
-fn check_word_or_file(name: &str, text: &str, file: &Path, accepted: &str) -> Result<()> {
-    if file.is_file() {
-        return Ok(());
-    }
-    let what = if file.exists() {
-        "is not a file"
-    } else {
-        "is neither one of its words nor an existing file"
-    };
-    bail!("--{name} {text}: {what}; accepted: {accepted}")
-}
-
-/// `--init-depth`: a method, a number or a `.npy` file of the image's size.
-pub fn parse_initial_depth(text: Option<&str>, image_size: (usize, usize)) -> Result<InitialDepth> {
-    let Some(text) = text else {
-        return Ok(InitialDepth::FastMarching);
-    };
-    if text.eq_ignore_ascii_case("fast-marching") {
-        return Ok(InitialDepth::FastMarching);
-    }
-    if text.eq_ignore_ascii_case("from-image") {
-        return Ok(InitialDepth::FromImage);
-    }
-    if let Ok(z) = text.parse::<f64>() {
-        return Ok(InitialDepth::Constant(z));
-    }
-    let map = io::read_npy(Path::new(text)).with_context(|| {
-        format!("--init-depth {text}: not a method, a number or a readable .npy")
-    })?;
-    if map.size() != image_size {
-        bail!(
-            "--init-depth {text} is {}x{} but the image is {}x{}",
-            map.width(),
-            map.height(),
-            image_size.0,
-            image_size.1
-        );
-    }
-    Ok(InitialDepth::Map(map))
-}
-
-/// Ground truth of a synth folder.
-pub struct GroundTruth {
-    /// Depth, NaN on the background.
-    pub depth: Grid<f64>,
-    /// Noise-free image.
-    pub image: Grid<f64>,
-}
-
-/// Refuses `--gt DIR` that cannot be the ground truth before anything is
-/// solved, in the user's terms: no such folder, or a folder without the
-/// files `synth` writes (`depth_gt.npy`, and `image16.png` for one
-/// photograph, `with_image`).
-pub fn check_ground_truth(dir: &Path, with_image: bool) -> Result<()> {
-    if !dir.is_dir() {
-        bail!(
-            "--gt {}: no such folder (--gt takes a folder written by `synth`)",
-            dir.display()
-        );
-    }
-    let wanted: &[(&str, &str)] = if with_image {
-        &[
-            ("depth_gt.npy", "the true depth"),
-            ("image16.png", "the noise-free render"),
-        ]
-    } else {
-        &[("depth_gt.npy", "the true depth")]
-    };
-    for (file, what) in wanted {
-        if !dir.join(file).is_file() {
-            bail!(
-                "--gt {}: the folder has no {file} ({what} that `synth` writes); --gt takes a \
-                 folder written by `synth`",
-                dir.display()
-            );
-        }
-    }
-    Ok(())
-}
-
-/// Reads `DIR/depth_gt.npy` and `DIR/image16.png`.
-pub fn read_ground_truth(dir: &Path) -> Result<GroundTruth> {
-    check_ground_truth(dir, true)?;
-    let depth = io::read_npy(&dir.join("depth_gt.npy"))?;
-    let image = io::read_image(&dir.join("image16.png"), false)?;
-    if depth.size() != image.size() {
-        bail!(
-            "ground truth in {}: depth_gt.npy is {}x{} but image16.png is {}x{}",
-            dir.display(),
-            depth.width(),
-            depth.height(),
-            image.width(),
-            image.height()
-        );
-    }
-    Ok(GroundTruth { depth, image })
 }
 
 /// Progress on a terminal.
@@ -410,16 +273,11 @@ struct Progress {
 impl SolveObserver for Progress {
     fn on_iteration(&mut self, report: &IterationReport) {
         if let Some(bar) = &self.bar {
-            bar.set_length((report.levels * self.kappa) as u64);
-            bar.set_position((report.level * self.kappa + report.iteration + 1) as u64);
-            bar.set_message(format!(
-                "level {}/{} {}x{}  E = {:.4e}",
-                report.level + 1,
-                report.levels,
-                report.width,
-                report.height,
-                report.energy.total
-            ));
+            let (done, total, message) =
+                sfs_core::photograph_solve::progress_step(report, self.kappa);
+            bar.set_length(total);
+            bar.set_position(done);
+            bar.set_message(message);
         }
     }
 }
@@ -433,83 +291,7 @@ impl SolveArgs {
     /// The photo pipeline's input these arguments describe, for `images`
     /// (the photographs a folder holds, say).
     pub fn photo_input_of(&self, images: &[PathBuf]) -> Result<PhotoInput> {
-        let camera = match (&self.camera, self.focal) {
-            (Some(path), _) => CameraSpec::File(path.clone()),
-            (None, Some(focal_px)) => CameraSpec::Focal {
-                focal_px,
-                cx_px: self.cx,
-                cy_px: self.cy,
-            },
-            (None, None) => CameraSpec::Exif { guess: false },
-        };
-        let lights = match self.lights.lights()? {
-            Some(lights) => {
-                if !self.lights.indices.is_empty() {
-                    bail!("give either --light X,Y,Z or --light-index K (a camera file's lights)");
-                }
-                LightSpec::Given(lights)
-            }
-            None => {
-                let picks = &self.lights.indices;
-                if let Some(twice) = picks
-                    .iter()
-                    .enumerate()
-                    .find_map(|(k, i)| picks[..k].contains(i).then_some(*i))
-                {
-                    bail!(
-                        "--light-index {twice} is given twice: each LED is on once (give each \
-                         number once)"
-                    );
-                }
-                LightSpec::CameraFile {
-                    picks: picks.clone(),
-                }
-            }
-        };
-        let intensity_scale = match self.intensity_scale.as_deref() {
-            None => ScaleSpec::FromCamera,
-            Some(text) if text.eq_ignore_ascii_case("auto") => ScaleSpec::Auto,
-            Some(text) => ScaleSpec::Given(text.parse().map_err(|_| {
-                anyhow::anyhow!("--intensity-scale {text}: not a number or `auto`")
-            })?),
-        };
-        self.check_word_or_file_options()?;
-        self.refuse_unused_albedo_edge()?;
-        let vignetting = Vignetting::from_option(self.vignetting.as_deref());
-        // The table's parameters (eta, min-level-side) size the pyramid.
-        let table_params = self.params.to_params()?;
-        let max_side = (self.max_side > 0).then_some(self.max_side);
-        let pyramid_factor = |(w, h): (usize, usize)| {
-            sfs_core::solver::pyramid::pyramid_factor(
-                w,
-                h,
-                table_params.eta,
-                table_params.min_level_side,
-            )
-        };
-        let first = images.first().map(PathBuf::as_path);
-        let full = first.and_then(|p| io::photo_size(p).ok());
-        Ok(PhotoInput {
-            images: images.to_vec(),
-            srgb: self.srgb.mode(),
-            camera,
-            lights,
-            intensity_scale,
-            object_mask: self.mask.clone(),
-            confidence: self.confidence.clone(),
-            auto_confidence: self.auto_confidence,
-            ambient: self.ambient.clone(),
-            vignetting,
-            albedo: self.albedo_file(),
-            max_side,
-            pyramid_factor: full.map_or(memory::DEFAULT_PYRAMID_FACTOR, |(w, h)| {
-                pyramid_factor(sfs_core::resample::working_size(w, h, max_side))
-            }),
-            max_side_setting: "--max-side".into(),
-            photometric_stereo: false,
-            given_intensities: false,
-            photo_confidence: Vec::new(),
-        })
+        Ok(self.options()?.photo_input(images)?)
     }
 }
 
@@ -605,7 +387,8 @@ fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
     if args.ps_smoothness != "auto" || args.ps_robust_scale != "auto" {
         bail!("--ps-smoothness and --ps-robust-scale need --photometric-stereo");
     }
-    let input = args.photo_input()?;
+    let options = args.options()?;
+    let input = options.photo_input(&args.images)?;
     // A solve that would not fit the memory is refused before any pixel is
     // decoded (in the pipeline); the destination is locked and checked
     // writable before the solve.
@@ -625,26 +408,7 @@ fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
             .chain(named.iter().map(PathBuf::as_path)),
     );
     let size = prepared.size();
-    let params = args.params(size)?;
-    let mut job = PhotographSolve::of_prepared(&prepared, params, args.method.method());
-    job.initial_depth_given = Some(
-        args.init_depth
-            .clone()
-            .unwrap_or_else(|| "fast-marching".into()),
-    );
-    job.known_distances = args
-        .known_depth
-        .iter()
-        .map(|&[column_px, row_px, depth]| KnownDistance {
-            column_px,
-            row_px,
-            depth,
-        })
-        .collect();
-    job.distance = args.distance;
-    if let Some(reason) = job.refusal() {
-        bail!("cannot solve {}: {reason}", args.images[0].display());
-    }
+    let job = options.job(prepared)?;
     let camera = job.problem.camera;
     let darkness =
         model_fit::darkness_warning(&job.problem.image, job.problem.object_mask.as_ref());
@@ -655,52 +419,12 @@ fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
     }
     let ground_truth = match &args.gt {
         Some(dir) => {
-            let gt = read_ground_truth(dir)?;
-            if gt.depth.size() != size {
-                bail!(
-                    "ground truth in {} is {}x{} but the image is solved at {}x{}",
-                    dir.display(),
-                    gt.depth.width(),
-                    gt.depth.height(),
-                    size.0,
-                    size.1
-                );
-            }
-            Some(gt)
+            let truth = read_ground_truth(dir)?;
+            ground_truth::check_size(&truth, dir, size)?;
+            Some(truth)
         }
         None => None,
     };
-    // The distances given, checked where the user gave them (the pixel of
-    // the photograph as given).
-    for point in &job.known_distances {
-        if let Err(e) = job.known_depth(point) {
-            bail!(
-                "--known-depth {},{},{}: {e}",
-                point.column_px,
-                point.row_px,
-                shown(point.depth)
-            );
-        }
-    }
-    if let Some(distance) = args.distance
-        && !(distance.is_finite() && distance > 0.0)
-    {
-        bail!("--distance {distance}: must be a positive distance (the camera file's unit)");
-    }
-    if (!args.known_depth.is_empty() || args.distance.is_some())
-        && let Some(given) = &args.intensity_scale
-        && given != "auto"
-    {
-        bail!(
-            "--{} and --intensity-scale {given} both set the depth unit: give one (a distance \
-             searches the intensity scale)",
-            if args.known_depth.is_empty() {
-                "distance"
-            } else {
-                "known-depth"
-            }
-        );
-    }
     let bar = (!args.quiet && std::io::stderr().is_terminal()).then(|| {
         let bar = indicatif::ProgressBar::new(1);
         bar.set_style(
@@ -841,19 +565,5 @@ fn print_summary(args: &SolveArgs, solved: &SolvedPhotograph, errors: Option<(f6
             "shadow: {:.1} % of the object taken out of the data term (no light reaches it; shadow.png)",
             100.0 * share
         );
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A known depth of 1e-6 was printed as "given 0.0000".
-    #[test]
-    fn tiny_and_huge_depths_are_shown_with_their_digits() {
-        assert_eq!(shown(1e-6), "1.0000e-6");
-        assert_eq!(shown(1e14), "1.0000e14");
-        assert_eq!(shown(2.5), "2.5000");
-        assert_eq!(shown(0.0), "0.0000");
     }
 }

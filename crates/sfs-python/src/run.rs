@@ -5,7 +5,7 @@
 //! the calling thread relays its progress to the Python callback and polls
 //! for Ctrl+C ([`observed`]).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
@@ -16,15 +16,14 @@ use pyo3::types::{PyDict, PyList};
 use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::model_fit;
-use sfs_core::output;
-use sfs_core::params::photometric::{PS_ROBUST_SCALE, PS_SMOOTHNESS, PsRule, ps_spec};
+use sfs_core::output::{self, set as set_out};
 use sfs_core::photo;
-use sfs_core::photograph_solve::{PhotographSolve, shown};
-use sfs_core::solver::photometric::{self as ps, PhotometricParams};
+use sfs_core::photograph_solve::options::photometric_params;
+use sfs_core::solver::photometric as ps;
 use sfs_core::solver::{IterationReport, LevelResult, SolveObserver};
 
 use crate::convert::{Failure, array2, array3};
-use crate::options::{Options, SOLVE_OPTIONS, SolveOptions, flag};
+use crate::options::{Options, SOLVE_OPTIONS, TakenSolve, flag};
 
 /// One step of a solve's progress: done, total, what is being done.
 type Step = (u64, u64, String);
@@ -45,19 +44,8 @@ impl SolveObserver for Relay<'_> {
         if self.kappa == 0 {
             return;
         }
-        let total = (report.levels * self.kappa) as u64;
-        let done = (report.level * self.kappa + report.iteration + 1) as u64;
-        let _ = self.steps.send((
-            done.min(total),
-            total,
-            format!(
-                "level {}/{} {}x{}  E = {:.4e}",
-                report.level + 1,
-                report.levels,
-                report.width,
-                report.height,
-                report.energy.total
-            ),
+        let _ = self.steps.send(sfs_core::photograph_solve::progress_step(
+            report, self.kappa,
         ));
     }
 
@@ -134,33 +122,6 @@ fn observed<T: Send>(
     })
 }
 
-/// The files of a ground-truth folder written by `synth`: the true depth
-/// and, for one photograph, the noise-free render; the messages are the
-/// command line's.
-fn read_ground_truth(dir: &Path) -> Result<(Grid<f64>, Grid<f64>), Failure> {
-    if !dir.is_dir() {
-        return Err(Failure::Value(format!(
-            "--gt {}: no such folder (--gt takes a folder written by `synth`)",
-            dir.display()
-        )));
-    }
-    for (file, what) in [
-        ("depth_gt.npy", "the true depth"),
-        ("image16.png", "the noise-free render"),
-    ] {
-        if !dir.join(file).is_file() {
-            return Err(Failure::Value(format!(
-                "--gt {}: the folder has no {file} ({what} that `synth` writes); --gt takes a \
-                 folder written by `synth`",
-                dir.display()
-            )));
-        }
-    }
-    let depth = io::read_npy(&dir.join("depth_gt.npy"))?;
-    let image = io::read_image(&dir.join("image16.png"), false)?;
-    Ok((depth, image))
-}
-
 /// One photograph's solve (several photographs: summed, lights on
 /// together), as `sfs-studio solve`: `options` is a JSON object of the
 /// command line's options in snake case; with `out` the same files are
@@ -176,42 +137,25 @@ pub fn solve_photograph<'py>(
     options: &str,
     out: Option<PathBuf>,
     progress: Option<Bound<'py, PyAny>>,
-) -> PyResult<Bound<'py, PyDict>> {
-    Ok(solve_photograph_inner(
-        py,
-        images,
-        camera,
-        options,
-        out,
-        progress.as_ref(),
-    )?)
-}
-
-fn solve_photograph_inner<'py>(
-    py: Python<'py>,
-    images: Vec<PathBuf>,
-    camera: Option<PathBuf>,
-    options: &str,
-    out: Option<PathBuf>,
-    progress: Option<&Bound<'py, PyAny>>,
 ) -> Result<Bound<'py, PyDict>, Failure> {
+    let progress = progress.as_ref();
     let mut options = Options::from_json(options)?;
     let first = images
         .first()
         .cloned()
         .ok_or_else(|| Failure::Value("no photograph given".into()))?;
-    let given = SolveOptions::take(&mut options, images, camera)?;
+    let given = TakenSolve::take(&mut options, camera)?;
     options.finish(SOLVE_OPTIONS)?;
-    let truth = match &given.gt {
-        Some(dir) => Some(read_ground_truth(dir)?),
-        None => None,
-    };
-    let input = &given.input;
-    let prepared = py.detach(|| photo::prepare(input))?;
+    if let Some(dir) = &given.gt {
+        io::ground_truth::check_ground_truth(dir, true).map_err(|e| Failure::Value(e.0))?;
+    }
+    let input = given.options.photo_input(&images)?;
+    let prepared = py.detach(|| photo::prepare(&input))?;
     let mut stage = match &out {
         Some(dir) => {
             let mut stage = output::stage(dir)?;
-            let mut named: Vec<PathBuf> = given.init_depth.iter().map(PathBuf::from).collect();
+            let mut named: Vec<PathBuf> =
+                given.options.init_depth.iter().map(PathBuf::from).collect();
             if let Some(dir) = &given.gt {
                 named.extend(output::ground_truth_files(dir));
             }
@@ -226,77 +170,31 @@ fn solve_photograph_inner<'py>(
         None => None,
     };
     let size = prepared.size();
-    let params = given.params(size)?;
-    let mut job = PhotographSolve::of_prepared(&prepared, params, given.method.clone());
-    job.initial_depth_given = Some(
-        given
-            .init_depth
-            .clone()
-            .unwrap_or_else(|| "fast-marching".into()),
-    );
-    job.known_distances = given.known_distances.clone();
-    job.distance = given.distance;
+    let job = given.options.job(prepared)?;
     let what = format!("cannot solve {}", first.display());
-    if let Some(reason) = job.refusal() {
-        return Err(Failure::Value(format!("{what}: {reason}")));
-    }
     let mut warnings: Vec<String> =
         model_fit::darkness_warning(&job.problem.image, job.problem.object_mask.as_ref())
             .into_iter()
             .collect();
-    if let Some((depth, _)) = &truth
-        && depth.size() != size
-    {
-        return Err(Failure::Value(format!(
-            "ground truth in {} is {}x{} but the image is solved at {}x{}",
-            given.gt.as_deref().unwrap_or(Path::new("")).display(),
-            depth.width(),
-            depth.height(),
-            size.0,
-            size.1
-        )));
-    }
-    for point in &job.known_distances {
-        if let Err(e) = job.known_depth(point) {
-            return Err(Failure::Value(format!(
-                "--known-depth {},{},{}: {e}",
-                point.column_px,
-                point.row_px,
-                shown(point.depth)
-            )));
+    let truth = match &given.gt {
+        Some(dir) => {
+            let truth =
+                io::ground_truth::read_ground_truth(dir).map_err(|e| Failure::Value(e.0))?;
+            io::ground_truth::check_size(&truth, dir, size).map_err(|e| Failure::Value(e.0))?;
+            Some(truth)
         }
-    }
-    if let Some(distance) = given.distance
-        && !(distance.is_finite() && distance > 0.0)
-    {
-        return Err(Failure::Value(format!(
-            "--distance {distance}: must be a positive distance (the camera file's unit)"
-        )));
-    }
-    if (!given.known_distances.is_empty() || given.distance.is_some())
-        && let Some(scale) = &given.intensity_scale
-        && scale != "auto"
-    {
-        return Err(Failure::Value(format!(
-            "--{} and --intensity-scale {scale} both set the depth unit: give one (a distance \
-             searches the intensity scale)",
-            if given.known_distances.is_empty() {
-                "distance"
-            } else {
-                "known-depth"
-            }
-        )));
-    }
+        None => None,
+    };
     let job = &job;
     let solved = observed(py, progress, job.params.kappa, |observer| job.run(observer))?
         .map_err(|e| Failure::of_photograph(&what, e))?;
     let solution = &solved.solution;
     let errors = match &truth {
-        Some((depth, image)) => {
+        Some(truth) => {
             let e = sfs_core::metrics::errors_with_model(
                 &solution.depth,
-                depth,
-                image,
+                &truth.depth,
+                &truth.image,
                 solved.problem.camera,
                 &solved.problem.model(solution.material),
             )
@@ -329,71 +227,49 @@ fn solve_photograph_inner<'py>(
     Ok(dict)
 }
 
-/// The options of a photometric-stereo set besides those of one
-/// photograph that apply to a set.
-const SET_OPTIONS: &[&str] = &[
-    "focal",
-    "cx",
-    "cy",
-    "intensity_scale",
-    "light",
-    "light_dir",
-    "light_mu",
-    "light_intensity",
-    "light_index",
-    "mask",
-    "confidence",
-    "srgb",
-    "ambient",
-    "vignetting",
-    "max_side",
-    "ps_smoothness",
-    "ps_robust_scale",
-    "ps_no_cast_shadows",
+/// The options of one photograph's solve that a set does not take: each
+/// is refused with the reason.
+const SINGLE_ONLY: &[&str] = &[
+    "known_depth",
+    "distance",
+    "init_depth",
+    "albedo",
+    "gt",
+    "auto_confidence",
+    "method",
 ];
 
-/// `NAME`: `auto` (`None`) or a number under the core's rule for the
-/// photometric-stereo parameter.
-fn auto_or_number(text: &str, name: &str, expected: PsRule) -> Result<Option<f64>, Failure> {
-    let Some(spec) = ps_spec(name).filter(|s| s.rule == expected) else {
-        return Err(Failure::Value(format!(
-            "--{name}: not a photometric-stereo parameter with the rule {expected:?}"
-        )));
-    };
-    spec.parse(text)
-        .map_err(|_| Failure::Value(format!("--{name} {text}: {}", spec.accepted())))
+/// The set's own options.
+const SET_ONLY: &[&str] = &["ps_smoothness", "ps_robust_scale", "ps_no_cast_shadows"];
+
+/// The options a set takes: one photograph's less [`SINGLE_ONLY`], and its
+/// own.
+fn set_options() -> Vec<&'static str> {
+    SOLVE_OPTIONS
+        .iter()
+        .filter(|o| !SINGLE_ONLY.contains(o))
+        .chain(SET_ONLY)
+        .copied()
+        .collect()
 }
 
 /// Photometric stereo on a set of photographs, each taken by a light of
 /// its own (the camera file's lights named by image, or `light` given per
-/// photograph in order): the core's set solve. Returns a dict: depth,
-/// normals, albedo, reprojection (None), report (JSON text), warnings,
-/// seconds.
+/// photograph in order): the core's set solve; with `out` the files of
+/// `sfs-studio solve --photometric-stereo` are written there. Returns a
+/// dict: depth, normals, albedo, reprojection (None), report (the text of
+/// the command line's report.json), warnings, seconds.
 #[pyfunction]
-#[pyo3(signature = (images, camera, options, progress = None))]
+#[pyo3(signature = (images, camera, options, out = None, progress = None))]
 pub fn solve_set<'py>(
     py: Python<'py>,
     images: Vec<PathBuf>,
     camera: Option<PathBuf>,
     options: &str,
+    out: Option<PathBuf>,
     progress: Option<Bound<'py, PyAny>>,
-) -> PyResult<Bound<'py, PyDict>> {
-    Ok(solve_set_inner(
-        py,
-        images,
-        camera,
-        options,
-        progress.as_ref(),
-    )?)
-}
-
-fn solve_set_inner<'py>(
-    py: Python<'py>,
-    images: Vec<PathBuf>,
-    camera: Option<PathBuf>,
-    options: &str,
-    progress: Option<&Bound<'py, PyAny>>,
 ) -> Result<Bound<'py, PyDict>, Failure> {
+    let progress = progress.as_ref();
     let mut options = Options::from_json(options)?;
     let smoothness = options
         .text("ps_smoothness")
@@ -402,14 +278,9 @@ fn solve_set_inner<'py>(
         .text("ps_robust_scale")
         .unwrap_or_else(|| "auto".into());
     let no_cast_shadows = options.switch("ps_no_cast_shadows")?;
-    let params = PhotometricParams {
-        alpha: auto_or_number(&smoothness, PS_SMOOTHNESS.name, PsRule::NonNegative)?,
-        robust_scale: auto_or_number(&robust, PS_ROBUST_SCALE.name, PsRule::Positive)?,
-        cast_shadows: !no_cast_shadows,
-        ..PhotometricParams::default()
-    };
+    let params = photometric_params(&smoothness, &robust, no_cast_shadows)?;
     let intensities_given = options.has("light_intensity");
-    for single in ["known_depth", "distance", "init_depth", "albedo", "gt"] {
+    for &single in SINGLE_ONLY {
         if options.has(single) {
             return Err(Failure::Value(format!(
                 "{} does not apply to photometric stereo (a set solves its own depth, \
@@ -419,21 +290,31 @@ fn solve_set_inner<'py>(
         }
     }
     let count = images.len();
-    let mut given = SolveOptions::take(&mut options, images, camera)?;
-    if !given.table.is_empty() {
+    let given = TakenSolve::take(&mut options, camera)?;
+    if let Some((spec, _)) = given.options.table.first() {
         return Err(Failure::Value(format!(
             "{} is a parameter of one photograph's solve; a set takes ps_smoothness, \
              ps_robust_scale and ps_no_cast_shadows",
-            flag(&given.table[0].0.name.replace('-', "_"))
+            flag(&spec.name.replace('-', "_"))
         )));
     }
-    options.finish(SET_OPTIONS)?;
-    given.input.photometric_stereo = true;
-    given.input.given_intensities = intensities_given;
-    let input = &given.input;
+    options.finish(&set_options())?;
+    let mut input = given.options.photo_input(&images)?;
+    input.photometric_stereo = true;
+    input.given_intensities = intensities_given;
+    let input = &input;
     let prepared = py.detach(|| photo::prepare(input))?;
     let problem = photo::photometric_problem(&prepared, input)?;
     let problem = &problem;
+    // The destination is locked and checked writable before the solve.
+    let stage = match &out {
+        Some(dir) => {
+            let mut stage = output::stage(dir)?;
+            stage.keep_inputs(input.files());
+            Some(stage)
+        }
+        None => None,
+    };
     let params = &params;
     let what = format!("cannot solve the set of {count} photographs");
     let solution = observed(py, progress, 0, |observer| {
@@ -441,18 +322,13 @@ fn solve_set_inner<'py>(
     })?
     .map_err(|e| Failure::of_solve(&what, e))?;
     let warnings = ps::warnings(&solution);
-    let report = serde_json::json!({
-        "photographs": input.images,
-        "seconds": solution.seconds,
-        "smoothness": solution.alpha,
-        "robust_scale": solution.robust_scale,
-        "brightness": solution.brightness,
-        "initial_depth": solution.initial_depth,
-        "intensities_estimated": solution.intensities_estimated,
-        "albedo_relative": solution.albedo_relative,
-        "levels": solution.levels.len(),
-        "warnings": warnings,
-    });
+    let report = set_out::set_report(&prepared.report, params, &solution, None, None, &warnings);
+    if let (Some(mut stage), Some(dir)) = (stage, &out) {
+        set_out::write_set(&mut stage, &prepared.problem.camera, &solution, &report)?;
+        stage
+            .commit()
+            .map_err(|e| Failure::Io(format!("cannot finish writing {}: {e}", dir.display())))?;
+    }
     let dict = PyDict::new(py);
     dict.set_item("depth", array2(py, &solution.depth))?;
     dict.set_item("normals", array3(py, &solution.normals))?;

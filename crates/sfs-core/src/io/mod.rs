@@ -1,13 +1,14 @@
 //! Reading and writing the files sfs-studio works with, one module per
 //! format: [`image`] (grey images and masks: PNG, TIFF with integer or float
 //! samples, JPEG), [`npy`] (NumPy arrays), [`mesh`] (PLY and OBJ meshes of a
-//! depth map), [`json`] (any serde value) and [`atomic`] (a file replaced
-//! all at once). The camera file is [`crate::camera_file`]'s.
+//! depth map), [`json`] (any serde value), [`atomic`] (a file replaced
+//! all at once) and [`ground_truth`] (a `synth` folder's truth). The camera file is [`crate::camera_file`]'s.
 //!
 //! Every error names the file (or folder) it concerns.
 
 pub mod atomic;
 mod error;
+pub mod ground_truth;
 pub mod image;
 pub mod json;
 pub mod mesh;

@@ -3,13 +3,16 @@
 //! files as one unit under a lock on the folder ([`stage`]); [`names`] is
 //! the one list of every file name the tool writes (what a later run may
 //! remove as stale); [`write_solved`] writes one photograph's solve (the
-//! files of `sfs-studio solve`); [`many`] is many photographs solved one by
-//! one: which, where each one's files go, and the summary table.
+//! files of `sfs-studio solve`); [`set`] writes a photometric-stereo set's
+//! solve and report; [`many`] is many photographs solved one by one: which,
+//! where each one's files go, and the summary table.
 //!
-//! Uses: `io` (the file formats), `photograph_solve` (what is written).
+//! Uses: `io` (the file formats), `photograph_solve` and
+//! `solver::photometric` (what is written), `photo` (the pipeline's report).
 
 pub mod many;
 pub mod names;
+pub mod set;
 pub mod stage;
 
 use crate::io::{self, IoError};

@@ -3,6 +3,7 @@
 //! Defaults are the paper's (Maurer et al. 2015, Section 4) where it gives one.
 //! [`SolverParams::validate`] rejects bad values with an error naming the
 //! parameter; nothing is clamped silently.
+pub mod given;
 pub mod photometric;
 mod reflectance;
 mod settings;

@@ -77,6 +77,14 @@ impl PsParamSpec {
         }
     }
 
+    /// Reads `--NAME TEXT` as a user typed it: `auto` (`None`) or a
+    /// number under the rule, else the message the command line gives
+    /// (`--ps-robust-scale -1: ...` with what is accepted).
+    pub fn read_option(&self, text: &str) -> Result<Option<f64>, String> {
+        self.parse(text)
+            .map_err(|_| format!("--{} {text}: {}", self.name, self.accepted()))
+    }
+
     /// A stored value as the viewer keeps it: inside the rule and the
     /// slider's range, else auto (`None`).
     pub fn in_slider(&self, value: Option<f64>) -> Option<f64> {

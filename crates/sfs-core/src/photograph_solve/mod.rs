@@ -9,13 +9,15 @@
 //! albedo and material too), and measures the result
 //! ([`PhotographSolve::finish`]): the fit, the per-photograph fits, the
 //! occlusion edges, the shadow share, the notes and the warnings, and the
-//! report ([`SolvedPhotograph::report`], `report.json`). The fronts only
-//! collect inputs, show outputs and write files.
+//! report ([`SolvedPhotograph::report`], `report.json`). [`options`] reads
+//! the user's options into the pipeline's input and a checked solve. The
+//! fronts only collect inputs, show outputs and write files.
 //!
 //! Uses: `photo` (the report and the summed photographs), `solver` (the
 //! solve, the depth unit, the fits), `model_fit`, `light`, `params`,
 //! `metrics`.
 
+pub mod options;
 mod report;
 
 use crate::grid::Grid;
@@ -27,6 +29,26 @@ use crate::solver::depth_unit::{self, DepthUnit, DistanceCues, UnitSource};
 use crate::solver::{Method, Problem, Solution, SolveError, SolveObserver};
 
 pub use report::{DepthRange, SolveInput, SolveReport};
+
+/// One outer iteration of a solve as a progress step: `(done, total,
+/// message)` counted in outer iterations over `kappa` per level, for every
+/// front's progress bar.
+pub fn progress_step(report: &crate::solver::IterationReport, kappa: usize) -> (u64, u64, String) {
+    let total = (report.levels * kappa) as u64;
+    let done = (report.level * kappa + report.iteration + 1) as u64;
+    (
+        done.min(total),
+        total,
+        format!(
+            "level {}/{} {}x{}  E = {:.4e}",
+            report.level + 1,
+            report.levels,
+            report.width,
+            report.height,
+            report.energy.total
+        ),
+    )
+}
 
 /// A known distance is met when the solved depth there is within this
 /// share of the given one.
@@ -756,6 +778,15 @@ impl SolvedPhotograph {
 mod tests {
     use super::*;
     use crate::solver::calibrate::{KnownDepthFit, KnownDepthResidual};
+
+    /// A known depth of 1e-6 was printed as "given 0.0000".
+    #[test]
+    fn tiny_and_huge_depths_are_shown_with_their_digits() {
+        assert_eq!(shown(1e-6), "1.0000e-6");
+        assert_eq!(shown(1e14), "1.0000e14");
+        assert_eq!(shown(2.5), "2.5000");
+        assert_eq!(shown(0.0), "0.0000");
+    }
 
     fn unit_with_fit(points: Vec<KnownDepthResidual>, source: UnitSource) -> DepthUnit {
         DepthUnit {
