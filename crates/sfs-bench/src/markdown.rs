@@ -87,6 +87,21 @@ pub(crate) fn table<R>(
     }
 }
 
+/// Writes the line `title` (as given, e.g. `"\n## Part\n"`) and under it
+/// the [`table`] of `rows`; nothing when there is no row.
+pub(crate) fn titled_table<R>(
+    md: &mut String,
+    title: &str,
+    header: &str,
+    rows: &[R],
+    line: impl Fn(&R) -> String,
+) {
+    if !rows.is_empty() {
+        let _ = writeln!(md, "{title}");
+        table(md, header, rows, line);
+    }
+}
+
 /// Writes the line naming the mesh scenes skipped because their file was
 /// missing (nothing when none was).
 pub(crate) fn skipped_meshes(md: &mut String, skipped: &[String]) {

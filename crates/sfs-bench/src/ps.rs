@@ -27,7 +27,7 @@ use sfs_core::solver::photometric::{
     depth_range, positive_quantile, solve_photometric,
 };
 
-use super::markdown::table;
+use super::markdown::{table, titled_table};
 use super::shared::{BenchArgs, wanted, wanted_renders};
 
 /// The noise levels (0..255 scale) and their seed.
@@ -401,20 +401,18 @@ fn markdown(report: &PsReport) -> String {
             )
         },
     );
-    if !report.invariances.is_empty() {
-        let _ = writeln!(md, "\n## Invariances (Sombrero, 4 LEDs)\n");
-        table(
-            &mut md,
-            "| change | largest relative depth difference | mean normal difference (deg) |",
-            &report.invariances,
-            |r| {
-                format!(
-                    "| {} | {:.2e} | {:.2e} |",
-                    r.change, r.max_relative_depth_difference, r.normal_difference_deg
-                )
-            },
-        );
-    }
+    titled_table(
+        &mut md,
+        "\n## Invariances (Sombrero, 4 LEDs)\n",
+        "| change | largest relative depth difference | mean normal difference (deg) |",
+        &report.invariances,
+        |r| {
+            format!(
+                "| {} | {:.2e} | {:.2e} |",
+                r.change, r.max_relative_depth_difference, r.normal_difference_deg
+            )
+        },
+    );
     if let Some(f) = &report.face {
         let _ = writeln!(
             md,

@@ -248,22 +248,17 @@ pub fn markdown(robustness: &Robustness) -> String {
             )
         },
     );
-    if !robustness.sizes.is_empty() {
-        let _ = writeln!(
-            md,
-            "\n### The default over image sizes (clean, same field of view)\n"
-        );
-        super::markdown::table(
-            &mut md,
-            "| scene | size | RSE | seconds |",
-            &robustness.sizes,
-            |r| {
-                format!(
-                    "| {} | {} | {:.4} | {:.2} |",
-                    r.scene, r.size, r.rse, r.seconds
-                )
-            },
-        );
-    }
+    super::markdown::titled_table(
+        &mut md,
+        "\n### The default over image sizes (clean, same field of view)\n",
+        "| scene | size | RSE | seconds |",
+        &robustness.sizes,
+        |r| {
+            format!(
+                "| {} | {} | {:.4} | {:.2} |",
+                r.scene, r.size, r.rse, r.seconds
+            )
+        },
+    );
     md
 }
