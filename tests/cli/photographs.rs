@@ -7,8 +7,8 @@ use serde_json::Value;
 use tempfile::tempdir;
 
 use crate::common::{
-    assert_success, entries, expect_failure, read_json, s, set_solve_args, sfs, stderr,
-    synth_in_temp,
+    assert_success, entries, expect_failure, read_json, s, set_solve_args, sfs, solve_scene_args,
+    stderr, synth_in_temp,
 };
 
 /// Two photographs of the Sombrero, each under a light of its own that a
@@ -283,18 +283,13 @@ fn a_ground_truth_folder_is_checked_before_the_solve() {
     let err = expect_failure(&args, &bad, &["--gt", "no-such-folder", "no such folder"]);
     assert!(!err.contains("cannot solve"), "{err}");
     // One photograph against a set's folder: it has no image16.png.
-    let args: Vec<String> = vec![
-        "solve".into(),
-        s(&set.join("led01.png")),
-        "--camera".into(),
-        s(&set.join("scene.json")),
-        "--light-index".into(),
-        "1".into(),
-        "--gt".into(),
-        s(&set),
-        "--out".into(),
-        s(&bad),
-    ];
+    let gt = s(&set);
+    let args = solve_scene_args(
+        &set,
+        "led01.png",
+        &bad,
+        &["--light-index", "1", "--gt", &gt],
+    );
     expect_failure(
         &args,
         &bad,

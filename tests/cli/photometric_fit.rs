@@ -20,13 +20,9 @@ fn report_warnings(out: &std::path::Path) -> Vec<String> {
 fn a_photograph_at_half_its_exposure_is_named_in_the_report_and_on_stderr() {
     let (dir, set) = synth_in_temp("set", "sombrero --size 48x48 --ps-leds 6");
     let mask = s(&set.join("mask.png"));
+    let solve = |out: &std::path::Path| sfs(set_solve_args(&set, 6, &["--mask", &mask, "-q"], out));
     let clean_out = dir.path().join("clean");
-    let clean = sfs(set_solve_args(
-        &set,
-        6,
-        &["--mask", &mask, "-q"],
-        &clean_out,
-    ));
+    let clean = solve(&clean_out);
     assert_success(&clean, "the clean set");
     let clean_warnings = report_warnings(&clean_out);
     assert!(
@@ -38,12 +34,7 @@ fn a_photograph_at_half_its_exposure_is_named_in_the_report_and_on_stderr() {
     let image = sfs_core::io::read_image(&photo, false).expect("led03.png");
     sfs_core::io::write_png16(&photo, &image.map(|v| 0.5 * v)).expect("halved led03.png");
     let halved_out = dir.path().join("halved");
-    let halved = sfs(set_solve_args(
-        &set,
-        6,
-        &["--mask", &mask, "-q"],
-        &halved_out,
-    ));
+    let halved = solve(&halved_out);
     assert_success(&halved, "the set with led03.png at half its exposure");
     let named: Vec<String> = report_warnings(&halved_out)
         .into_iter()

@@ -3,6 +3,8 @@
 //! solve of each alone, and a failed photograph named without stopping the
 //! others.
 
+use std::process::Output;
+
 use crate::common::{Fixture, assert_success, s, sfs, stdout};
 
 /// Three copies of the fixture's render in `photos/`, and its camera file.
@@ -16,19 +18,24 @@ fn photos(fx: &Fixture) -> (std::path::PathBuf, String) {
     (dir, fx.scene_file("scene.json"))
 }
 
+/// `solve SOURCE --camera CAMERA --out-dir MANY`, unchecked.
+fn solve_many(source: &std::path::Path, camera: &str, many: &std::path::Path) -> Output {
+    sfs([
+        "solve",
+        &s(source),
+        "--camera",
+        camera,
+        "--out-dir",
+        &s(many),
+    ])
+}
+
 #[test]
 fn a_folder_is_solved_photograph_by_photograph_with_one_table() {
     let fx = Fixture::new();
     let (dir, camera) = photos(&fx);
     let many = fx.path("many");
-    let out = sfs([
-        "solve",
-        &s(&dir),
-        "--camera",
-        &camera,
-        "--out-dir",
-        &s(&many),
-    ]);
+    let out = solve_many(&dir, &camera, &many);
     assert_success(&out, "solve DIR --out-dir");
     let table = stdout(&out);
     let lines: Vec<&str> = table.lines().collect();
@@ -63,14 +70,7 @@ fn a_pattern_picks_its_photographs_and_a_failure_is_a_row() {
     std::fs::write(dir.join("broken.png"), b"not a png").unwrap();
     let many = fx.path("many");
     let pattern = dir.join("b*.png");
-    let out = sfs([
-        "solve",
-        &s(&pattern),
-        "--camera",
-        &camera,
-        "--out-dir",
-        &s(&many),
-    ]);
+    let out = solve_many(&pattern, &camera, &many);
     assert!(!out.status.success(), "a failed photograph fails the run");
     let table = stdout(&out);
     assert!(

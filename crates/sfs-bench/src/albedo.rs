@@ -35,8 +35,8 @@ use sfs_core::solver::photometric::{SingleComparison, compare_single};
 use sfs_core::solver::{Method, Problem, Solution, solve};
 
 use super::lights::render;
-use super::scenes::{noisy, problem, timed_solve};
-use super::shared::{BenchArgs, wanted};
+use super::scenes::{noisy, or_skip, problem, timed_solve};
+use super::shared::{BenchArgs, wanted, wanted_renders};
 
 /// Seed of the true albedo's cell errors.
 const SEED: u64 = 1;
@@ -165,21 +165,12 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     let one = SolverParams::default();
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
-    for name in ["sombrero", "bunny", "dragon", "suzanne"] {
-        if !wanted(args, name) {
-            continue;
-        }
+    for name in wanted_renders(args) {
         for (light, lights) in setups() {
-            let scene = match render(name, &args.meshes, side, &lights) {
-                Ok(scene) => scene,
-                Err(e) if name != "sombrero" => {
-                    eprintln!("  skipped {name}: {e:#}");
-                    if !skipped.contains(&name.to_string()) {
-                        skipped.push(name.to_string());
-                    }
-                    break;
-                }
-                Err(e) => return Err(e),
+            // The first failure skips the scene: each name is added once.
+            let scene = render(name, &args.meshes, side, &lights);
+            let Some(scene) = or_skip(name, scene, &mut skipped)? else {
+                break;
             };
             let (w, h) = scene.image.size();
             let mut clean_cell_error = None;
@@ -375,7 +366,7 @@ fn face(args: &BenchArgs) -> Result<Vec<FaceAlbedoRow>> {
 /// The report as markdown.
 fn markdown(report: &AlbedoReport) -> String {
     let mut md = super::markdown::markdown_head("Albedo from one photograph", &report.command);
-    super::markdown::table_head(
+    super::markdown::table(
         &mut md,
         &format!(
             "| scene | size | light | albedo | noise | RSE albedo 1 | RSE auto | RSE true albedo | \
@@ -383,58 +374,60 @@ fn markdown(report: &AlbedoReport) -> String {
              bar) | albedo error auto / 1 | auto s |",
             sfs_core::solver::albedo_fit::CLOSE_MARGIN
         ),
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {} ({:.2}{}) | {:.3} / {:.3} | {:.2} |",
+                r.scene,
+                r.size,
+                r.light,
+                r.pattern,
+                r.noise,
+                r.rse_one,
+                r.rse_auto,
+                r.rse_true,
+                r.rse_true_cell_error,
+                if r.auto_used { "yes" } else { "no" },
+                r.misfit_ratio,
+                if r.close_call { ", close" } else { "" },
+                r.albedo_error,
+                r.albedo_error_one,
+                r.seconds
+            )
+        },
     );
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {:.4} | {:.4} | {:.4} | {:.4} | {} ({:.2}{}) | {:.3} / {:.3} | {:.2} |",
-            r.scene,
-            r.size,
-            r.light,
-            r.pattern,
-            r.noise,
-            r.rse_one,
-            r.rse_auto,
-            r.rse_true,
-            r.rse_true_cell_error,
-            if r.auto_used { "yes" } else { "no" },
-            r.misfit_ratio,
-            if r.close_call { ", close" } else { "" },
-            r.albedo_error,
-            r.albedo_error_one,
-            r.seconds
-        );
-    }
     if !report.face.is_empty() {
         let _ = writeln!(
             md,
-            "\n## The shared face: each photograph alone against the seven\n\n\
-             | photograph | albedo | auto used | mean / median normal angle (deg) | \
-             depth range single / set | s |\n\
-             | --- | --- | --- | --- | --- | --- |"
+            "\n## The shared face: each photograph alone against the seven\n"
         );
-        for f in &report.face {
-            let (angles, ranges) =
-                f.comparison
-                    .as_ref()
-                    .map_or(("-".to_string(), "-".to_string()), |c| {
-                        (
-                            format!(
-                                "{:.1} / {:.1}",
-                                c.mean_normal_angle_deg, c.median_normal_angle_deg
-                            ),
-                            format!("{:.1} / {:.1}", c.single_depth_range, c.set_depth_range),
-                        )
-                    });
-            let _ = writeln!(
-                md,
-                "| {} | {} | {} | {angles} | {ranges} | {:.1} |",
-                f.photograph,
-                f.albedo,
-                f.auto_used.map_or("-", |u| if u { "yes" } else { "no" }),
-                f.seconds
-            );
-        }
+        super::markdown::table(
+            &mut md,
+            "| photograph | albedo | auto used | mean / median normal angle (deg) | \
+             depth range single / set | s |",
+            &report.face,
+            |f| {
+                let (angles, ranges) =
+                    f.comparison
+                        .as_ref()
+                        .map_or(("-".to_string(), "-".to_string()), |c| {
+                            (
+                                format!(
+                                    "{:.1} / {:.1}",
+                                    c.mean_normal_angle_deg, c.median_normal_angle_deg
+                                ),
+                                format!("{:.1} / {:.1}", c.single_depth_range, c.set_depth_range),
+                            )
+                        });
+                format!(
+                    "| {} | {} | {} | {angles} | {ranges} | {:.1} |",
+                    f.photograph,
+                    f.albedo,
+                    f.auto_used.map_or("-", |u| if u { "yes" } else { "no" }),
+                    f.seconds
+                )
+            },
+        );
         let _ = writeln!(
             md,
             "\nMean over the photographs of the mean normal angle:\n"
@@ -456,12 +449,6 @@ fn markdown(report: &AlbedoReport) -> String {
             }
         }
     }
-    if !report.skipped.is_empty() {
-        let _ = writeln!(
-            md,
-            "\nSkipped (mesh missing): {}",
-            report.skipped.join(", ")
-        );
-    }
+    super::markdown::skipped_meshes(&mut md, &report.skipped);
     md
 }

@@ -29,9 +29,9 @@ use sfs_core::params::{InitialDepth, SolverParams};
 use sfs_core::scene::Scene;
 use sfs_core::solver::{FastMarchingParams, Problem, solve, solve_fast_marching};
 
-use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::markdown::{SceneReport, markdown_head, skipped_meshes, table};
 use super::scenes::{noisy, problem, render_or_skip, timed_solve};
-use super::shared::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted_renders};
 
 /// A depth jump between neighbours: steeper than this tangent (about 87
 /// degrees) in the true depth, `|dz| / z * f / h`.
@@ -350,10 +350,7 @@ pub fn run(args: &BenchArgs) -> Result<EdgesReport> {
     let sides: &[usize] = if args.quick { &[32, 64] } else { &[64, 256] };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
-    for name in ["sombrero", "bunny", "dragon", "suzanne"] {
-        if !wanted(args, name) {
-            continue;
-        }
+    for name in wanted_renders(args) {
         let aspect = if name == "suzanne" { 2 } else { 1 };
         let mut sizes: Vec<(usize, usize)> = sides.iter().map(|&s| (s * aspect, s)).collect();
         if name == "dragon" && !args.quick {
@@ -385,35 +382,35 @@ fn markdown(report: &EdgesReport) -> String {
          in the default answer (`model_fit::occlusion_edges`); precision and recall within one \
          pixel.\n"
     );
-    table_head(
+    table(
         &mut md,
         "| scene | size | noise | default RSE | truth start | fast marching | paper | data energy truth / default | non-crossing / best pair | truth's energy at jumps | truth's median residual | jump pixels | detected | precision / recall | seconds |",
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {:.2e} / {:.2e} ({:.2}) | {:.2} / {:.2} | {:.0} % | {:.2} % | {:.2} % | {:.2} % | {} / {} | {:.2} |",
+                r.scene,
+                r.size,
+                r.noise,
+                r.default_rse,
+                r.truth_start_rse,
+                r.fast_marching_rse,
+                r.paper_rse.map_or("-".to_string(), |p| format!("{p:.4}")),
+                r.truth_data_energy,
+                r.default_data_energy,
+                r.truth_data_energy / r.default_data_energy,
+                r.non_crossing_ratio,
+                r.best_pair_ratio,
+                100.0 * r.truth_energy_share_at_jumps,
+                100.0 * r.truth_median_residual,
+                100.0 * r.jump_share,
+                100.0 * r.detected_share,
+                percent(r.detected_precision),
+                percent(r.detected_recall),
+                r.seconds
+            )
+        },
     );
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {:.4} | {:.4} | {:.4} | {} | {:.2e} / {:.2e} ({:.2}) | {:.2} / {:.2} | {:.0} % | {:.2} % | {:.2} % | {:.2} % | {} / {} | {:.2} |",
-            r.scene,
-            r.size,
-            r.noise,
-            r.default_rse,
-            r.truth_start_rse,
-            r.fast_marching_rse,
-            r.paper_rse.map_or("-".to_string(), |p| format!("{p:.4}")),
-            r.truth_data_energy,
-            r.default_data_energy,
-            r.truth_data_energy / r.default_data_energy,
-            r.non_crossing_ratio,
-            r.best_pair_ratio,
-            100.0 * r.truth_energy_share_at_jumps,
-            100.0 * r.truth_median_residual,
-            100.0 * r.jump_share,
-            100.0 * r.detected_share,
-            percent(r.detected_precision),
-            percent(r.detected_recall),
-            r.seconds
-        );
-    }
     skipped_meshes(&mut md, &report.skipped);
     md
 }

@@ -18,9 +18,9 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene};
 use sfs_core::solver::Problem;
 
-use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::markdown::{SceneReport, markdown_head, skipped_meshes, table};
 use super::scenes::{noisy, problem, render_or_skip, timed_solve};
-use super::shared::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted_renders};
 
 /// Seed of the blobs.
 const SEED: u64 = 1;
@@ -133,10 +133,7 @@ pub fn run(args: &BenchArgs) -> Result<HolesReport> {
     let side = if args.quick { 128 } else { 256 };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
-    for name in ["sombrero", "bunny", "dragon", "suzanne"] {
-        if !wanted(args, name) {
-            continue;
-        }
+    for name in wanted_renders(args) {
         let Some(scene) = render_or_skip(name, &args.meshes, side, side, &mut skipped)? else {
             continue;
         };
@@ -152,32 +149,32 @@ fn markdown(report: &HolesReport) -> String {
         md,
         "Target: RSE with the hole <= {TARGET_FACTOR} x sqrt(RSE without^2 + RSE of the harmonic fill of the true depth^2).\n"
     );
-    table_head(
+    table(
         &mut md,
         "| scene | size | noise | hole | share | RSE no hole | RSE hole | harmonic fill | target | ratio | seconds |",
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {} | {:.0} % | {:.4} | {:.4} | {:.4} | {:.4} | {:.2}{} | {:.2} |",
+                r.scene,
+                r.size,
+                r.noise,
+                r.hole,
+                100.0 * r.hole_share,
+                r.rse_no_hole,
+                r.rse_hole,
+                r.rse_harmonic_fill,
+                r.target,
+                r.ratio_to_target,
+                if r.ratio_to_target <= 1.0 {
+                    ""
+                } else {
+                    " **missed**"
+                },
+                r.seconds
+            )
+        },
     );
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.0} % | {:.4} | {:.4} | {:.4} | {:.4} | {:.2}{} | {:.2} |",
-            r.scene,
-            r.size,
-            r.noise,
-            r.hole,
-            100.0 * r.hole_share,
-            r.rse_no_hole,
-            r.rse_hole,
-            r.rse_harmonic_fill,
-            r.target,
-            r.ratio_to_target,
-            if r.ratio_to_target <= 1.0 {
-                ""
-            } else {
-                " **missed**"
-            },
-            r.seconds
-        );
-    }
     skipped_meshes(&mut md, &report.skipped);
     md
 }

@@ -72,6 +72,36 @@ pub(crate) fn table_head(md: &mut String, header: &str) {
     let _ = writeln!(md, "|{}", " --- |".repeat(columns));
 }
 
+/// Writes a markdown table: its `header` row and the separator under it
+/// ([`table_head`]), then the line `line(row)` (`| a | b |`) of each of
+/// `rows`.
+pub(crate) fn table<R>(
+    md: &mut String,
+    header: &str,
+    rows: impl IntoIterator<Item = R>,
+    line: impl Fn(R) -> String,
+) {
+    table_head(md, header);
+    for row in rows {
+        let _ = writeln!(md, "{}", line(row));
+    }
+}
+
+/// Writes the line `title` (as given, e.g. `"\n## Part\n"`) and under it
+/// the [`table`] of `rows`; nothing when there is no row.
+pub(crate) fn titled_table<R>(
+    md: &mut String,
+    title: &str,
+    header: &str,
+    rows: &[R],
+    line: impl Fn(&R) -> String,
+) {
+    if !rows.is_empty() {
+        let _ = writeln!(md, "{title}");
+        table(md, header, rows, line);
+    }
+}
+
 /// Writes the line naming the mesh scenes skipped because their file was
 /// missing (nothing when none was).
 pub(crate) fn skipped_meshes(md: &mut String, skipped: &[String]) {

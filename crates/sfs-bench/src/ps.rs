@@ -27,7 +27,8 @@ use sfs_core::solver::photometric::{
     depth_range, positive_quantile, solve_photometric,
 };
 
-use super::shared::{BenchArgs, wanted};
+use super::markdown::{table, titled_table};
+use super::shared::{BenchArgs, wanted, wanted_renders};
 
 /// The noise levels (0..255 scale) and their seed.
 const NOISE: [f64; 2] = [0.0, 5.0];
@@ -181,10 +182,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         face: None,
         skipped: Vec::new(),
     };
-    for name in ["sombrero", "bunny", "dragon", "suzanne"] {
-        if !wanted(args, name) {
-            continue;
-        }
+    for name in wanted_renders(args) {
         let Some((render, size)) = renderer(args, name, side)? else {
             report.skipped.push(format!(
                 "{name}: its mesh is not in {}",
@@ -385,39 +383,36 @@ fn markdown(report: &PsReport) -> String {
          cast shadows; normals against the normals each image was shaded with; albedo up to \
          one scale.\n"
     );
-    let _ = writeln!(
-        md,
-        "| scene | size | LEDs | noise | normal error (deg) | RSE | albedo error | seconds |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- |"
+    table(
+        &mut md,
+        "| scene | size | LEDs | noise | normal error (deg) | RSE | albedo error | seconds |",
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {} | {:.2} | {:.5} | {:.2} % | {:.2} |",
+                r.scene,
+                r.size,
+                r.leds,
+                r.noise,
+                r.normal_error_deg,
+                r.rse,
+                100.0 * r.albedo_error,
+                r.seconds
+            )
+        },
     );
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.2} | {:.5} | {:.2} % | {:.2} |",
-            r.scene,
-            r.size,
-            r.leds,
-            r.noise,
-            r.normal_error_deg,
-            r.rse,
-            100.0 * r.albedo_error,
-            r.seconds
-        );
-    }
-    if !report.invariances.is_empty() {
-        let _ = writeln!(
-            md,
-            "\n## Invariances (Sombrero, 4 LEDs)\n\n| change | largest relative depth \
-             difference | mean normal difference (deg) |\n| --- | --- | --- |"
-        );
-        for r in &report.invariances {
-            let _ = writeln!(
-                md,
+    titled_table(
+        &mut md,
+        "\n## Invariances (Sombrero, 4 LEDs)\n",
+        "| change | largest relative depth difference | mean normal difference (deg) |",
+        &report.invariances,
+        |r| {
+            format!(
                 "| {} | {:.2e} | {:.2e} |",
                 r.change, r.max_relative_depth_difference, r.normal_difference_deg
-            );
-        }
-    }
+            )
+        },
+    );
     if let Some(f) = &report.face {
         let _ = writeln!(
             md,

@@ -27,6 +27,7 @@ use sfs_core::solver::depth_unit::{DepthUnit, DistanceCues, solve_photograph};
 use sfs_core::solver::photometric::compare_single;
 use sfs_core::solver::{Method, Problem, Solution};
 
+use super::markdown::table;
 use super::shared::{BenchArgs, wanted};
 
 /// The photographs' working size with `--quick` (the defaults solve them
@@ -277,26 +278,26 @@ fn markdown(report: &RealReport) -> String {
          reconstructed face lit by each LED with cast shadows, solved at the defaults.\n",
         report.size, report.truth_distance_mm
     );
-    let _ = writeln!(
-        md,
+    table(
+        &mut md,
         "| image | setting | unit from | mean normal error (deg) | distance error | relief \
-         (truth) | albedo used | seconds |\n| --- | --- | --- | --- | --- | --- | --- | --- |"
+         (truth) | albedo used | seconds |",
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {:.1} | {:+.0} % | {:.3} ({:.3}) | {} | {:.1} |",
+                r.image,
+                r.setting,
+                r.unit_source,
+                r.mean_normal_error_deg,
+                100.0 * r.distance_error,
+                r.relief,
+                r.true_relief,
+                if r.albedo_used { "yes" } else { "no" },
+                r.seconds
+            )
+        },
     );
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {:.1} | {:+.0} % | {:.3} ({:.3}) | {} | {:.1} |",
-            r.image,
-            r.setting,
-            r.unit_source,
-            r.mean_normal_error_deg,
-            100.0 * r.distance_error,
-            r.relief,
-            r.true_relief,
-            if r.albedo_used { "yes" } else { "no" },
-            r.seconds
-        );
-    }
     let _ = writeln!(
         md,
         "\n| group | mean normal error (deg) | worst | mean distance error | worst |\n| --- | \

@@ -19,6 +19,7 @@ use sfs_core::scene::{Scene, mesh, sombrero::sombrero_shaded};
 use sfs_core::solver::Method;
 use sfs_core::solver::calibrate::{KnownDepth, solve_with_known_depths};
 
+use super::markdown::table;
 use super::scenes::{problem, timed_solve};
 use super::shared::{BenchArgs, wanted};
 
@@ -350,29 +351,31 @@ pub fn markdown(report: &ReflectanceReport) -> String {
          models compared on a 128 px copy; the solve stays Lambertian, since one photograph \
          does not determine the material: auto's best is what fitted best, never a finding). \
          Ratio: RSE over the Lambertian scene's matched RSE (targets: matched <= 1.3, auto <= \
-         1.5).\n\n\
-         | scene | size | material | solver | RSE | ratio | RIE | used | auto's best | determined | seconds |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+         1.5).\n\n",
     );
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.4} | {:.2} | {:.4} | {} | {} | {} | {:.2} |",
-            r.scene,
-            r.size,
-            r.material.describe(),
-            r.solver,
-            r.rse,
-            r.rse_over_lambert_scene,
-            r.rie,
-            r.used.describe(),
-            r.best.map(|m| m.describe()).unwrap_or_default(),
-            r.determined
-                .map(|d| if d { "yes" } else { "no" })
-                .unwrap_or(""),
-            r.seconds
-        );
-    }
+    table(
+        &mut md,
+        "| scene | size | material | solver | RSE | ratio | RIE | used | auto's best | determined | seconds |",
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {} | {:.4} | {:.2} | {:.4} | {} | {} | {} | {:.2} |",
+                r.scene,
+                r.size,
+                r.material.describe(),
+                r.solver,
+                r.rse,
+                r.rse_over_lambert_scene,
+                r.rie,
+                r.used.describe(),
+                r.best.map(|m| m.describe()).unwrap_or_default(),
+                r.determined
+                    .map(|d| if d { "yes" } else { "no" })
+                    .unwrap_or(""),
+                r.seconds
+            )
+        },
+    );
     md.push_str(
         "\n## Geometric mean of the ratio over the scenes\n\n\
          | material | matched | lambert | auto |\n| --- | --- | --- | --- |\n",
@@ -401,26 +404,28 @@ pub fn markdown(report: &ReflectanceReport) -> String {
             "\n## The shared face (LED 4, 432 px working size, nose tip at 640 mm given)\n\n\
              Highlights: the median depth of the brightest 1 % of trusted pixels behind the \
              nose tip. Landmarks: forehead, left and right cheek, chin behind the nose tip \
-             (a real face: some 20-60 mm).\n\n\
-             | model | RIE | badly explained | highlights behind nose (mm) | landmarks (mm) | seconds |\n\
-             | --- | --- | --- | --- | --- | --- |\n",
+             (a real face: some 20-60 mm).\n\n",
         );
-        for f in &report.face {
-            let _ = writeln!(
-                md,
-                "| {} | {:.3} | {:.1} % | {:+.0} | {} | {:.0} |",
-                f.material.describe(),
-                f.rie,
-                100.0 * f.poor_share,
-                f.highlight_behind_nose_mm,
-                f.landmarks_behind_nose_mm
-                    .iter()
-                    .map(|v| format!("{v:+.0}"))
-                    .collect::<Vec<_>>()
-                    .join(" / "),
-                f.seconds
-            );
-        }
+        table(
+            &mut md,
+            "| model | RIE | badly explained | highlights behind nose (mm) | landmarks (mm) | seconds |",
+            &report.face,
+            |f| {
+                format!(
+                    "| {} | {:.3} | {:.1} % | {:+.0} | {} | {:.0} |",
+                    f.material.describe(),
+                    f.rie,
+                    100.0 * f.poor_share,
+                    f.highlight_behind_nose_mm,
+                    f.landmarks_behind_nose_mm
+                        .iter()
+                        .map(|v| format!("{v:+.0}"))
+                        .collect::<Vec<_>>()
+                        .join(" / "),
+                    f.seconds
+                )
+            },
+        );
     }
     if !report.skipped.is_empty() {
         md.push_str("\n## Skipped\n\n");

@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use super::figures;
-use super::markdown::{table_head, write_markdown};
+use super::markdown::{table, table_head, write_markdown};
 use super::shared::{
     ALPHA_CLEAN, ALPHA_NOISY, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, TV_ITERATIONS,
 };
@@ -416,28 +416,28 @@ fn speedups(md: &mut String, report: &Report) {
          the times are when each reached it for good (the last crossing of its RSE-over-time curve; recording excluded). Where the explicit scheme ran out of budget above the linearised RSE, \
          a power law fitted to the last half of its RSE-over-time curve gives an **extrapolated** time to the linearised RSE.\n"
     );
-    table_head(
+    table(
         md,
         "| scene | noise | linearised RSE | explicit RSE | common RSE | linearised s | explicit s | speed-up (measured) | explicit s to linearised RSE (extrapolated) | speed-up (extrapolated) |",
+        &report.speedups,
+        |s| {
+            format!(
+                "| {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.0}x | {} | {} |",
+                s.scene,
+                s.noise,
+                fmt(s.linearised_rse),
+                fmt(s.explicit_rse),
+                fmt(s.common_rse),
+                s.linearised_seconds,
+                s.explicit_seconds,
+                s.ratio,
+                s.extrapolated_explicit_seconds
+                    .map_or("–".into(), |t| format!("{t:.0}")),
+                s.extrapolated_ratio
+                    .map_or("–".into(), |r| format!("{r:.0}x"))
+            )
+        },
     );
-    for s in &report.speedups {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {} | {:.2} | {:.1} | {:.0}x | {} | {} |",
-            s.scene,
-            s.noise,
-            fmt(s.linearised_rse),
-            fmt(s.explicit_rse),
-            fmt(s.common_rse),
-            s.linearised_seconds,
-            s.explicit_seconds,
-            s.ratio,
-            s.extrapolated_explicit_seconds
-                .map_or("–".into(), |t| format!("{t:.0}")),
-            s.extrapolated_ratio
-                .map_or("–".into(), |r| format!("{r:.0}x"))
-        );
-    }
 }
 
 /// The list of RSE-over-time figures with their ranges.

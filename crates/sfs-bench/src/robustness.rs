@@ -226,41 +226,39 @@ pub fn markdown(robustness: &Robustness) -> String {
          unchanged (the same shape at depth / sqrt(k)). Truth start: the default solve started \
          from the true depth.\n"
     );
-    super::markdown::table_head(
+    super::markdown::table(
         &mut md,
         "| scene | size | noise | exposure | default RSE | chosen alpha | best RSE (alpha) | default / best | truth start | fast marching | seconds |",
+        &robustness.rows,
+        |r| {
+            format!(
+                "| {} | {} | {} | {} | {:.4} | {:.2e} | {:.4} ({:.2e}) | {:.2} | {:.4} | {:.4} | {:.2} |",
+                r.scene,
+                r.size,
+                r.noise,
+                r.exposure,
+                r.default_rse,
+                r.chosen_alpha,
+                r.best_rse,
+                r.best_alpha,
+                r.ratio_to_best,
+                r.truth_start_rse,
+                r.fast_marching_rse,
+                r.seconds
+            )
+        },
     );
-    for r in &robustness.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} | {:.4} | {:.2e} | {:.4} ({:.2e}) | {:.2} | {:.4} | {:.4} | {:.2} |",
-            r.scene,
-            r.size,
-            r.noise,
-            r.exposure,
-            r.default_rse,
-            r.chosen_alpha,
-            r.best_rse,
-            r.best_alpha,
-            r.ratio_to_best,
-            r.truth_start_rse,
-            r.fast_marching_rse,
-            r.seconds
-        );
-    }
-    if !robustness.sizes.is_empty() {
-        let _ = writeln!(
-            md,
-            "\n### The default over image sizes (clean, same field of view)\n"
-        );
-        super::markdown::table_head(&mut md, "| scene | size | RSE | seconds |");
-        for r in &robustness.sizes {
-            let _ = writeln!(
-                md,
+    super::markdown::titled_table(
+        &mut md,
+        "\n### The default over image sizes (clean, same field of view)\n",
+        "| scene | size | RSE | seconds |",
+        &robustness.sizes,
+        |r| {
+            format!(
                 "| {} | {} | {:.4} | {:.2} |",
                 r.scene, r.size, r.rse, r.seconds
-            );
-        }
-    }
+            )
+        },
+    );
     md
 }

@@ -16,7 +16,7 @@ use super::report::{self, Conditions, Curve, Report, Row, SpeedUp};
 use super::scenes::problem;
 use super::shared::{
     ALPHA_CLEAN, ALPHA_NOISY, BenchArgs, CurveRecorder, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, Part,
-    TV_ITERATIONS, reset_peak_memory, wanted,
+    TV_ITERATIONS, reset_peak_memory, wanted, wanted_renders,
 };
 use super::{lights, robustness};
 use sfs_core::grid::Grid;
@@ -525,10 +525,7 @@ fn defaults_parts(
     args: &BenchArgs,
     skipped: &mut Vec<String>,
 ) -> Result<(robustness::Robustness, Vec<lights::LightRow>)> {
-    let names: Vec<&str> = ["sombrero", "bunny", "dragon", "suzanne"]
-        .into_iter()
-        .filter(|name| wanted(args, name))
-        .collect();
+    let names: Vec<&str> = wanted_renders(args).collect();
     let robustness = if matches!(args.part, Part::Paper | Part::Lights) {
         robustness::Robustness::default()
     } else {

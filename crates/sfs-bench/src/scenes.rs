@@ -36,8 +36,19 @@ pub(super) fn render_or_skip(
     height: usize,
     skipped: &mut Vec<String>,
 ) -> Result<Option<Scene>> {
-    match render(name, meshes, width, height) {
-        Ok(scene) => Ok(Some(scene)),
+    or_skip(name, render(name, meshes, width, height), skipped)
+}
+
+/// `result` of scene `name`, or `None` with the name added to `skipped`
+/// (and said) where it is an error of a mesh scene (its file is missing or
+/// broken); an error of the analytic Sombrero stays an error.
+pub(super) fn or_skip<T>(
+    name: &str,
+    result: Result<T>,
+    skipped: &mut Vec<String>,
+) -> Result<Option<T>> {
+    match result {
+        Ok(value) => Ok(Some(value)),
         Err(e) if name != "sombrero" => {
             eprintln!("  skipped {name}: {e:#}");
             skipped.push(name.to_string());

@@ -23,9 +23,9 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::{Scene, mesh, shadow, sombrero};
 use sfs_core::solver::{Problem, Solution};
 
-use super::markdown::{SceneReport, markdown_head, skipped_meshes, table_head};
+use super::markdown::{SceneReport, markdown_head, skipped_meshes, table};
 use super::scenes::{self, noisy, timed_solve};
-use super::shared::{BenchArgs, wanted};
+use super::shared::{BenchArgs, wanted_renders};
 
 /// Automatic handling within this factor of the hand mask.
 const HAND_MASK_FACTOR: f64 = 1.1;
@@ -196,21 +196,14 @@ pub fn run(args: &BenchArgs) -> Result<ShadowsReport> {
     let side = if args.quick { 128 } else { 256 };
     let mut rows = Vec::new();
     let mut skipped = Vec::new();
-    for name in ["sombrero", "bunny", "dragon", "suzanne"] {
-        if !wanted(args, name) {
-            continue;
-        }
+    for name in wanted_renders(args) {
         'scene: for angle_deg in [30.0, 45.0] {
             for noise in [0.0, 20.0] {
-                match row(name, &args.meshes, side, angle_deg, noise) {
-                    Ok(row) => rows.push(row),
-                    Err(e) if name != "sombrero" => {
-                        eprintln!("  skipped {name}: {e:#}");
-                        skipped.push(name.to_string());
-                        break 'scene;
-                    }
-                    Err(e) => return Err(e),
-                }
+                let result = row(name, &args.meshes, side, angle_deg, noise);
+                let Some(row) = scenes::or_skip(name, result, &mut skipped)? else {
+                    break 'scene;
+                };
+                rows.push(row);
             }
         }
     }
@@ -225,32 +218,32 @@ fn markdown(report: &ShadowsReport) -> String {
         "Targets: RSE with shadows <= {HAND_MASK_FACTOR} x RSE with the exact hand mask, and <= {NO_SHADOW_FACTOR} x RSE of the same light without cast shadows. Out of range: object pixels whose depth leaves the truth's range widened by {:.0} % of it. The last RSE is with shadows and `--shadow-bound on` (not the default).\n",
         100.0 * RANGE_MARGIN
     );
-    table_head(
+    let flag = |ratio: f64, target: f64| if ratio <= target { "" } else { " **missed**" };
+    table(
         &mut md,
         "| scene | size | light | noise | in shadow | RSE shadows | RSE hand mask | RSE no shadows | / hand mask | / no shadows | out of range | seconds | RSE shadow bound |",
+        &report.rows,
+        |r| {
+            format!(
+                "| {} | {} | {:.0}° | {} | {:.1} % | {:.4} | {:.4} | {:.4} | {:.2}{} | {:.2}{} | {:.1} % | {:.2} | {:.4} |",
+                r.scene,
+                r.size,
+                r.angle_deg,
+                r.noise,
+                100.0 * r.shadow_share,
+                r.rse_shadows,
+                r.rse_hand_mask,
+                r.rse_no_shadows,
+                r.ratio_to_hand_mask,
+                flag(r.ratio_to_hand_mask, HAND_MASK_FACTOR),
+                r.ratio_to_no_shadows,
+                flag(r.ratio_to_no_shadows, NO_SHADOW_FACTOR),
+                100.0 * r.out_of_range_share,
+                r.seconds,
+                r.rse_shadow_bound
+            )
+        },
     );
-    let flag = |ratio: f64, target: f64| if ratio <= target { "" } else { " **missed**" };
-    for r in &report.rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {:.0}° | {} | {:.1} % | {:.4} | {:.4} | {:.4} | {:.2}{} | {:.2}{} | {:.1} % | {:.2} | {:.4} |",
-            r.scene,
-            r.size,
-            r.angle_deg,
-            r.noise,
-            100.0 * r.shadow_share,
-            r.rse_shadows,
-            r.rse_hand_mask,
-            r.rse_no_shadows,
-            r.ratio_to_hand_mask,
-            flag(r.ratio_to_hand_mask, HAND_MASK_FACTOR),
-            r.ratio_to_no_shadows,
-            flag(r.ratio_to_no_shadows, NO_SHADOW_FACTOR),
-            100.0 * r.out_of_range_share,
-            r.seconds,
-            r.rse_shadow_bound
-        );
-    }
     skipped_meshes(&mut md, &report.skipped);
     md
 }

@@ -172,6 +172,16 @@ pub(crate) fn wanted(args: &BenchArgs, name: &str) -> bool {
         .is_none_or(|list| list.iter().any(|s| s.eq_ignore_ascii_case(name)))
 }
 
+/// The scenes the parts render: the analytic Sombrero and the three meshes.
+pub(crate) const RENDERED_SCENES: [&str; 4] = ["sombrero", "bunny", "dragon", "suzanne"];
+
+/// The [`RENDERED_SCENES`] that `--scenes` asks for, in their order.
+pub(crate) fn wanted_renders(args: &BenchArgs) -> impl Iterator<Item = &'static str> + '_ {
+    RENDERED_SCENES
+        .into_iter()
+        .filter(move |name| wanted(args, name))
+}
+
 /// Records RSE whenever a level (or a snapshot) arrives.
 pub(crate) struct CurveRecorder<'a> {
     pub(crate) truth: &'a Grid<f64>,

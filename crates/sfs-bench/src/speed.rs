@@ -15,6 +15,7 @@ use anyhow::{Context, Result};
 use serde::Serialize;
 
 use super::figures::{self, Figure, LogLogPlot, Series};
+use super::markdown::table;
 use super::shared::{BenchArgs, CurveRecorder, reset_peak_memory};
 use sfs_core::memory::proc_mib;
 use sfs_core::metrics;
@@ -438,60 +439,62 @@ fn curve_plot(rows: &[SpeedRow], title: &str) -> Result<Figure> {
 fn markdown(report: &SpeedReport) -> String {
     let mut md = String::from("# Speed\n\n");
     let _ = writeln!(md, "`{}`\n", report.command);
-    md.push_str(
-        "| scene | size | method | seconds | x fast marching | first level (s) | peak growth (MiB) | bytes/px | RSE | inner its | sweeps / cycles |\n\
-         | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+    table(
+        &mut md,
+        "| scene | size | method | seconds | x fast marching | first level (s) | peak growth (MiB) | bytes/px | RSE | inner its | sweeps / cycles |",
+        &report.rows,
+        |row| {
+            let fm = report
+                .rows
+                .iter()
+                .find(|r| r.scene == row.scene && r.size == row.size && r.method == "fast marching")
+                .map(|r| r.seconds);
+            format!(
+                "| {} | {} | {} | {:.3} | {} | {} | {:.0} | {:.0} | {:.4} | {} | {} |",
+                row.scene,
+                row.size,
+                row.method,
+                row.seconds,
+                fm.map_or("–".into(), |f| format!(
+                    "{:.1}",
+                    row.seconds / f.max(1e-9)
+                )),
+                row.first_level_seconds
+                    .map_or("–".into(), |t| format!("{t:.3}")),
+                row.peak_growth_mib,
+                row.bytes_per_pixel,
+                row.rse,
+                row.inner_iterations,
+                row.linear_iterations
+            )
+        },
     );
-    for row in &report.rows {
-        let fm = report
-            .rows
-            .iter()
-            .find(|r| r.scene == row.scene && r.size == row.size && r.method == "fast marching")
-            .map(|r| r.seconds);
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {:.3} | {} | {} | {:.0} | {:.0} | {:.4} | {} | {} |",
-            row.scene,
-            row.size,
-            row.method,
-            row.seconds,
-            fm.map_or("–".into(), |f| format!(
-                "{:.1}",
-                row.seconds / f.max(1e-9)
-            )),
-            row.first_level_seconds
-                .map_or("–".into(), |t| format!("{t:.3}")),
-            row.peak_growth_mib,
-            row.bytes_per_pixel,
-            row.rse,
-            row.inner_iterations,
-            row.linear_iterations
-        );
-    }
     if !report.convergence.is_empty() {
         md.push_str(
             "\nThe linear solvers on one system (the first Gauss-Newton system at the \
-             fast-marching start), from zero: residual over the initial one.\n\n\
-             | scene | size | 10 SOR sweeps | 40 sweeps | per sweep (30-40) | s/sweep | 1 V-cycle | 4 V-cycles | per cycle (2-4) | s/cycle | hierarchy (s) |\n\
-             | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |\n",
+             fast-marching start), from zero: residual over the initial one.\n\n",
         );
-        for c in &report.convergence {
-            let _ = writeln!(
-                md,
-                "| {} | {} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} |",
-                c.scene,
-                c.size,
-                c.sor_after_10,
-                c.sor_after_40,
-                c.sor_factor_late,
-                c.seconds_per_sweep,
-                c.cycle_after_1,
-                c.cycle_after_4,
-                c.cycle_factor_late,
-                c.seconds_per_cycle,
-                c.hierarchy_seconds
-            );
-        }
+        table(
+            &mut md,
+            "| scene | size | 10 SOR sweeps | 40 sweeps | per sweep (30-40) | s/sweep | 1 V-cycle | 4 V-cycles | per cycle (2-4) | s/cycle | hierarchy (s) |",
+            &report.convergence,
+            |c| {
+                format!(
+                    "| {} | {} | {:.3} | {:.3} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} | {:.4} | {:.3} |",
+                    c.scene,
+                    c.size,
+                    c.sor_after_10,
+                    c.sor_after_40,
+                    c.sor_factor_late,
+                    c.seconds_per_sweep,
+                    c.cycle_after_1,
+                    c.cycle_after_4,
+                    c.cycle_factor_late,
+                    c.seconds_per_cycle,
+                    c.hierarchy_seconds
+                )
+            },
+        );
     }
     if !report.cancels.is_empty() {
         md.push_str(

@@ -120,6 +120,36 @@ pub fn is_centred(lights: &[PointLight]) -> bool {
     lights.is_empty() || lights.iter().all(PointLight::is_centred)
 }
 
+/// The summed intensity of `lights` (1 for none: the paper's light), which
+/// the closed forms of centred lights fold into `s`.
+fn summed_intensity(lights: &[PointLight]) -> f64 {
+    if lights.is_empty() {
+        1.0
+    } else {
+        lights.iter().map(|l| l.intensity).sum()
+    }
+}
+
+/// The vectors of a surface point seen along `ray` at `depth` with depth
+/// gradient `(dz_dx, dz_dy)`, lit by `light`: the view ray `v = (x/f, y/f,
+/// 1)` (the point is `P = z v`), `L = S - P` and the unnormalised normal
+/// `n = (f z_x, f z_y, -(z + x z_x + y z_y))`.
+#[inline]
+fn surface_vectors(
+    light: &PointLight,
+    ray: &PixelRay,
+    depth: f64,
+    dz_dx: f64,
+    dz_dy: f64,
+) -> (DVec3, DVec3, DVec3) {
+    let f = ray.focal_px;
+    let (x, y) = (ray.x_px, ray.y_px);
+    let v = DVec3::new(x / f, y / f, 1.0);
+    let l = DVec3::from_array(light.position) - depth * v;
+    let n = DVec3::new(f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy));
+    (v, l, n)
+}
+
 /// Lambertian surface lit by point lights anywhere, `1/r^2` fall-off, LED
 /// anisotropy: the general model of METHOD.md section 9.
 #[derive(Clone, Debug, PartialEq)]
@@ -158,10 +188,7 @@ fn light_term(
 ) -> Option<(f64, [f64; 3])> {
     let f = ray.focal_px;
     let (x, y) = (ray.x_px, ray.y_px);
-    // P = z v, v = (x/f, y/f, 1); L = S - P.
-    let v = DVec3::new(x / f, y / f, 1.0);
-    let l = DVec3::from_array(light.position) - depth * v;
-    let n = DVec3::new(f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy));
+    let (v, l, n) = surface_vectors(light, ray, depth, dz_dx, dz_dy);
     let g = n.dot(l);
     let w2 = n.length_squared();
     let d2 = l.length_squared();
@@ -239,13 +266,7 @@ pub struct ShadedLights {
 impl ShadedLights {
     /// The model of `material` lit by `lights` (empty: the paper's light).
     pub fn new(intensity_scale: f64, lights: &[PointLight], material: Material) -> Self {
-        let centred_intensity = is_centred(lights).then(|| {
-            if lights.is_empty() {
-                1.0
-            } else {
-                lights.iter().map(|l| l.intensity).sum()
-            }
-        });
+        let centred_intensity = is_centred(lights).then(|| summed_intensity(lights));
         ShadedLights {
             intensity_scale,
             lights: lights.to_vec(),
@@ -257,11 +278,7 @@ impl ShadedLights {
     /// One light's term `phi a m(N, L, V) / d^2` at `P = z v`.
     #[inline]
     fn term(&self, light: &PointLight, ray: &PixelRay, depth: f64, dz_dx: f64, dz_dy: f64) -> f64 {
-        let f = ray.focal_px;
-        let (x, y) = (ray.x_px, ray.y_px);
-        let v = DVec3::new(x / f, y / f, 1.0);
-        let l = DVec3::from_array(light.position) - depth * v;
-        let n = DVec3::new(f * dz_dx, f * dz_dy, -(depth + x * dz_dx + y * dz_dy));
+        let (v, l, n) = surface_vectors(light, ray, depth, dz_dx, dz_dy);
         let (w2, d2) = (n.length_squared(), l.length_squared());
         if !(n.dot(l) > 0.0 && w2 > 0.0 && d2 > 0.0) {
             return 0.0;
@@ -370,13 +387,8 @@ impl LightModel {
     /// the paper's single light at the optical centre).
     pub fn new(intensity_scale: f64, lights: &[PointLight]) -> Self {
         if is_centred(lights) {
-            let phi: f64 = if lights.is_empty() {
-                1.0
-            } else {
-                lights.iter().map(|l| l.intensity).sum()
-            };
             LightModel::Centred(Lambertian {
-                intensity_scale: intensity_scale * phi,
+                intensity_scale: intensity_scale * summed_intensity(lights),
             })
         } else {
             LightModel::Near(NearLights {
@@ -639,14 +651,7 @@ mod tests {
 
     #[test]
     fn shaded_lambert_is_the_lambertian_model_centred_and_off_centre() {
-        let off = [PointLight {
-            position: [0.8, -0.5, 0.3],
-            direction: Some([-0.3, 0.4, 0.87]),
-            mu: 1.5,
-            intensity: 1.0,
-        }
-        .validated(1)
-        .unwrap()];
+        let off = [aimed_led()];
         for lights in [&[][..], &off[..]] {
             let shaded = ShadedLights::new(2.0, lights, Material::Lambert);
             let lambert = LightModel::new(2.0, lights);
@@ -691,14 +696,7 @@ mod tests {
     #[test]
     fn numeric_partials_off_centre_match_differences_of_the_radiance() {
         let lights = [
-            PointLight {
-                position: [0.8, -0.5, 0.3],
-                direction: Some([-0.3, 0.4, 0.87]),
-                mu: 1.5,
-                intensity: 1.0,
-            }
-            .validated(1)
-            .unwrap(),
+            aimed_led(),
             PointLight {
                 position: [-0.2, 0.1, 0.0],
                 direction: None,
@@ -758,6 +756,18 @@ mod tests {
         }
     }
 
+    /// An LED off the axis aimed across the field (validated), intensity 1.
+    fn aimed_led() -> PointLight {
+        PointLight {
+            position: [0.8, -0.5, 0.3],
+            direction: Some([-0.3, 0.4, 0.87]),
+            mu: 1.5,
+            ..PointLight::CENTRED
+        }
+        .validated(1)
+        .unwrap()
+    }
+
     fn ray() -> PixelRay {
         PixelRay {
             x_px: 37.0,
@@ -790,14 +800,7 @@ mod tests {
     #[test]
     fn exact_partials_match_differences_off_centre() {
         let lights = vec![
-            PointLight {
-                position: [0.8, -0.5, 0.3],
-                direction: Some([-0.3, 0.4, 0.87]),
-                mu: 1.5,
-                intensity: 1.0,
-            }
-            .validated(1)
-            .unwrap(),
+            aimed_led(),
             PointLight {
                 position: [-0.6, 0.2, -0.1],
                 direction: None,

@@ -24,11 +24,16 @@ use sfs_core::solver::photometric::{
 /// The Sombrero at `side` px under `leds` LEDs with a patch albedo and
 /// cast shadows.
 fn sombrero_set(side: usize, leds: usize) -> PhotometricSet {
-    let lights = standard_leds(leds, [0.0, 0.0, 2.0]);
+    sombrero_under(side, &standard_leds(leds, [0.0, 0.0, 2.0]))
+}
+
+/// The Sombrero at `side` px under `lights` with a patch albedo and cast
+/// shadows.
+fn sombrero_under(side: usize, lights: &[PointLight]) -> PhotometricSet {
     let albedo = albedo_pattern(side, side, "patches");
     render_set(
         |l: &[PointLight]| Ok::<_, ()>(sombrero_lit(side, side, l)),
-        &lights,
+        lights,
         &albedo,
         true,
     )
@@ -163,15 +168,8 @@ fn unknown_intensities_are_estimated() {
             ..l
         })
         .collect();
-    let albedo = albedo_pattern(side, side, "patches");
     // Each photograph carries its light's intensity (one exposure).
-    let set = render_set(
-        |l: &[PointLight]| Ok::<_, ()>(sombrero_lit(side, side, l)),
-        &lights,
-        &albedo,
-        true,
-    )
-    .expect("render");
+    let set = sombrero_under(side, &lights);
     let mut given = problem(&set);
     for (photo, light) in given.photos.iter_mut().zip(&lights) {
         photo.light = PointLight {
@@ -726,14 +724,7 @@ fn fit_corpus() {
         let which = rng.random_range(0..=meshes.len());
         let albedo = albedo_pattern(side, side, "patches");
         let (scene, set) = if which == meshes.len() {
-            let set = render_set(
-                |l: &[PointLight]| Ok::<_, ()>(sombrero_lit(side, side, l)),
-                &lights,
-                &albedo,
-                true,
-            )
-            .expect("render");
-            ("sombrero".to_owned(), set)
+            ("sombrero".to_owned(), sombrero_under(side, &lights))
         } else {
             let (name, mesh) = &meshes[which];
             let placement = Placement {

@@ -252,31 +252,22 @@ fn image_to_grey(
             reason: format!("it is empty ({w}x{h})"),
         });
     }
+    // Integer samples on [0, 1]: divided by their type's maximum.
+    let bytes = |raw: &[u8], channels: usize, colour: bool| {
+        samples_to_grey(path, (w, h, channels), raw, colour, 255.0, srgb)
+    };
+    let words = |raw: &[u16], channels: usize, colour: bool| {
+        samples_to_grey(path, (w, h, channels), raw, colour, 65535.0, srgb)
+    };
     let grid = match image {
-        DynamicImage::ImageLuma8(b) => {
-            samples_to_grey(path, (w, h, 1), b.as_raw(), false, 255.0, srgb)?
-        }
-        DynamicImage::ImageLumaA8(b) => {
-            samples_to_grey(path, (w, h, 2), b.as_raw(), false, 255.0, srgb)?
-        }
-        DynamicImage::ImageRgb8(b) => {
-            samples_to_grey(path, (w, h, 3), b.as_raw(), true, 255.0, srgb)?
-        }
-        DynamicImage::ImageRgba8(b) => {
-            samples_to_grey(path, (w, h, 4), b.as_raw(), true, 255.0, srgb)?
-        }
-        DynamicImage::ImageLuma16(b) => {
-            samples_to_grey(path, (w, h, 1), b.as_raw(), false, 65535.0, srgb)?
-        }
-        DynamicImage::ImageLumaA16(b) => {
-            samples_to_grey(path, (w, h, 2), b.as_raw(), false, 65535.0, srgb)?
-        }
-        DynamicImage::ImageRgb16(b) => {
-            samples_to_grey(path, (w, h, 3), b.as_raw(), true, 65535.0, srgb)?
-        }
-        DynamicImage::ImageRgba16(b) => {
-            samples_to_grey(path, (w, h, 4), b.as_raw(), true, 65535.0, srgb)?
-        }
+        DynamicImage::ImageLuma8(b) => bytes(b.as_raw(), 1, false)?,
+        DynamicImage::ImageLumaA8(b) => bytes(b.as_raw(), 2, false)?,
+        DynamicImage::ImageRgb8(b) => bytes(b.as_raw(), 3, true)?,
+        DynamicImage::ImageRgba8(b) => bytes(b.as_raw(), 4, true)?,
+        DynamicImage::ImageLuma16(b) => words(b.as_raw(), 1, false)?,
+        DynamicImage::ImageLumaA16(b) => words(b.as_raw(), 2, false)?,
+        DynamicImage::ImageRgb16(b) => words(b.as_raw(), 3, true)?,
+        DynamicImage::ImageRgba16(b) => words(b.as_raw(), 4, true)?,
         DynamicImage::ImageRgb32F(b) if float => {
             return own_scale_to_grey(path, (w, h, 3), b.as_raw(), srgb);
         }
@@ -570,37 +561,32 @@ pub(super) fn quantise(v: f64, max: f64) -> f64 {
 /// Writes a 16-bit linear grey PNG: values clamped to [0, 1], NaN as 0,
 /// scaled by 65535 and rounded; marked linear (gAMA 1.0).
 pub fn write_png16(path: &Path, image: &Grid<f64>) -> Result<(), IoError> {
-    let data: Vec<u16> = image
-        .as_slice()
-        .iter()
-        .map(|&v| quantise(v, 65535.0) as u16)
-        .collect();
-    let bytes: Vec<u8> = data.iter().flat_map(|v: &u16| v.to_be_bytes()).collect();
-    save_linear_png(
-        path,
-        image.width(),
-        image.height(),
-        png::BitDepth::Sixteen,
-        &bytes,
-    )
+    write_quantised_png(path, image, png::BitDepth::Sixteen)
 }
 
 /// Writes an 8-bit grey PNG of linear values: clamped to [0, 1], NaN as 0,
 /// scaled by 255 and rounded; marked linear (gAMA 1.0), so that
 /// `--srgb auto` does not decode it again.
 pub fn write_png8(path: &Path, image: &Grid<f64>) -> Result<(), IoError> {
-    let data: Vec<u8> = image
-        .as_slice()
-        .iter()
-        .map(|&v| quantise(v, 255.0) as u8)
-        .collect();
-    save_linear_png(
-        path,
-        image.width(),
-        image.height(),
-        png::BitDepth::Eight,
-        &data,
-    )
+    write_quantised_png(path, image, png::BitDepth::Eight)
+}
+
+/// Writes `image` as a linear grey PNG of `depth` (8 or 16 bits), each
+/// value quantised to the depth's maximum ([`quantise`]).
+fn write_quantised_png(
+    path: &Path,
+    image: &Grid<f64>,
+    depth: png::BitDepth,
+) -> Result<(), IoError> {
+    let values = image.as_slice().iter();
+    let bytes: Vec<u8> = if depth == png::BitDepth::Sixteen {
+        values
+            .flat_map(|&v| (quantise(v, 65535.0) as u16).to_be_bytes())
+            .collect()
+    } else {
+        values.map(|&v| quantise(v, 255.0) as u8).collect()
+    };
+    save_linear_png(path, image.width(), image.height(), depth, &bytes)
 }
 
 /// Writes grey samples (big-endian for 16 bits) as a PNG whose gAMA chunk

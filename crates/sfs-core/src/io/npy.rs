@@ -294,15 +294,16 @@ mod tests {
     fn npy_errors_name_the_file_and_what_was_found() {
         let dir = tempdir().unwrap();
         let p = dir.path().join("v.npy");
+        // A `.npy` file of `header` (padded) and `data` at `path`.
+        let write = |path: &Path, header: &str, data: &[u8]| {
+            fs::write(path, npy_bytes(header, data)).unwrap();
+        };
         let data: Vec<u8> = [1.0f64, 2.0].iter().flat_map(|v| v.to_le_bytes()).collect();
-        fs::write(
+        write(
             &p,
-            npy_bytes(
-                "{'descr': '<f8', 'fortran_order': False, 'shape': (2,), }",
-                &data,
-            ),
-        )
-        .unwrap();
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (2,), }",
+            &data,
+        );
         let e = read_npy(&p).unwrap_err().to_string();
         assert!(
             e.contains(&p.display().to_string()) && e.contains("1-D"),
@@ -310,14 +311,11 @@ mod tests {
         );
 
         // Truncated: the header promises far more than the file holds.
-        fs::write(
+        write(
             &p,
-            npy_bytes(
-                "{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }",
-                &data,
-            ),
-        )
-        .unwrap();
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (100000, 100000), }",
+            &data,
+        );
         let e = read_npy(&p).unwrap_err().to_string();
         assert!(e.contains("truncated"), "{e}");
 
@@ -326,23 +324,17 @@ mod tests {
             .iter()
             .flat_map(|v| v.to_le_bytes())
             .collect();
-        fs::write(
+        write(
             &p,
-            npy_bytes(
-                "{'descr': '<i4', 'fortran_order': False, 'shape': (2, 2), }",
-                &ints,
-            ),
-        )
-        .unwrap();
+            "{'descr': '<i4', 'fortran_order': False, 'shape': (2, 2), }",
+            &ints,
+        );
         assert_eq!(read_npy(&p).unwrap().as_slice(), &[1.0, -2.0, 3.0, 4.0]);
-        fs::write(
+        write(
             &p,
-            npy_bytes(
-                "{'descr': '|S4', 'fortran_order': False, 'shape': (2, 2), }",
-                &ints,
-            ),
-        )
-        .unwrap();
+            "{'descr': '|S4', 'fortran_order': False, 'shape': (2, 2), }",
+            &ints,
+        );
         let e = read_npy(&p).unwrap_err().to_string();
         assert!(e.contains("unsupported element type"), "{e}");
 

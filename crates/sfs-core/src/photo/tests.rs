@@ -8,6 +8,13 @@ fn ramp(w: usize, h: usize) -> Grid<f64> {
     Grid::from_fn(w, h, |c, r| 0.1 + 0.8 * (c + w * r) as f64 / (w * h) as f64)
 }
 
+/// `image` written as `photo.png` (16 bits) in `dir`: its path.
+fn photo_png(dir: &tempfile::TempDir, image: &Grid<f64>) -> std::path::PathBuf {
+    let path = dir.path().join("photo.png");
+    write_png16(&path, image).unwrap();
+    path
+}
+
 #[test]
 fn masks_are_read_at_the_photographs_size_or_the_working_size() {
     let dir = tempdir().unwrap();
@@ -44,8 +51,7 @@ fn a_confidence_averaged_to_the_working_size_stays_in_0_1() {
 #[test]
 fn a_photograph_with_a_focal_length_becomes_the_problem_it_says() {
     let dir = tempdir().unwrap();
-    let image = dir.path().join("photo.png");
-    write_png16(&image, &ramp(40, 30)).unwrap();
+    let image = photo_png(&dir, &ramp(40, 30));
     let mask = dir.path().join("mask.png");
     write_mask_png(&mask, &Grid::from_fn(40, 30, |c, _| c >= 10)).unwrap();
     let input = PhotoInput {
@@ -76,8 +82,7 @@ fn a_photograph_with_a_focal_length_becomes_the_problem_it_says() {
 #[test]
 fn no_camera_is_an_error_unless_a_guess_is_allowed() {
     let dir = tempdir().unwrap();
-    let image = dir.path().join("photo.png");
-    write_png16(&image, &ramp(36, 24)).unwrap();
+    let image = photo_png(&dir, &ramp(36, 24));
     let e = prepare(&PhotoInput::new(&image)).unwrap_err().to_string();
     assert!(e.contains("no camera"), "{e}");
     let guessed = prepare(&PhotoInput {
@@ -110,9 +115,8 @@ fn an_albedo_map_is_judged_on_the_photograph_as_taken() {
     // (a relative map): divided out, every value passes the top of the
     // range, yet only the one pixel saturated as taken is.
     let dir = tempdir().unwrap();
-    let image = dir.path().join("photo.png");
     let taken = Grid::from_fn(10, 10, |c, r| if (c, r) == (3, 4) { 1.0 } else { 0.9 });
-    write_png16(&image, &taken).unwrap();
+    let image = photo_png(&dir, &taken);
     let albedo = dir.path().join("albedo.png");
     write_png16(&albedo, &Grid::filled(10, 10, 0.5)).unwrap();
     let prepared = prepared_with_albedo(&image, albedo);
@@ -137,8 +141,7 @@ fn an_albedo_map_is_judged_on_the_photograph_as_taken() {
 #[test]
 fn an_albedo_npy_map_is_divided_out_like_an_image() {
     let dir = tempdir().unwrap();
-    let image = dir.path().join("photo.png");
-    write_png16(&image, &Grid::filled(10, 10, 0.4)).unwrap();
+    let image = photo_png(&dir, &Grid::filled(10, 10, 0.4));
     let albedo = dir.path().join("albedo.npy");
     let map = Grid::from_fn(10, 10, |c, _| if c < 5 { f64::NAN } else { 0.5 });
     crate::io::write_npy_f32(&albedo, &map).unwrap();
@@ -307,8 +310,7 @@ fn h5_powers_of_two_put_a_value_in_half_one() {
 #[test]
 fn an_albedo_below_the_floor_is_not_trusted_and_reported() {
     let dir = tempdir().unwrap();
-    let image = dir.path().join("photo.png");
-    write_png16(&image, &ramp(10, 10)).unwrap();
+    let image = photo_png(&dir, &ramp(10, 10));
     let albedo = dir.path().join("albedo.png");
     write_png16(
         &albedo,

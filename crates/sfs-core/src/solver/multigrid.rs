@@ -287,6 +287,12 @@ impl multigrid::Level for CoarseLevel {
     }
 }
 
+/// The `(index, weight)` pairs of `pairs` with a non-zero weight (the
+/// others add nothing).
+fn weighted(pairs: &[(usize, f32)]) -> impl Iterator<Item = (usize, f32)> + '_ {
+    pairs.iter().copied().filter(|&(_, weight)| weight != 0.0)
+}
+
 /// The Galerkin operator `P^T A P` of a `w x h` level whose rows `stencil`
 /// gives (None: not solved for), on the grid the axes coarsen to.
 fn galerkin<F>(w: usize, h: usize, stencil: F, x_axis: Axis, y_axis: Axis) -> CoarseLevel
@@ -305,14 +311,8 @@ where
         .for_each(|(row, (out, inverse_out))| {
             for column in 0..wc {
                 let mut sum = [0.0f64; 25];
-                for &(fr, wy) in &y_axis.children[row] {
-                    if wy == 0.0 {
-                        continue;
-                    }
-                    for &(fc, wx) in &x_axis.children[column] {
-                        if wx == 0.0 {
-                            continue;
-                        }
+                for (fr, wy) in weighted(&y_axis.children[row]) {
+                    for (fc, wx) in weighted(&x_axis.children[column]) {
                         let Some(a) = stencil(fc, fr) else { continue };
                         let weight = f64::from(wx * wy);
                         for (k, &value) in a.iter().enumerate() {
@@ -322,14 +322,8 @@ where
                             let jc = fc + k % 5 - 2;
                             let jr = fr + k / 5 - 2;
                             let contribution = weight * f64::from(value);
-                            for &(pr, wpr) in &y_axis.parents[jr] {
-                                if wpr == 0.0 {
-                                    continue;
-                                }
-                                for &(pc, wpc) in &x_axis.parents[jc] {
-                                    if wpc == 0.0 {
-                                        continue;
-                                    }
+                            for (pr, wpr) in weighted(&y_axis.parents[jr]) {
+                                for (pc, wpc) in weighted(&x_axis.parents[jc]) {
                                     let dx = pc + 2 - column;
                                     let dy = pr + 2 - row;
                                     sum[dy * 5 + dx] += contribution * f64::from(wpr * wpc);

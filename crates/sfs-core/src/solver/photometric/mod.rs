@@ -291,18 +291,11 @@ fn most_similar_pair(problem: &PhotometricProblem) -> Option<(usize, usize, f64)
         .step_by(stride)
         .filter(|&q| set_trusted(q))
         .collect();
-    let trusted = |photo: &SetPhoto, q: usize| {
-        !photo.saturated.as_ref().is_some_and(|s| s.as_slice()[q])
-            && photo
-                .confidence
-                .as_ref()
-                .is_none_or(|c| c.as_slice()[q] > 0.0)
-    };
     for (k, b) in photos.iter().enumerate() {
         for (j, a) in photos[..k].iter().enumerate() {
             let (mut aa, mut bb, mut ab, mut n) = (0.0, 0.0, 0.0, 0usize);
             for &q in &sample {
-                if trusted(a, q) && trusted(b, q) {
+                if a.trusts(q) && b.trusts(q) {
                     let (x, y) = (
                         a.image.as_slice()[q].max(0.0),
                         b.image.as_slice()[q].max(0.0),
@@ -345,17 +338,10 @@ fn why_unlit(problem: &PhotometricProblem) -> String {
     if !(0..count).any(trusted) {
         return "no pixel is both on the object and trusted (confidence > 0)".into();
     }
-    let usable = |photo: &SetPhoto, q: usize| {
-        !photo.saturated.as_ref().is_some_and(|s| s.as_slice()[q])
-            && photo
-                .confidence
-                .as_ref()
-                .is_none_or(|c| c.as_slice()[q] > 0.0)
-    };
     if !problem
         .photos
         .iter()
-        .any(|p| (0..count).any(|q| trusted(q) && usable(p, q)))
+        .any(|p| (0..count).any(|q| trusted(q) && p.trusts(q)))
     {
         return "every photograph is saturated or untrusted on every trusted object pixel: \
                 lower the exposure or mask the saturated region (confidence 0)"
@@ -568,39 +554,37 @@ pub fn solve_photometric(
         // to the shape each time it has settled, and the shape solved again
         // (refitting them inside the linearisations runs away along the
         // coupling of a light's intensity and the surface's tilt).
-        if estimate_intensities && !fine {
-            for _ in 0..INTENSITY_ROUNDS {
-                run_level(
-                    level,
-                    &lights,
-                    &mut intensities,
-                    false,
-                    &level_cast,
-                    scales_at(scale),
-                    &mut zeta,
-                    &mut m,
-                    LevelRun {
-                        report: None,
-                        ..how
-                    },
-                    observer,
-                )?;
-                let shared = Shared::new(&lights, &intensities, &level_cast, scales_at(scale));
-                intensities = level.refit_intensities(&shared, &zeta, &m);
+        // Only the last solve of the level reports.
+        let refits = if estimate_intensities && !fine {
+            INTENSITY_ROUNDS
+        } else {
+            0
+        };
+        let mut refit = 0;
+        let (e, energies, its) = loop {
+            let last = refit == refits;
+            let result = run_level(
+                level,
+                &lights,
+                &mut intensities,
+                false,
+                &level_cast,
+                scales_at(scale),
+                &mut zeta,
+                &mut m,
+                LevelRun {
+                    report: how.report.filter(|_| last),
+                    ..how
+                },
+                observer,
+            )?;
+            if last {
+                break result;
             }
-        }
-        let (e, energies, its) = run_level(
-            level,
-            &lights,
-            &mut intensities,
-            false,
-            &level_cast,
-            scales_at(scale),
-            &mut zeta,
-            &mut m,
-            how,
-            observer,
-        )?;
+            let shared = Shared::new(&lights, &intensities, &level_cast, scales_at(scale));
+            intensities = level.refit_intensities(&shared, &zeta, &m);
+            refit += 1;
+        };
         iterations += its;
         energy = e;
         reports.push(LevelReport {

@@ -28,6 +28,18 @@ pub struct SetPhoto {
     pub confidence: Option<Grid<f64>>,
 }
 
+impl SetPhoto {
+    /// Whether this photograph's pixel `q` (row-major) may be used: not
+    /// saturated, and of positive confidence of its own.
+    pub fn trusts(&self, q: usize) -> bool {
+        !self.saturated.as_ref().is_some_and(|s| s.as_slice()[q])
+            && self
+                .confidence
+                .as_ref()
+                .is_none_or(|c| c.as_slice()[q] > 0.0)
+    }
+}
+
 /// A photometric-stereo problem.
 #[derive(Clone, Debug)]
 pub struct PhotometricProblem {
