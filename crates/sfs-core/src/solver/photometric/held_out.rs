@@ -26,7 +26,7 @@ pub(super) const HELD_OUT_SIDE: usize = 64;
 pub(super) const HELD_OUT_MIN_PHOTOS: usize = 5;
 /// Linearisations of each solve without one photograph (from the set's
 /// surface at that level).
-const HELD_OUT_ITERATIONS: usize = 8;
+const HELD_OUT_ITERATIONS: usize = 4;
 
 /// What the other photographs predict of one photograph `I` (the
 /// prediction `P`), over its lit, trusted object pixels: `I = scale P` or
@@ -68,8 +68,8 @@ pub(super) struct Snapshot {
 }
 
 /// Each photograph held out in turn: the set without it solved from
-/// `snapshot` on `level` (at most [`HELD_OUT_ITERATIONS`] linearisations,
-/// the distance searched), and the photograph fitted against that
+/// `snapshot` on `level` (at most [`HELD_OUT_ITERATIONS`] linearisations;
+/// the distance is the set's, which the linearisations move), and the photograph fitted against that
 /// surface's prediction. A set of fewer than [`HELD_OUT_MIN_PHOTOS`]
 /// photographs: [`HeldOutFit::NONE`] for each.
 pub(super) fn held_out_fits(
@@ -119,7 +119,7 @@ pub(super) fn held_out_fits(
             &mut m,
             LevelRun {
                 max_iterations: HELD_OUT_ITERATIONS,
-                search_distance: true,
+                search_distance: false,
                 report: None,
             },
             observer,
