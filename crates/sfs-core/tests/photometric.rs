@@ -938,7 +938,7 @@ fn fit_corpus() {
                         && (w.contains("does not fit")
                             || w.contains("behind the camera")
                             || w.contains("cannot light most")
-                            || w.contains("predicts from the other photographs")
+                            || w.contains("the other photographs predict under")
                             || w.contains("that the other photographs lack"))
                 }),
             });

@@ -239,7 +239,7 @@ fn fit_line(pairs: &[(f64, f64)]) -> HeldOutFit {
         po += p * o;
         difference += o - p;
     }
-    if !(pp > 0.0) {
+    if pp.is_nan() || pp <= 0.0 {
         return HeldOutFit::NONE;
     }
     let scale = po / pp;
@@ -252,7 +252,7 @@ fn fit_line(pairs: &[(f64, f64)]) -> HeldOutFit {
     let mut observed: Vec<f64> = pairs.iter().map(|(_, o)| *o).collect();
     let at = ((observed.len() - 1) as f64 * 0.99).round() as usize;
     let (_, top, _) = observed.select_nth_unstable_by(at, f64::total_cmp);
-    if !(*top > 0.0) {
+    if top.is_nan() || *top <= 0.0 {
         return HeldOutFit::NONE;
     }
     HeldOutFit {

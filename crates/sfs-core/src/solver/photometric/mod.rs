@@ -844,11 +844,12 @@ fn held_out_judgement(solution: &PhotometricSolution) -> Option<(usize, String)>
         .enumerate()
         .filter(|(_, p)| p.held_out_rest.is_finite())
         .min_by(|a, b| a.1.held_out_rest.total_cmp(&b.1.held_out_rest))?;
-    if !(finish::ratio_to_the_others(&rests, k) <= HELD_OUT_REST_RATIO) {
+    let ratio = finish::ratio_to_the_others(&rests, k);
+    if ratio.is_nan() || ratio > HELD_OUT_REST_RATIO {
         return None;
     }
     if photo.held_out_offset_better {
-        if !(photo.held_out_offset.abs() > HELD_OUT_OFFSET) {
+        if photo.held_out_offset.is_nan() || photo.held_out_offset.abs() <= HELD_OUT_OFFSET {
             return None;
         }
         return Some((
@@ -873,9 +874,9 @@ fn held_out_judgement(solution: &PhotometricSolution) -> Option<(usize, String)>
     Some((
         k,
         format!(
-            "{} is {how} its light's intensity ({:.3}) predicts from the other photographs: \
-             its intensity in the camera file or its exposure may be wrong",
-            photo.name, photo.light.intensity
+            "{} is {how} the other photographs predict under its light's intensity as \
+             given: its intensity in the camera file or its exposure may be wrong",
+            photo.name
         ),
     ))
 }
