@@ -584,12 +584,23 @@ enum Fault {
     Moved(usize, [f64; 3]),
     /// Photograph `j`'s light listed behind the camera (its z negated).
     Behind(usize),
+    /// Photograph `j` at this factor of the exposure its calibrated
+    /// intensity says (or its intensity in the camera file off by the
+    /// inverse).
+    Scaled(usize, f64),
+    /// Photograph `j` with this share of its brightest object value added
+    /// everywhere (an ambient light or a black level the others lack).
+    Offset(usize, f64),
 }
 
 impl Fault {
     fn photo(self) -> usize {
         match self {
-            Fault::Halved(j) | Fault::Moved(j, _) | Fault::Behind(j) => j,
+            Fault::Halved(j)
+            | Fault::Moved(j, _)
+            | Fault::Behind(j)
+            | Fault::Scaled(j, _)
+            | Fault::Offset(j, _) => j,
         }
     }
 
@@ -598,6 +609,17 @@ impl Fault {
             Fault::Halved(_) => "halved",
             Fault::Moved(..) => "moved",
             Fault::Behind(_) => "behind",
+            Fault::Scaled(..) => "scaled",
+            Fault::Offset(..) => "offset",
+        }
+    }
+
+    /// The fault's size: the factor or the offset's share; 0 for the
+    /// others.
+    fn size(self) -> f64 {
+        match self {
+            Fault::Scaled(_, k) | Fault::Offset(_, k) => k,
+            _ => 0.0,
         }
     }
 
@@ -613,6 +635,19 @@ impl Fault {
                 }
             }
             Fault::Behind(_) => photo.light.position[2] = -photo.light.position[2],
+            Fault::Scaled(_, k) => photo.image = photo.image.map(|v| k * v),
+            Fault::Offset(_, share) => {
+                let mask = problem.object_mask.as_ref();
+                let brightest = photo
+                    .image
+                    .as_slice()
+                    .iter()
+                    .enumerate()
+                    .filter(|(q, _)| mask.is_none_or(|m| m.as_slice()[*q]))
+                    .map(|(_, v)| *v)
+                    .fold(0.0, f64::max);
+                photo.image = photo.image.map(|v| v + share * brightest);
+            }
         }
         faulty
     }
@@ -664,6 +699,96 @@ fn a_photograph_that_does_not_fit_its_light_is_named() {
     }
 }
 
+/// The probe's set (issue 48): the Sombrero at 32 px under 5 LEDs, a
+/// uniform albedo.
+fn probe_set() -> PhotometricProblem {
+    let lights = standard_leds(5, [0.0, 0.0, 2.0]);
+    let set = render_set(
+        |l: &[PointLight]| Ok::<_, ()>(sombrero_lit(32, 32, l)),
+        &lights,
+        &Grid::filled(32, 32, 1.0),
+        true,
+    )
+    .expect("render");
+    problem(&set)
+}
+
+/// The set's warnings that name a photograph other than `name`.
+fn warnings_not_naming(solution: &PhotometricSolution, name: &str) -> Vec<String> {
+    warnings(solution)
+        .into_iter()
+        .filter(|w| w.starts_with("led") && !w.starts_with(name))
+        .collect()
+}
+
+/// The probe's two silent wrong answers (issue 48): a photograph whose
+/// light the camera file lists at twice the intensity it was taken at, and
+/// one with an offset the others lack, both spread by the whole-set fit
+/// over every photograph (no misfit stood out), are named by the held-out
+/// check, with the scale or the offset; the clean set is not warned
+/// about.
+#[test]
+fn a_photograph_the_others_contradict_is_named_with_its_scale_or_offset() {
+    let clean = probe_set();
+    let solution = solve(&clean);
+    assert!(
+        warnings(&solution).is_empty(),
+        "a clean set warns: {:?}",
+        warnings(&solution)
+    );
+    for photo in &solution.photos {
+        assert!(
+            (photo.held_out_scale - 1.0).abs() < 0.1,
+            "{}: {}",
+            photo.name,
+            photo.held_out_scale
+        );
+    }
+
+    let mut doubled = clean.clone();
+    doubled.photos[1].light.intensity = 2.0;
+    let solution = solve(&doubled);
+    let named = warnings_naming(&solution, "led2.png");
+    assert!(
+        named.len() == 1
+            && named[0].starts_with("led2.png is 0.")
+            && named[0].contains("x as bright as"),
+        "{:?}",
+        warnings(&solution)
+    );
+    let scale = solution.photos[1].held_out_scale;
+    assert!((scale - 0.5).abs() < 0.1, "{scale}");
+    assert!(
+        warnings_not_naming(&solution, "led2.png").is_empty(),
+        "{:?}",
+        warnings(&solution)
+    );
+
+    let mut lifted = clean.clone();
+    let top = lifted.photos[4]
+        .image
+        .as_slice()
+        .iter()
+        .copied()
+        .fold(0.0, f64::max);
+    lifted.photos[4].image = lifted.photos[4].image.map(|v| v + 0.23 * top);
+    let solution = solve(&lifted);
+    let named = warnings_naming(&solution, "led5.png");
+    assert!(
+        named.len() == 1 && named[0].starts_with("led5.png has an offset of +0."),
+        "{:?}",
+        warnings(&solution)
+    );
+    // 0.23 of the clean photograph's brightest, over the lifted one's.
+    let offset = solution.photos[4].held_out_offset;
+    assert!((offset - 0.23 / 1.23).abs() < 0.05, "{offset}");
+    assert!(
+        warnings_not_naming(&solution, "led5.png").is_empty(),
+        "{:?}",
+        warnings(&solution)
+    );
+}
+
 /// Each photograph's fit, one row per photograph of a corpus set.
 struct CorpusRow {
     case: usize,
@@ -671,6 +796,7 @@ struct CorpusRow {
     leds: usize,
     noise_255: f64,
     fault: &'static str,
+    fault_size: f64,
     photo: usize,
     faulty: bool,
     fit_residual: f64,
@@ -679,6 +805,11 @@ struct CorpusRow {
     robust_share: f64,
     warned: bool,
     systematic_misfit: f64,
+    held_out_scale: f64,
+    held_out_offset: f64,
+    held_out_rest: f64,
+    held_out_offset_better: bool,
+    seconds: f64,
 }
 
 /// The judgement's rates over a randomized corpus (docs/photometric-fit.md):
@@ -753,13 +884,20 @@ fn fit_corpus() {
         let cos_polar: f64 = rng.random_range(-1.0..1.0);
         let sin_polar = (1.0 - cos_polar * cos_polar).sqrt();
         let direction = [sin_polar * theta.cos(), sin_polar * theta.sin(), cos_polar];
-        let fault = match rng.random_range(0..6usize) {
+        // Drawn whatever the fault, so that a case's scene does not
+        // depend on the mix.
+        let factor = (rng.random_range(0.5f64.ln()..2.5f64.ln())).exp();
+        let share = rng.random_range(0.05..0.30);
+        let fault = match rng.random_range(0..10usize) {
             0 => Some(Fault::Halved(j)),
             1 => Some(Fault::Moved(j, direction)),
             2 => Some(Fault::Behind(j)),
+            3 | 4 => Some(Fault::Scaled(j, factor)),
+            5 | 6 => Some(Fault::Offset(j, share)),
             _ => None,
         };
         let faulty = fault.map_or(clean.clone(), |f| f.apply(&clean));
+        let started = std::time::Instant::now();
         let Ok(solution) = solve_photometric(&faulty, &PhotometricParams::default(), &mut ())
         else {
             println!("case {case}: refused");
@@ -773,6 +911,7 @@ fn fit_corpus() {
                 leds,
                 noise_255,
                 fault: fault.map_or("none", Fault::kind),
+                fault_size: fault.map_or(0.0, Fault::size),
                 photo: k,
                 faulty: fault.is_some_and(|f| f.photo() == k),
                 fit_residual: photo.fit_residual,
@@ -780,11 +919,18 @@ fn fit_corpus() {
                 relative_residual: photo.relative_residual,
                 robust_share: photo.robust_share,
                 systematic_misfit: photo.systematic_misfit,
+                held_out_scale: photo.held_out_scale,
+                held_out_offset: photo.held_out_offset,
+                held_out_rest: photo.held_out_rest,
+                held_out_offset_better: photo.held_out_offset_better,
+                seconds: started.elapsed().as_secs_f64(),
                 warned: all.iter().any(|w| {
                     w.starts_with(&photo.name)
                         && (w.contains("does not fit")
                             || w.contains("behind the camera")
-                            || w.contains("cannot light most"))
+                            || w.contains("cannot light most")
+                            || w.contains("the other photographs predict under")
+                            || w.contains("that the other photographs lack"))
                 }),
             });
         }
@@ -792,17 +938,20 @@ fn fit_corpus() {
     }
     if let Ok(path) = std::env::var("SFS_FIT_CORPUS_CSV") {
         let mut csv = String::from(
-            "case,scene,leds,noise_255,fault,photo,faulty,fit_residual,misfit_ratio,\
-             relative_residual,robust_share,warned,systematic_misfit\n",
+            "case,scene,leds,noise_255,fault,fault_size,photo,faulty,fit_residual,misfit_ratio,\
+             relative_residual,robust_share,warned,systematic_misfit,held_out_scale,\
+             held_out_offset,held_out_rest,offset_better,seconds\n",
         );
         for r in &rows {
             csv.push_str(&format!(
-                "{},{},{},{},{},{},{},{:.6},{:.4},{:.6},{:.4},{},{:.6}\n",
+                "{},{},{},{},{},{:.4},{},{},{:.6},{:.4},{:.6},{:.4},{},{:.6},{:.4},{:.4},{:.6},\
+                 {},{:.3}\n",
                 r.case,
                 r.scene,
                 r.leds,
                 r.noise_255,
                 r.fault,
+                r.fault_size,
                 r.photo,
                 r.faulty,
                 r.fit_residual,
@@ -810,7 +959,12 @@ fn fit_corpus() {
                 r.relative_residual,
                 r.robust_share,
                 r.warned,
-                r.systematic_misfit
+                r.systematic_misfit,
+                r.held_out_scale,
+                r.held_out_offset,
+                r.held_out_rest,
+                r.held_out_offset_better,
+                r.seconds
             ));
         }
         std::fs::write(&path, csv).expect("write the corpus csv");
@@ -831,7 +985,7 @@ fn fit_corpus() {
         sets.len(),
         set_alarms.len()
     );
-    for kind in ["none", "halved", "moved", "behind"] {
+    for kind in ["none", "halved", "moved", "behind", "scaled", "offset"] {
         let of: Vec<&CorpusRow> = rows.iter().filter(|r| r.fault == kind).collect();
         let bad: Vec<f64> = of
             .iter()
@@ -852,4 +1006,52 @@ fn fit_corpus() {
             bad.len()
         );
     }
+}
+
+/// The held-out check on the shared face (docs/photometric-fit.md): each
+/// photograph's numbers and the check's seconds. `cargo test -p sfs-core
+/// --test photometric -- --ignored shared_face_held_out --nocapture`
+/// (`SFS_FACE` the folder, default /work/shared/real/near_ps_human1).
+#[test]
+#[ignore]
+fn shared_face_held_out() {
+    let dir = std::path::PathBuf::from(
+        std::env::var("SFS_FACE").unwrap_or_else(|_| "/work/shared/real/near_ps_human1".into()),
+    );
+    let images: Vec<_> = [1, 2, 3, 4, 6, 7, 8]
+        .iter()
+        .map(|k| dir.join(format!("led{k}.png")))
+        .collect();
+    let input = PhotoInput {
+        images: images.clone(),
+        camera: CameraSpec::File(dir.join("calibration.json")),
+        lights: LightSpec::CameraFile { picks: Vec::new() },
+        object_mask: Some(dir.join("mask.png")),
+        ambient: Some(dir.join("ambient.png")),
+        max_side: Some(324),
+        photometric_stereo: true,
+        ..PhotoInput::new(&images[0])
+    };
+    let prepared = photo::prepare(&input).expect("prepare the face");
+    let set = photo::photometric_problem(&prepared, &input).expect("the face's set");
+    let solution = solve(&set);
+    for p in &solution.photos {
+        println!(
+            "{}: held-out scale {:.3}, offset {:+.3} (offset better: {}), the others without \
+             it {:.4}; misfit {:.3} ({:.2}x)",
+            p.name,
+            p.held_out_scale,
+            p.held_out_offset,
+            p.held_out_offset_better,
+            p.held_out_rest,
+            p.systematic_misfit,
+            p.misfit_ratio
+        );
+    }
+    println!(
+        "solve {:.2} s, of which the held-out check {:.2} s; warnings: {:?}",
+        solution.seconds,
+        solution.held_out_seconds,
+        warnings(&solution)
+    );
 }

@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use glam::DVec3;
 
+use super::held_out::HeldOutFit;
 use super::level::{LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, USED};
 use super::level::{Level, MAX_PHOTOS, Observation, Shared};
 use super::run::depth_grid;
@@ -24,6 +25,10 @@ pub(super) struct FinishInfo {
     pub(super) levels: Vec<LevelReport>,
     pub(super) iterations: usize,
     pub(super) start: Instant,
+    /// Each photograph predicted from the others (empty: not measured).
+    pub(super) held_out: Vec<HeldOutFit>,
+    /// The seconds that took.
+    pub(super) held_out_seconds: f64,
 }
 
 /// Depth, normals, albedo and each photograph's fit at the finest level.
@@ -98,6 +103,7 @@ pub(super) fn finish(
                 })
             });
             let systematic_misfit = smooth_misfit(lit_trusted);
+            let held_out = info.held_out.get(j).copied().unwrap_or(HeldOutFit::NONE);
             PhotoResult {
                 name: photo.name.clone(),
                 light: photo.light,
@@ -106,6 +112,10 @@ pub(super) fn finish(
                 fit_residual: ratio_root(lit_r2, lit_i2),
                 systematic_misfit,
                 misfit_ratio: f64::NAN,
+                held_out_scale: held_out.scale,
+                held_out_offset: held_out.offset,
+                held_out_rest: held_out.rest_residual,
+                held_out_offset_better: held_out.offset_better,
                 used_share: counts[USED as usize] as f64 / object,
                 shadow_share: counts[LEFT_OUT_SHADOW as usize] as f64 / object,
                 untrusted_share: counts[LEFT_OUT_UNTRUSTED as usize] as f64 / object,
@@ -153,6 +163,7 @@ pub(super) fn finish(
         levels: info.levels,
         iterations: info.iterations,
         seconds: info.start.elapsed().as_secs_f64(),
+        held_out_seconds: info.held_out_seconds,
     }
 }
 
@@ -199,7 +210,7 @@ fn smooth_misfit(observations: impl Iterator<Item = (f64, f64, f64, f64)>) -> f6
 /// Photograph `j`'s value over the median of the others' (the mean of the
 /// middle two for an even count); NaN when it or that median is not a
 /// positive number.
-fn ratio_to_the_others(values: &[f64], j: usize) -> f64 {
+pub(super) fn ratio_to_the_others(values: &[f64], j: usize) -> f64 {
     let mut others: Vec<f64> = values
         .iter()
         .enumerate()

@@ -25,6 +25,7 @@
 
 mod compare;
 mod finish;
+mod held_out;
 mod left_out;
 mod level;
 mod levels;
@@ -43,6 +44,7 @@ use crate::grid::Grid;
 use crate::light::PointLight;
 use crate::model::{Energy, LevelGeometry};
 use finish::{FinishInfo, check_finite, finish};
+use held_out::{HELD_OUT_SIDE, Snapshot, held_out_fits};
 use left_out::{CastShadows, auto_robust_scale, cast_for, cast_shadows};
 use level::{Level, MAX_PHOTOS, Observation, Scales, Shared};
 use levels::{coarsen, finest_level, noise_sigma, reference_brightness, upsample};
@@ -492,6 +494,8 @@ pub fn solve_photometric(
         smoothness: 0.0,
         total: 0.0,
     };
+    // The set's state on the finest level the held-out check runs on.
+    let mut snapshot: Option<(usize, Snapshot)> = None;
     for (index, level) in levels_data.iter().enumerate() {
         check_cancelled(observer)?;
         let level_start = Instant::now();
@@ -587,6 +591,18 @@ pub fn solve_photometric(
         };
         iterations += its;
         energy = e;
+        if level.width.max(level.height) <= HELD_OUT_SIDE || snapshot.is_none() {
+            snapshot = Some((
+                index,
+                Snapshot {
+                    zeta: zeta.clone(),
+                    m: m.clone(),
+                    intensities: intensities.clone(),
+                    cast: level_cast.clone(),
+                    scales: scales_at(scale),
+                },
+            ));
+        }
         reports.push(LevelReport {
             width: level.width,
             height: level.height,
@@ -610,6 +626,11 @@ pub fn solve_photometric(
     let Some(level) = levels_data.last() else {
         return Err(SolveError::Input("no level".into()));
     };
+    let held_out_start = Instant::now();
+    let held_out = match &snapshot {
+        Some((index, state)) => held_out_fits(&levels_data[*index], &lights, state, observer)?,
+        None => Vec::new(),
+    };
     let final_cast = cast_for(&cast, level);
     let scale = robust_scale.unwrap_or(1e3 * brightness);
     let shared = Shared::new(&lights, &intensities, &final_cast, scales_at(scale));
@@ -628,6 +649,8 @@ pub fn solve_photometric(
             levels: reports,
             iterations,
             start,
+            held_out,
+            held_out_seconds: held_out_start.elapsed().as_secs_f64(),
         },
     );
     check_finite(&solution)?;
@@ -670,7 +693,18 @@ pub fn warnings(solution: &PhotometricSolution) -> Vec<String> {
         ));
     }
     warnings.extend(solution.light_warnings.iter().cloned());
-    warnings.extend(misfit_warning(solution));
+    // The held-out check names the photograph the others contradict; the
+    // whole-set misfit of another photograph is then the surface's
+    // compromise with it (a doubled photograph in the probe's set left
+    // another one the worst fit), and is left out.
+    let held_out = held_out_judgement(solution);
+    let misfit = misfit_warning(solution).filter(|misfit| {
+        held_out
+            .as_ref()
+            .is_none_or(|(k, _)| misfit.starts_with(&format!("{} ", solution.photos[*k].name)))
+    });
+    warnings.extend(misfit);
+    warnings.extend(held_out.map(|(_, warning)| warning));
     for photo in &solution.photos {
         if photo.used_share < 0.3 {
             warnings.push(format!(
@@ -751,5 +785,82 @@ pub fn misfit_warning(solution: &PhotometricSolution) -> Option<String> {
         worst.intensity,
         100.0 * worst.systematic_misfit,
         worst.misfit_ratio
+    ))
+}
+
+/// A photograph whose [`held_out_scale`](PhotoResult::held_out_scale) is
+/// above this or below its inverse is brighter or darker than the other
+/// photographs predict under its light's intensity as given.
+pub const HELD_OUT_SCALE: f64 = 1.3;
+/// A photograph whose [`held_out_offset`](PhotoResult::held_out_offset)
+/// is beyond this share of its brightness either way carries an offset
+/// the other photographs lack.
+pub const HELD_OUT_OFFSET: f64 = 0.05;
+/// The photograph held out is suspected only when the others fit each
+/// other without it ([`held_out_rest`](PhotoResult::held_out_rest)) at
+/// most this share of the median of the same without each other
+/// photograph: a fault raises every fit it is part of.
+pub const HELD_OUT_REST_RATIO: f64 = 0.85;
+
+/// The warning for the photograph of a set that the others contradict:
+/// without it they fit each other best (its
+/// [`held_out_rest`](PhotoResult::held_out_rest) the smallest, by
+/// [`HELD_OUT_REST_RATIO`]), and what they predict of it misses by a scale
+/// beyond [`HELD_OUT_SCALE`] (its intensity in the camera file or its
+/// exposure) or an offset beyond [`HELD_OUT_OFFSET`] (an ambient frame or
+/// black level only it has), whichever explains it better. One photograph
+/// at most; no scale when the intensities were estimated (each
+/// photograph's own then absorbs it); none when a light is already named
+/// as unable to light the object.
+pub fn held_out_warning(solution: &PhotometricSolution) -> Option<String> {
+    held_out_judgement(solution).map(|(_, warning)| warning)
+}
+
+/// [`held_out_warning`] with the photograph's place in the set.
+fn held_out_judgement(solution: &PhotometricSolution) -> Option<(usize, String)> {
+    if !solution.light_warnings.is_empty() {
+        return None;
+    }
+    let rests: Vec<f64> = solution.photos.iter().map(|p| p.held_out_rest).collect();
+    let (k, photo) = solution
+        .photos
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| p.held_out_rest.is_finite())
+        .min_by(|a, b| a.1.held_out_rest.total_cmp(&b.1.held_out_rest))?;
+    let ratio = finish::ratio_to_the_others(&rests, k);
+    if ratio.is_nan() || ratio > HELD_OUT_REST_RATIO {
+        return None;
+    }
+    if photo.held_out_offset_better {
+        if photo.held_out_offset.is_nan() || photo.held_out_offset.abs() <= HELD_OUT_OFFSET {
+            return None;
+        }
+        return Some((
+            k,
+            format!(
+                "{} has an offset of {:+.2} of its brightness that the other photographs lack \
+                 (they predict it under its light without it): an ambient light or a black \
+                 level only it has; subtract its ambient frame or black level",
+                photo.name, photo.held_out_offset
+            ),
+        ));
+    }
+    let scale = photo.held_out_scale;
+    if solution.intensities_estimated || !(scale > 0.0 && scale.ln().abs() > HELD_OUT_SCALE.ln()) {
+        return None;
+    }
+    let how = if scale > 1.0 {
+        format!("{scale:.2}x brighter than")
+    } else {
+        format!("{scale:.2}x as bright as")
+    };
+    Some((
+        k,
+        format!(
+            "{} is {how} the other photographs predict under its light's intensity as \
+             given: its intensity in the camera file or its exposure may be wrong",
+            photo.name
+        ),
     ))
 }

@@ -135,6 +135,27 @@ pub struct PhotoResult {
     /// the other photographs' (NaN when either is not a positive number);
     /// judged by [`super::misfit_warning`].
     pub misfit_ratio: f64,
+    /// The photograph over what the other photographs predict of it under
+    /// its light as given (the set solved again without it, at a coarse
+    /// level): the least-squares `scale` of `I = scale P`. Near 1 when its
+    /// intensity and exposure agree with the others'; NaN when not
+    /// measured (fewer than five photographs). Judged by
+    /// [`super::held_out_warning`].
+    pub held_out_scale: f64,
+    /// The photograph's mean difference from that prediction (`I = P +
+    /// offset`) over its brightness (its 99th percentile there): an
+    /// ambient light or black level the other photographs lack. NaN when
+    /// not measured.
+    pub held_out_offset: f64,
+    /// Whether [`held_out_offset`](Self::held_out_offset) explains the
+    /// photograph better than [`held_out_scale`](Self::held_out_scale)
+    /// (the smaller residual).
+    pub held_out_offset_better: bool,
+    /// How well the other photographs fit each other without this one
+    /// (their relative residual over their used observations in that
+    /// solve): the photograph at fault is the one without which the others
+    /// fit best. NaN when not measured.
+    pub held_out_rest: f64,
     /// Share of the object's observations used.
     pub used_share: f64,
     /// Share left out as attached or cast shadow.
@@ -194,6 +215,9 @@ pub struct PhotometricSolution {
     pub iterations: usize,
     /// Wall time, seconds.
     pub seconds: f64,
+    /// Of which the held-out check (each photograph predicted from the
+    /// others), seconds.
+    pub held_out_seconds: f64,
 }
 
 #[cfg(test)]
