@@ -626,7 +626,7 @@ fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
     );
     let size = prepared.size();
     let params = args.params(size)?;
-    let mut job = PhotographSolve::of_prepared(&prepared, params, args.method.method());
+    let mut job = PhotographSolve::from_prepared(prepared, params, args.method.method());
     job.initial_depth_given = Some(
         args.init_depth
             .clone()
@@ -715,7 +715,7 @@ fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
         bar,
         kappa: job.params.kappa,
     };
-    let solved = job.run(&mut progress);
+    let solved = job.run_once(&mut progress);
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }
