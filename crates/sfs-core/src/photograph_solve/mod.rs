@@ -364,13 +364,8 @@ impl PhotographSolve {
         cues: &DistanceCues,
         observer: &mut dyn SolveObserver,
     ) -> Result<(Problem, Solution, DepthUnit), PhotographSolveError> {
-        let (solution, unit) = depth_unit::solve_photograph(
-            &mut problem,
-            &self.params,
-            &self.method,
-            cues,
-            observer,
-        )?;
+        let (solution, unit) =
+            depth_unit::solve_photograph(&mut problem, &self.params, &self.method, cues, observer)?;
         Ok((problem, solution, unit))
     }
 
