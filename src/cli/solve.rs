@@ -439,7 +439,7 @@ fn solve_one(args: &SolveArgs, say_warnings: bool) -> Result<Outcome> {
         bar,
         kappa: job.params.kappa,
     };
-    let solved = job.run(&mut progress);
+    let solved = job.run_once(&mut progress);
     if let Some(bar) = &progress.bar {
         bar.finish_and_clear();
     }

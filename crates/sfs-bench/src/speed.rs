@@ -144,6 +144,8 @@ fn cases(args: &BenchArgs, large: bool) -> Vec<(&'static str, (usize, usize))> {
     ];
     if large {
         cases.push(("dragon", (5184, 3456)));
+        // Issue 50's 18 MP row.
+        cases.push(("sombrero", (5184, 3456)));
     }
     if args.quick {
         cases.retain(|(_, (w, _))| *w <= 256);
@@ -508,8 +510,105 @@ fn markdown(report: &SpeedReport) -> String {
             );
         }
     }
+    md.push_str(&issue_50_targets(report));
     for s in &report.skipped {
         let _ = writeln!(md, "\nskipped: {s}");
+    }
+    md
+}
+
+/// One row of issue 50's table that this part measures: the solve at the
+/// defaults of `scene` (`None`: any scene) at `size`, its baseline and its
+/// targets.
+struct Target {
+    scene: Option<&'static str>,
+    size: &'static str,
+    today: &'static str,
+    /// At most this many seconds (`None`: at most the issue's fast-marching
+    /// time of the same scene and size, `fast_marching_seconds`).
+    seconds: Option<f64>,
+    fast_marching_seconds: f64,
+    /// At most this many bytes per pixel.
+    bytes_per_pixel: Option<f64>,
+}
+
+/// Issue 50's rows of the single-image solve, each measured next to its
+/// target (the bench's bytes per pixel are the solve's growth of the peak,
+/// the issue's the whole `solve` process's: docs/speed.md has both).
+const ISSUE_50_TARGETS: [Target; 3] = [
+    Target {
+        scene: Some("sombrero"),
+        size: "256x256",
+        today: "0.08 s (fast marching 0.05 s)",
+        seconds: None,
+        fast_marching_seconds: 0.05,
+        bytes_per_pixel: None,
+    },
+    Target {
+        scene: None,
+        size: "1920x1080",
+        today: "1.57 s, 213 B/px",
+        seconds: Some(1.0),
+        fast_marching_seconds: f64::NAN,
+        bytes_per_pixel: Some(120.0),
+    },
+    Target {
+        scene: None,
+        size: "5184x3456",
+        today: "30.1 s, 135 B/px",
+        seconds: Some(15.0),
+        fast_marching_seconds: f64::NAN,
+        bytes_per_pixel: Some(120.0),
+    },
+];
+
+/// The issue-50 table: each target row next to the default solves of this
+/// run that it concerns ("not run" where none).
+fn issue_50_targets(report: &SpeedReport) -> String {
+    let mut md = String::from(
+        "\nIssue 50's targets (the defaults):\n\n\
+         | scene | size | issue's today | target | now | met |\n\
+         | --- | --- | --- | --- | --- | --- |\n",
+    );
+    for target in &ISSUE_50_TARGETS {
+        let seconds = target.seconds.unwrap_or(target.fast_marching_seconds);
+        let goal = match target.bytes_per_pixel {
+            Some(bytes) => format!("≤ {seconds} s, ≤ {bytes} B/px"),
+            None => format!("≤ {seconds} s (the issue's fast marching)"),
+        };
+        let rows: Vec<&SpeedRow> = report
+            .rows
+            .iter()
+            .filter(|r| {
+                r.method == "defaults"
+                    && r.size == target.size
+                    && target.scene.is_none_or(|s| s == r.scene)
+            })
+            .collect();
+        if rows.is_empty() {
+            let scene = target.scene.unwrap_or("any");
+            let _ = writeln!(
+                md,
+                "| {scene} | {} | {} | {goal} | not run | – |",
+                target.size, target.today
+            );
+        }
+        for row in rows {
+            let met = row.seconds <= seconds
+                && target
+                    .bytes_per_pixel
+                    .is_none_or(|bytes| row.bytes_per_pixel <= bytes);
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {goal} | {:.3} s, {:.0} B/px | {} |",
+                row.scene,
+                row.size,
+                target.today,
+                row.seconds,
+                row.bytes_per_pixel,
+                if met { "yes" } else { "no" }
+            );
+        }
     }
     md
 }

@@ -338,6 +338,7 @@ pub fn prepare(input: &PhotoInput) -> Result<PreparedPhoto, PhotoError> {
         return Err(PhotoError::Input("no photograph given".into()));
     };
     let full_size = io::photo_size(first)?;
+    crate::memory::return_large_frees_to_the_system();
     let mut decided = camera::decide(input, full_size)?;
     if let Some(orientation) = io::exif_orientation(first) {
         decided.notes.push(format!(

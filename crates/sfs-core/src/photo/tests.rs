@@ -323,3 +323,55 @@ fn an_albedo_below_the_floor_is_not_trusted_and_reported() {
     assert_eq!((*confidence.at(0, 0), *confidence.at(9, 0)), (0.0, 1.0));
     assert!(prepared.confidence_derived);
 }
+
+/// A job solved once (`run_once`, the command line's: the image moves into
+/// the solve instead of being copied) gives what `run` gives, known
+/// distances included: their working pixels are read while the job still
+/// holds its image (issue 50's memory work).
+#[test]
+fn h11_a_job_run_once_solves_as_run_does() {
+    use crate::photograph_solve::{KnownDistance, PhotographSolve};
+    use crate::solver::Method;
+    let dir = tempdir().unwrap();
+    let scene = crate::scene::sombrero::sombrero(40, 40);
+    let image = dir.path().join("sombrero.png");
+    let mask = dir.path().join("mask.png");
+    write_png16(&image, &scene.image).unwrap();
+    write_mask_png(&mask, &scene.object_mask).unwrap();
+    let prepared = prepare(&PhotoInput {
+        camera: CameraSpec::Focal {
+            focal_px: scene.camera.focal_px,
+            cx_px: Some(scene.camera.principal_x_px),
+            cy_px: Some(scene.camera.principal_y_px),
+        },
+        object_mask: Some(mask),
+        ..PhotoInput::new(&image)
+    })
+    .unwrap();
+    let job = |prepared: PreparedPhoto| {
+        let mut job = PhotographSolve::from_prepared(
+            prepared,
+            crate::params::SolverParams::default(),
+            Method::Linearised,
+        );
+        job.known_distances = vec![KnownDistance {
+            column_px: 20.0,
+            row_px: 20.0,
+            depth: 1.5 * *scene.depth_gt.at(20, 20),
+        }];
+        job
+    };
+    let by_run = job(prepared.clone()).run(&mut ()).unwrap();
+    let once = job(prepared).run_once(&mut ()).unwrap();
+    let bits = |g: &Grid<f64>| g.as_slice().iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(&once.solution.depth), bits(&by_run.solution.depth));
+    assert_eq!(once.problem.image, by_run.problem.image);
+    assert_eq!(
+        once.problem.intensity_scale.to_bits(),
+        by_run.problem.intensity_scale.to_bits()
+    );
+    assert_eq!(once.warnings, by_run.warnings);
+    assert_eq!(once.unused_options, by_run.unused_options);
+    let unit = |u: &Option<crate::solver::depth_unit::DepthUnit>| serde_json::to_string(u).unwrap();
+    assert_eq!(unit(&once.depth_unit), unit(&by_run.depth_unit));
+}

@@ -375,7 +375,7 @@ impl SolveOptions {
     /// set the depth unit.
     pub fn job(&self, prepared: PreparedPhoto) -> Result<PhotographSolve, OptionError> {
         let params = self.params(prepared.size())?;
-        let mut job = PhotographSolve::of_prepared(&prepared, params, self.method.clone());
+        let mut job = PhotographSolve::from_prepared(prepared, params, self.method.clone());
         job.initial_depth_given = Some(
             self.init_depth
                 .clone()

@@ -49,6 +49,7 @@ pub fn solve_with_model<M: Reflectance>(
     model: &M,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
+    crate::memory::return_large_frees_to_the_system();
     rayon::scope(|_| solve_on_worker(problem, params, model, observer))
 }
 

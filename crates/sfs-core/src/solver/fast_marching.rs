@@ -674,6 +674,7 @@ pub fn solve_fast_marching(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
+    crate::memory::return_large_frees_to_the_system();
     if !(settings.min_relative_intensity > 0.0 && settings.min_relative_intensity < 1.0) {
         return Err(SolveError::Input(
             "fast marching: min_relative_intensity must lie in (0, 1)".into(),
