@@ -12,7 +12,6 @@ mod fronts;
 mod options;
 mod photographs;
 mod photometric_fit;
-mod photometric_held_out;
 mod solve;
 mod solve_many;
 mod synth;
