@@ -288,7 +288,7 @@ pub fn run(args: &SolveArgs) -> Result<()> {
         single.as_ref(),
         errors.as_ref(),
         &warnings,
-    );
+    )?;
     set_out::write_set(&mut stage, &camera, &solution, &report)?;
     stage
         .commit()

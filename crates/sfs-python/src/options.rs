@@ -229,7 +229,8 @@ fn given_lights(options: &mut Options) -> Result<Option<Vec<PointLight>>, Option
 impl TakenSolve {
     /// The options of one photograph's solve (a camera file `camera`, else
     /// `focal`/`cx`/`cy`, else the photograph's EXIF), as `sfs-studio
-    /// solve` reads its command line; the core checks them.
+    /// solve` reads its command line (the core checks them when it builds the
+    /// pipeline's input).
     pub fn take(options: &mut Options, camera: Option<PathBuf>) -> Result<Self, OptionError> {
         let light_index = options
             .numbers("light_index")?
@@ -264,8 +265,6 @@ impl TakenSolve {
             },
             table: options.table(),
         };
-        solve.check()?;
-        solve.table_params()?;
         Ok(Self {
             options: solve,
             gt: options.text("gt").map(PathBuf::from),

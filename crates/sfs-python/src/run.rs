@@ -322,7 +322,8 @@ pub fn solve_set<'py>(
     })?
     .map_err(|e| Failure::of_solve(&what, e))?;
     let warnings = ps::warnings(&solution);
-    let report = set_out::set_report(&prepared.report, params, &solution, None, None, &warnings);
+    let report = set_out::set_report(&prepared.report, params, &solution, None, None, &warnings)
+        .map_err(|e| Failure::Value(format!("{what}: {e}")))?;
     if let (Some(mut stage), Some(dir)) = (stage, &out) {
         set_out::write_set(&mut stage, &prepared.problem.camera, &solution, &report)?;
         stage

@@ -104,6 +104,9 @@ pub fn albedo_white(solution: &PhotometricSolution) -> f64 {
 /// A set's `report.json`: the pipeline's report `input`, the settings
 /// `params`, the solution, the single-image comparison, the ground truth's
 /// errors and the warnings.
+///
+/// # Errors
+/// The report cannot be made JSON (a map key that is not text).
 pub fn set_report(
     input: &PhotoReport,
     params: &PhotometricParams,
@@ -111,7 +114,7 @@ pub fn set_report(
     single: Option<&SingleReport>,
     errors: Option<&SetErrors>,
     warnings: &[String],
-) -> serde_json::Value {
+) -> Result<serde_json::Value, serde_json::Error> {
     let auto_or = |v: Option<f64>| v.map_or_else(|| serde_json::json!("auto"), |v| v.into());
     let report = SetReport {
         mode: "photometric_stereo",
@@ -150,7 +153,7 @@ pub fn set_report(
         errors,
         warnings,
     };
-    serde_json::to_value(&report).unwrap_or_else(|e| serde_json::json!({ "error": e.to_string() }))
+    serde_json::to_value(&report)
 }
 
 /// Writes a set's solve into `stage`: depth.npy, depth16.png, normals.npy

@@ -447,66 +447,52 @@ pub fn initial_depth(
 mod tests {
     use super::*;
 
+    /// The message `options` are refused with by `check`.
+    fn refused(options: SolveOptions) -> String {
+        options.check().expect_err("refused").0
+    }
+
     /// The options' own contradictions are refused by name before any
     /// file is read.
     #[test]
     fn contradictions_are_refused_by_name() {
-        let both = SolveOptions {
+        let both = refused(SolveOptions {
             camera_file: Some("scene.json".into()),
             focal_px: Some(500.0),
             ..SolveOptions::default()
-        };
-        assert!(
-            both.check()
-                .expect_err("both")
-                .0
-                .contains("--camera and --focal")
-        );
-        let twice = SolveOptions {
+        });
+        assert!(both.contains("--camera and --focal"), "{both}");
+        let twice = refused(SolveOptions {
             light_index: vec![2, 3, 2],
             ..SolveOptions::default()
-        };
-        assert!(
-            twice
-                .check()
-                .expect_err("twice")
-                .0
-                .contains("--light-index 2 is given twice")
-        );
-        let word = SolveOptions {
+        });
+        assert!(twice.contains("--light-index 2 is given twice"), "{twice}");
+        let word = refused(SolveOptions {
             albedo: "0".into(),
             ..SolveOptions::default()
-        };
+        });
         assert!(
-            word.check()
-                .expect_err("not a file")
-                .0
-                .contains("--albedo 0: is neither one of its words nor an existing file")
+            word.contains("--albedo 0: is neither one of its words nor an existing file"),
+            "{word}"
         );
-        let edge = SolveOptions {
+        let edge = refused(SolveOptions {
             albedo: "1".into(),
             table: vec![(
                 crate::params::table::spec("albedo-edge").expect("entry"),
                 "0.3".into(),
             )],
             ..SolveOptions::default()
-        };
-        assert!(
-            edge.check()
-                .expect_err("edge")
-                .0
-                .contains("--albedo-edge belongs")
-        );
+        });
+        assert!(edge.contains("--albedo-edge belongs"), "{edge}");
         let unit = SolveOptions {
             distance: Some(600.0),
             intensity_scale: Some("2".into()),
             ..SolveOptions::default()
         };
+        let unit = unit.check_distances().expect_err("two units").0;
         assert!(
-            unit.check_distances()
-                .expect_err("two units")
-                .0
-                .contains("--distance and --intensity-scale 2 both set the depth unit")
+            unit.contains("--distance and --intensity-scale 2 both set the depth unit"),
+            "{unit}"
         );
     }
 
