@@ -644,3 +644,55 @@ fn multigrid_linear_solver_solves_as_well_as_sor() {
         );
     }
 }
+
+/// An iteration count whose bound never binds is reported unused (issue 48):
+/// one inner iteration where the default's tolerance stops after the first
+/// anyway (the clean Sombrero, docs/speed.md), and a kappa-max above the
+/// default's where the level tolerance stops every level at the default's
+/// count. Each gives the default's depth bit for bit, and says so.
+#[test]
+fn counts_that_never_bind_are_reported_unused() {
+    let scene = sombrero(64, 64);
+    let problem = problem(&scene);
+    let default = solve(&problem, &SolverParams::default(), &mut ()).expect("solves");
+    assert!(
+        default.unused_parameters.is_empty(),
+        "{:?}",
+        default.unused_parameters
+    );
+    let one_inner = SolverParams {
+        inner_iterations: 1,
+        ..SolverParams::default()
+    };
+    let loose_cap = SolverParams {
+        kappa_max: 20,
+        level_tolerance: 0.5,
+        ..SolverParams::default()
+    };
+    for (name, params) in [("inner-iters", one_inner), ("kappa-max", loose_cap)] {
+        let solved = solve(&problem, &params, &mut ()).expect("solves");
+        assert_eq!(solved.depth.as_slice(), default.depth.as_slice(), "{name}");
+        assert!(
+            solved
+                .unused_parameters
+                .iter()
+                .any(|u| u.starts_with(&format!("--{name} "))),
+            "{name}: {:?}",
+            solved.unused_parameters
+        );
+    }
+    // Where the count binds it is not reported: the cap alone runs on.
+    let cap_alone = SolverParams {
+        kappa_max: 20,
+        ..SolverParams::default()
+    };
+    let solved = solve(&problem, &cap_alone, &mut ()).expect("solves");
+    assert!(
+        !solved
+            .unused_parameters
+            .iter()
+            .any(|u| u.starts_with("--kappa-max")),
+        "{:?}",
+        solved.unused_parameters
+    );
+}

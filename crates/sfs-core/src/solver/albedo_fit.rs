@@ -72,6 +72,14 @@ impl AlbedoFit {
         if self.used {
             self.multiply_back(self.divisor, solution);
         }
+        if self.edge_step_without_effect {
+            solution.unused_parameters.push(format!(
+                "--albedo-edge {}: no albedo edge was found with it, nor with the default \
+                 step {}, so albedo 1 was kept as at the default",
+                self.edge_log_step,
+                albedo::DEFAULT_EDGE_LOG_STEP
+            ));
+        }
         solution.albedo_fit = Some(self);
     }
 
@@ -148,6 +156,7 @@ pub fn apply(
         explained_share: 0.0,
         min_albedo: 1.0,
         edge_log_step: params.albedo_edge,
+        edge_step_without_effect: false,
         edge_rule: EdgeRule::Steps,
         cut_pairs: 0,
         texture: TextureSummary::UNMEASURED,
@@ -160,6 +169,22 @@ pub fn apply(
         summary: String::new(),
     };
     if candidates.iter().all(|c| c.edge_pairs == 0) {
+        // A lower step than the default's finds a superset of its edges
+        // (every test of `albedo::estimate` is a threshold on the step);
+        // above it, the default step is tried once more.
+        let default_step = albedo::DEFAULT_EDGE_LOG_STEP;
+        fit.edge_step_without_effect = params.albedo_edge != default_step
+            && (params.albedo_edge < default_step
+                || candidate(
+                    &Ground {
+                        edge_log_step: default_step,
+                        ..ground
+                    },
+                    EdgeRule::Steps,
+                    &cancel_probe,
+                )?
+                .edge_pairs
+                    == 0);
         fit.albedo = candidates[0].estimate.albedo.clone();
         fit.summary = "albedo 1: no albedo edge found (no step of log brightness above the \
                        edge step and its noise)"
@@ -637,6 +662,38 @@ mod tests {
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
         assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
         assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
+    }
+
+    /// An edge step that finds no edge where the default's finds none
+    /// either is reported unused (issue 48); the default itself and a step
+    /// that changes the decision are not.
+    #[test]
+    fn an_edge_step_without_effect_is_reported_unused() {
+        let (plain, _) = problem(&Grid::filled(64, 64, 1.0));
+        let reported = |log_step: f64| {
+            let params = SolverParams {
+                albedo_edge: log_step,
+                ..auto()
+            };
+            let solved = super::super::solve(&plain, &params, &mut ()).expect("solves");
+            solved
+                .unused_parameters
+                .iter()
+                .any(|u| u.starts_with("--albedo-edge "))
+        };
+        assert!(!reported(albedo::DEFAULT_EDGE_LOG_STEP));
+        assert!(reported(2.0));
+        let (textured, _) = problem(&patches());
+        let params = SolverParams {
+            albedo_edge: 0.1,
+            ..auto()
+        };
+        let solved = super::super::solve(&textured, &params, &mut ()).expect("solves");
+        assert!(
+            solved.unused_parameters.is_empty(),
+            "{:?}",
+            solved.unused_parameters
+        );
     }
 
     #[test]

@@ -365,9 +365,24 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             }
             // The default count would have ended the same way where the
             // tolerance stopped below it; a loop that ran its whole count
-            // ends elsewhere with another count.
+            // ends elsewhere with another count, unless the count is below
+            // the default's and the default's tolerance would have stopped
+            // right there. That stop test needs the weights once more; they
+            // are rebuilt before any later use, so the answer is untouched.
             self.effects.inner_count_differed |= match stopped_at {
                 Some(at) => at > defaults.inner_iterations,
+                None if params.inner_iterations < defaults.inner_iterations
+                    && params.inner_iterations > 0
+                    && adaptive_default
+                    && only_polish =>
+                {
+                    let change = system.update_weights(
+                        level,
+                        lambda,
+                        Cancel::new(&|| observer.is_cancelled()),
+                    )?;
+                    change >= defaults.inner_tolerance
+                }
                 None => params.inner_iterations != defaults.inner_iterations,
             };
             let t3 = Instant::now();
@@ -433,6 +448,22 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             // The defaults would have gone on past kappa-max.
             self.effects.level_stop_differed = true;
         }
+        // Whether the cap bound: the level ran past the default cap, or
+        // ended at its own lower cap where the stopping test would not
+        // have stopped it.
+        let ran = energies.len();
+        let default_cap = Schedule::new(
+            &SolverParams {
+                kappa_max: defaults.kappa_max,
+                ..params.clone()
+            },
+            self.prepared.refines_holes,
+        )
+        .kappa_max;
+        self.effects.kappa_max_bound |= ran > default_cap
+            || (ran == schedule.kappa_max
+                && ran < default_cap
+                && !(ran >= schedule.kappa && converged(&energies, params.level_tolerance)));
         let energy = match current {
             Some(energy) => energy,
             None => energy_of(depth, observer)?,

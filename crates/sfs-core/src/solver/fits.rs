@@ -79,6 +79,9 @@ pub struct AlbedoFit {
     pub min_albedo: f64,
     /// The edge step used (`albedo-edge`).
     pub edge_log_step: f64,
+    /// A given edge step left the decision as the default's would have:
+    /// no edge found with it, nor with the default step.
+    pub edge_step_without_effect: bool,
     /// Which edges the decided estimate holds: every step, or only the
     /// steps their chain confirms.
     pub edge_rule: EdgeRule,

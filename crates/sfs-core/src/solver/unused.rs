@@ -29,6 +29,9 @@ pub(crate) struct Effects {
     /// Some outer iteration's inner iterations ended at another count than
     /// the default `inner-iters` would have ended them.
     pub inner_count_differed: bool,
+    /// Some level's outer iterations were ended by `kappa-max` where the
+    /// default cap would not have ended them (or ran past the default cap).
+    pub kappa_max_bound: bool,
 }
 
 /// How the solve ran, resolved for its problem.
@@ -95,6 +98,10 @@ pub(crate) fn unused_parameters(
             "kappa" | "level-tolerance" if !effects.level_stop_differed => Some(
                 "no level stopped at another iteration than with the default (the energy did \
                  not settle within --level-tolerance before kappa-max iterations)",
+            ),
+            "kappa-max" if !effects.kappa_max_bound => Some(
+                "every level stopped (by --level-tolerance, or at kappa) within the default \
+                 kappa-max's iterations, so the cap never bound",
             ),
             "inner-iters" if !effects.inner_count_differed => Some(
                 "every outer iteration's inner iterations ended where they would have with the \
@@ -229,6 +236,7 @@ mod tests {
             ("domain", "object", "no object mask"),
             ("step-control", "crop", "halved none"),
             ("shadow-bound", "on", "moved no pixel"),
+            ("kappa-max", "20", "never bound"),
         ] {
             let unused = unused_parameters(&set(name, value), path(), Effects::default());
             assert_eq!(unused.len(), 1, "{name}: {unused:?}");
@@ -244,6 +252,7 @@ mod tests {
             inner_stop_differed: true,
             energy_rose: true,
             inner_count_differed: true,
+            kappa_max_bound: true,
         };
         let pyramid = Path {
             refines_warm_start: false,
@@ -255,6 +264,7 @@ mod tests {
             ("step-control", "crop"),
             ("eta", "0.5"),
             ("inner-iters", "3"),
+            ("kappa-max", "20"),
         ] {
             let unused = unused_parameters(&set(name, value), pyramid, acted);
             assert!(unused.is_empty(), "{name}: {unused:?}");
