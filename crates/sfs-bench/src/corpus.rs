@@ -88,6 +88,8 @@ pub struct CorpusRow {
 struct CorpusReport {
     /// The draw (`--seed`, 0 by default).
     seed: u64,
+    /// The image sides drawn from (`--corpus-sides`).
+    sides: Vec<usize>,
     rows: Vec<CorpusRow>,
     skipped: Vec<String>,
 }
@@ -102,6 +104,9 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     } else {
         (CASES, TEXTURED)
     };
+    if args.corpus_sides.is_empty() || args.corpus_sides.contains(&0) {
+        anyhow::bail!("--corpus-sides: give one or more positive image sides, as 32,64");
+    }
     let face = face_depth(&args.real).ok();
     let mut skipped = Vec::new();
     if face.is_none() {
@@ -113,7 +118,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         let draw = args.seed.unwrap_or(0);
         let mut rng = StdRng::seed_from_u64(draw.wrapping_mul(1_000_003).wrapping_add(case as u64));
         let name = SCENES[rng.random_range(0..SCENES.len())];
-        let side = [64, 96, 128, 192, 256][rng.random_range(0..5)];
+        let side = args.corpus_sides[rng.random_range(0..args.corpus_sides.len())];
         let albedo = if case < cases {
             "uniform"
         } else if case % 2 == 0 {
@@ -148,6 +153,7 @@ pub fn run(args: &BenchArgs) -> Result<()> {
     }
     let report = CorpusReport {
         seed: args.seed.unwrap_or(0),
+        sides: args.corpus_sides.clone(),
         rows,
         skipped,
     };
@@ -410,12 +416,13 @@ fn markdown(report: &CorpusReport) -> String {
     let _ = writeln!(
         md,
         "# The automatic decisions over a randomized corpus\n\n{} uniform-albedo renders and {} \
-         textured ones (draw {}, `--seed`; scenes, sizes 64-256 px, lights centred / a flash beside the \
-         lens / one LED of an aimed rig, cast shadows, noise 0-10 of 255), each solved at the \
+         textured ones (draw {}, `--seed`; scenes, sides {:?} px, lights centred / a flash beside \
+         the lens / one LED of an aimed rig, cast shadows, noise 0-10 of 255), each solved at the \
          defaults and with `--albedo 1`.\n",
         uniform.len(),
         textured.len(),
         report.seed,
+        report.sides,
     );
     let _ = writeln!(md, "## The albedo decision on uniform albedo\n");
     let _ = writeln!(

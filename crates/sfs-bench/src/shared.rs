@@ -68,6 +68,11 @@ pub struct BenchArgs {
     /// is a fresh corpus to check them on).
     #[arg(long)]
     pub seed: Option<u64>,
+    /// The image sides the corpus draws from (`--part corpus`; its
+    /// default 64,96,128,192,256). Small sides (16-48) measure the
+    /// decisions where an image holds few pixels per feature.
+    #[arg(long, value_delimiter = ',', default_values_t = [64usize, 96, 128, 192, 256])]
+    pub corpus_sides: Vec<usize>,
     /// Output folder (created if needed).
     #[arg(long)]
     pub out: PathBuf,

@@ -62,9 +62,49 @@ use crate::params::{AlbedoChoice, SolverParams};
 
 /// Longest side of the working copy both explanations are solved on.
 pub const GATE_SIDE: usize = 256;
+
+/// Below this longest side (pixels) the albedo is not estimated: a
+/// photograph that small holds too few pixels per feature to tell an
+/// albedo edge from shading (a ring of the Sombrero, a mesh's crease spans
+/// one or two pixels, a step to the edge test). Measured on two draws of
+/// the randomized corpus at sides 16-48 px (docs/albedo-decision.md): at
+/// 16-32 px the estimate was used on 23 of 125 uniform renders (20 with a
+/// shape worse by more than a degree) and on 3 of 24 textured ones, each
+/// worse too; at 48 px it paid on textured renders (3 of 4 used on draw 0).
+pub const MIN_ESTIMATE_SIDE: usize = 40;
 pub use super::fits::{AlbedoFit, CLOSE_MARGIN, Evidence, MIN_GAIN};
 
 impl AlbedoFit {
+    /// The fit of a photograph below [`MIN_ESTIMATE_SIDE`]: albedo 1, not
+    /// estimated, and a given edge step without effect.
+    fn too_small(problem: &Problem, params: &SolverParams, started: Instant) -> Self {
+        let (width, height) = problem.image.size();
+        Self {
+            albedo: Grid::filled(width, height, 1.0),
+            used: false,
+            misfit_ratio: f64::NAN,
+            margin: f64::NAN,
+            edge_share: 0.0,
+            explained_share: 0.0,
+            min_albedo: 1.0,
+            edge_log_step: params.albedo_edge,
+            edge_step_without_effect: params.albedo_edge != albedo::DEFAULT_EDGE_LOG_STEP,
+            edge_rule: EdgeRule::Steps,
+            cut_pairs: 0,
+            texture: TextureSummary::UNMEASURED,
+            noise_sigma: f64::NAN,
+            noise_share: 0.0,
+            divisor: 1.0,
+            working_side: width.max(height),
+            evidence: Evidence::default(),
+            seconds: started.elapsed().as_secs_f64(),
+            summary: format!(
+                "albedo 1: not estimated, the photograph ({width}x{height} px) is below \
+                 {MIN_ESTIMATE_SIDE} px, too small to tell an albedo edge from shading"
+            ),
+        }
+    }
+
     /// Puts the albedo back into `solution` (its reprojection and
     /// brightness scale become the photograph's: `rho * divisor * R`, `I_ref
     /// * divisor`) and keeps the fit in it.
@@ -109,6 +149,10 @@ pub fn apply(
         return Ok((None, None));
     }
     let started = Instant::now();
+    let (width, height) = problem.image.size();
+    if width.max(height) < MIN_ESTIMATE_SIDE {
+        return Ok((None, Some(AlbedoFit::too_small(problem, params, started))));
+    }
     let cancel_probe = || observer.is_cancelled();
     let plain = working_copy(problem, GATE_SIDE);
     let (object, trusted) = trusted_pixels(problem);
@@ -662,6 +706,22 @@ mod tests {
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
         assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
         assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
+    }
+
+    /// Below [`MIN_ESTIMATE_SIDE`] the albedo is not estimated (issue 48:
+    /// on the 24 px Sombrero the estimate invented an edge and bent the
+    /// shape): albedo 1's solve bit for bit, and the summary says why.
+    #[test]
+    fn a_photograph_too_small_keeps_albedo_1_and_says_why() {
+        let side = 24;
+        assert!(side < MIN_ESTIMATE_SIDE);
+        let (plain, _) = problem(&Grid::filled(side, side, 1.0));
+        let one = super::super::solve(&plain, &SolverParams::default(), &mut ()).expect("solves");
+        let auto = super::super::solve(&plain, &auto(), &mut ()).expect("solves");
+        let fit = auto.albedo_fit.as_ref().expect("auto reports its fit");
+        assert!(!fit.used);
+        assert!(fit.summary.contains("too small"), "{}", fit.summary);
+        assert_eq!(bits(&one.depth), bits(&auto.depth));
     }
 
     /// An edge step that finds no edge where the default's finds none
