@@ -67,11 +67,12 @@ pub use super::fits::{AlbedoFit, CLOSE_MARGIN, Evidence, MIN_GAIN};
 impl AlbedoFit {
     /// Puts the albedo back into `solution` (its reprojection and
     /// brightness scale become the photograph's: `rho * divisor * R`, `I_ref
-    /// * divisor`) and keeps the fit in it.
-    pub fn restore(self, solution: &mut Solution) {
+    /// * divisor`) and keeps the fit in it, without a rejected estimate.
+    pub fn restore(mut self, solution: &mut Solution) {
         if self.used {
             self.multiply_back(self.divisor, solution);
         }
+        self.forget_rejected();
         solution.albedo_fit = Some(self);
     }
 
@@ -80,9 +81,12 @@ impl AlbedoFit {
     /// (`rho * divisor * R`, `I_ref * divisor`), used or not.
     pub(crate) fn multiply_back(&self, divisor: f64, solution: &mut Solution) {
         solution.scales.intensity *= divisor;
-        solution.reprojection = solution
-            .reprojection
-            .zip_map(&self.albedo, |r, a| r * a * divisor);
+        solution.reprojection = match &self.albedo {
+            Some(albedo) => solution
+                .reprojection
+                .zip_map(albedo, |r, a| r * a * divisor),
+            None => solution.reprojection.map(|r| r * divisor),
+        };
     }
 }
 
@@ -140,7 +144,7 @@ pub fn apply(
         candidates.push(candidate(&ground, EdgeRule::Chains, &cancel_probe)?);
     }
     let mut fit = AlbedoFit {
-        albedo: Grid::filled(problem.image.width(), problem.image.height(), 1.0),
+        albedo: None,
         used: false,
         misfit_ratio: f64::NAN,
         margin: f64::NAN,
@@ -160,7 +164,6 @@ pub fn apply(
         summary: String::new(),
     };
     if candidates.iter().all(|c| c.edge_pairs == 0) {
-        fit.albedo = candidates[0].estimate.albedo.clone();
         fit.summary = "albedo 1: no albedo edge found (no step of log brightness above the \
                        edge step and its noise)"
             .into();
@@ -245,11 +248,12 @@ pub fn apply(
     fit.texture = texture.summary;
     let (divided, divisor) = match final_albedo {
         Some(textured) => {
-            fit.albedo = textured;
-            divide_out(problem, &fit.albedo)
+            let divided = divide_out(problem, &textured);
+            fit.albedo = Some(textured);
+            divided
         }
         None => {
-            fit.albedo = chosen.estimate.albedo;
+            fit.albedo = Some(chosen.estimate.albedo);
             (chosen.divided, chosen.divisor)
         }
     };
@@ -697,7 +701,8 @@ mod tests {
         assert_eq!(full.edge_pairs, 0, "no edge at the full size");
         let (_, fit) = apply(&photo, &auto(), &mut ()).expect("solves");
         let fit = fit.expect("auto reports its fit");
-        let ratio = |c: usize| fit.albedo.at(c, side / 2) / fit.albedo.at(side / 4, side / 2);
+        let estimate = fit.albedo.as_ref().expect("an estimate with edges");
+        let ratio = |c: usize| estimate.at(c, side / 2) / estimate.at(side / 4, side / 2);
         // Either side of the ramp, away from the Sombrero's rim.
         for (c, want) in [(side / 2 - 40, 1.0), (side / 2 + 40, dark)] {
             assert!(
@@ -742,7 +747,14 @@ mod tests {
             );
             assert_eq!(a.used, b.used);
             assert!((a.misfit_ratio - b.misfit_ratio).abs() < 1e-6);
-            for (x, y) in a.albedo.as_slice().iter().zip(b.albedo.as_slice()) {
+            assert_eq!(a.albedo.is_some(), b.albedo.is_some());
+            let values = |fit: &AlbedoFit| {
+                fit.albedo
+                    .iter()
+                    .flat_map(|g| g.as_slice().to_vec())
+                    .collect::<Vec<_>>()
+            };
+            for (x, y) in values(a).iter().zip(&values(b)) {
                 assert!((x - y).abs() < 1e-9, "albedo {x} against {y}");
             }
             for (z, w) in reference
