@@ -639,7 +639,17 @@ mod tests {
         let uniform_one =
             super::super::solve(&plain, &SolverParams::default(), &mut ()).expect("solves");
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
-        assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
+        let uniform_fit = uniform_auto.albedo_fit.as_ref().expect("fit");
+        assert!(!uniform_fit.used);
+        // Albedo 1 is kept without a grid of ones (8 bytes per pixel
+        // through the solve), and still reads as 1 on the surface.
+        assert!(uniform_fit.albedo.is_none());
+        let ones = uniform_fit.used_albedo(&uniform_auto.depth);
+        for (a, z) in ones.as_slice().iter().zip(uniform_auto.depth.as_slice()) {
+            assert_eq!(a.is_nan(), !z.is_finite());
+            assert!(a.is_nan() || *a == 1.0);
+        }
+        assert!(fit.used_estimate().is_some());
         assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
     }
 

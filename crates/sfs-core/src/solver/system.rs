@@ -19,7 +19,7 @@ use crate::model::{Derivatives, Reflectance};
 use super::problem::rows_per_task;
 use super::pyramid::PyramidLevel;
 pub use layout::{FORWARD, HALO, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES, STENCIL};
-use layout::{KZ_PLANES, MASK_PLANES, SMOOTH_PLANES};
+use layout::{KZ_PLANES, MASK_PLANES, MASK_XX, MASK_XY, MASK_YY, SMOOTH_PLANES};
 use rows::{
     DataRowInputs, DataRowOutputs, KzRows, MIN_DATA_BLOCK_ROWS, RowInputs, SHARED_FORWARD,
     WeightInputs, assemble_row, data_row, image_row_blocks, kz_row, linearise_row, weight_row,
@@ -95,8 +95,8 @@ pub struct LinearSystem {
     /// passes that read `K z^k` from the depth they are given).
     linearised_at: (usize, usize),
     /// The stencils' masks in the same row-block layout ([`MASK_PLANES`]
-    /// planes of bytes): 1 where that stencil centred at the pixel lies in the
-    /// domain, else 0.
+    /// plane of bytes): bit [`MASK_XX`], [`MASK_YY`] or [`MASK_XY`] set
+    /// where that stencil centred at the pixel lies in the domain.
     masks: Vec<u8>,
 }
 
@@ -129,13 +129,13 @@ impl LinearSystem {
                         continue;
                     }
                     let flags = [
-                        at(-1, 0) && at(1, 0),
-                        at(0, -1) && at(0, 1),
-                        at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1),
+                        (at(-1, 0) && at(1, 0), MASK_XX),
+                        (at(0, -1) && at(0, 1), MASK_YY),
+                        (at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1), MASK_XY),
                     ];
-                    for (k, on) in flags.into_iter().enumerate() {
-                        block[k * pw + c + HALO] = u8::from(on);
-                    }
+                    block[c + HALO] = flags
+                        .into_iter()
+                        .fold(0, |bits, (on, bit)| if on { bits | bit } else { bits });
                 }
             },
         );

@@ -49,5 +49,13 @@ pub(super) const SMOOTH_WEIGHT: usize = 0;
 /// Planes per padded row of `K z^k` as the row kernels compute it (`[xx,
 /// yy, xy]`, `rows::kz_row`); held only for the rows a task is working on.
 pub(super) const KZ_PLANES: usize = 3;
-/// Planes per padded row of [`LinearSystem::masks`](super::LinearSystem::masks): `[xx, yy, xy]`.
-pub(super) const MASK_PLANES: usize = 3;
+/// Planes per padded row of [`LinearSystem::masks`](super::LinearSystem::masks):
+/// one plane of bytes, the stencils `[xx, yy, xy]` as the bits
+/// [`MASK_XX`], [`MASK_YY`], [`MASK_XY`] (1 byte per pixel, not 3).
+pub(super) const MASK_PLANES: usize = 1;
+/// The bit of the `z_xx` stencil in a mask byte.
+pub(super) const MASK_XX: u8 = 1;
+/// The bit of the `z_yy` stencil in a mask byte.
+pub(super) const MASK_YY: u8 = 2;
+/// The bit of the mixed stencil in a mask byte.
+pub(super) const MASK_XY: u8 = 4;

@@ -4,8 +4,8 @@
 use rayon::prelude::*;
 
 use super::layout::{
-    FORWARD, HALO, KZ_PLANES, MASK_PLANES, PLANE_INVERSE_DIAGONAL, SLOT_OFFSET, SMOOTH_PLANES,
-    SMOOTH_WEIGHT,
+    FORWARD, HALO, KZ_PLANES, MASK_PLANES, MASK_XX, MASK_XY, MASK_YY, PLANE_INVERSE_DIAGONAL,
+    SLOT_OFFSET, SMOOTH_PLANES, SMOOTH_WEIGHT,
 };
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Reflectance};
@@ -181,7 +181,7 @@ pub(super) const KEPT_ENTRY: [[u8; 5]; 5] = {
 /// four-point mixed difference, in f64 (z is large, the differences small)
 /// and rounded to f32, into the `[xx, yy, xy]` planes of `out` ([`KZ_PLANES`]
 /// planes of the padded width; the halo is not written). 0 where
-/// `mask_block` (the row's [`MASK_PLANES`] stencil masks) says the stencil
+/// `mask_block` (the row's [`MASK_PLANES`] of stencil masks) says the stencil
 /// leaves the domain, so that `W K z^k` is 0 there whatever the depth off
 /// the domain. Neighbours past the grid's edge read the edge pixel (their
 /// masks are 0).
@@ -202,21 +202,21 @@ pub(super) fn kz_row(
     let up = &z[row.saturating_sub(1) * w..][..w];
     let mid = &z[row * w..][..w];
     let down = &z[(row + 1).min(height - 1) * w..][..w];
-    let [mxx, myy, mxy] = [0, 1, 2].map(|k| window(mask_block, k * pw + HALO, 0, w));
+    let mask = window(mask_block, HALO, 0, w);
     debug_assert_eq!(mask_block.len(), MASK_PLANES * pw);
     let mut planes = out[..KZ_PLANES * pw]
         .chunks_exact_mut(pw)
         .map(|p| &mut p[HALO..HALO + w]);
     let mut next = || planes.next().unwrap_or_default();
     let [xx, yy, xy] = [next(), next(), next()];
-    let kept = |m: u8, v: f64| if m != 0 { v as f32 } else { 0.0 };
+    let kept = |m: u8, bit: u8, v: f64| if m & bit != 0 { v as f32 } else { 0.0 };
     // One column with its neighbours clamped to the grid.
     let mut column = |c: usize| {
         let (l, r) = (c.saturating_sub(1), (c + 1).min(w - 1));
         let centre = 2.0 * mid[c];
-        xx[c] = kept(mxx[c], mid[l] - centre + mid[r]);
-        yy[c] = kept(myy[c], up[c] - centre + down[c]);
-        xy[c] = kept(mxy[c], down[r] - up[r] - down[l] + up[l]);
+        xx[c] = kept(mask[c], MASK_XX, mid[l] - centre + mid[r]);
+        yy[c] = kept(mask[c], MASK_YY, up[c] - centre + down[c]);
+        xy[c] = kept(mask[c], MASK_XY, down[r] - up[r] - down[l] + up[l]);
     };
     column(0);
     column(w - 1);
@@ -229,18 +229,18 @@ pub(super) fn kz_row(
     let (ml, mc, mr) = (&mid[..n], &mid[1..n + 1], &mid[2..n + 2]);
     let (ul, uc, ur) = (&up[..n], &up[1..n + 1], &up[2..n + 2]);
     let (dl, dc, dr) = (&down[..n], &down[1..n + 1], &down[2..n + 2]);
-    let (mxx, myy, mxy) = (&mxx[1..n + 1], &myy[1..n + 1], &mxy[1..n + 1]);
+    let mask = &mask[1..n + 1];
     let (xx, yy, xy) = (&mut xx[1..n + 1], &mut yy[1..n + 1], &mut xy[1..n + 1]);
     for i in 0..n {
         let centre = 2.0 * mc[i];
-        xx[i] = kept(mxx[i], ml[i] - centre + mr[i]);
+        xx[i] = kept(mask[i], MASK_XX, ml[i] - centre + mr[i]);
     }
     for i in 0..n {
         let centre = 2.0 * mc[i];
-        yy[i] = kept(myy[i], uc[i] - centre + dc[i]);
+        yy[i] = kept(mask[i], MASK_YY, uc[i] - centre + dc[i]);
     }
     for i in 0..n {
-        xy[i] = kept(mxy[i], dr[i] - ur[i] - dl[i] + ul[i]);
+        xy[i] = kept(mask[i], MASK_XY, dr[i] - ur[i] - dl[i] + ul[i]);
     }
 }
 
@@ -281,7 +281,7 @@ pub(super) fn weight_row(
     let (up_left, up_right) = (span(-pwi - 1), span(-pwi + 1));
     let (down_left, down_right) = (span(pwi - 1), span(pwi + 1));
     let plane = |k: usize| window(kz, k * pw + HALO, 0, n);
-    let [mxx, myy, mxy] = [0, 1, 2].map(|k| window(mask_block, k * pw + HALO, 0, n));
+    let mask = window(mask_block, HALO, 0, n);
     let [kzxx, kzyy, kzxy] = [0, 1, 2].map(plane);
     let mut planes = block[SMOOTH_WEIGHT * pw..(SMOOTH_WEIGHT + 3) * pw]
         .chunks_exact_mut(pw)
@@ -297,7 +297,8 @@ pub(super) fn weight_row(
         let tyy = kzyy[c] + (up[c] - 2.0 * centre[c] + down[c]);
         let txy = kzxy[c] + (down_right[c] - up_right[c] - down_left[c] + up_left[c]);
         let (zxx, zyy, zxy) = (txx * sxx, tyy * syy, txy * sxy);
-        let (mx, my, mxy) = (f32::from(mxx[c]), f32::from(myy[c]), f32::from(mxy[c]));
+        let bit = |b: u8| f32::from(u8::from(mask[c] & b != 0));
+        let (mx, my, mxy) = (bit(MASK_XX), bit(MASK_YY), bit(MASK_XY));
         let s2 = mx * zxx * zxx + my * zyy * zyy + 2.0 * mxy * zxy * zxy;
         let psi = 1.0 / (1.0 + s2 * il2).sqrt();
         let (axx, ayy, axy) = (mx * psi * gxx, my * psi * gyy, mxy * psi * gxy);
