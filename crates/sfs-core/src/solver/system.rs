@@ -68,10 +68,11 @@ pub struct LinearSystem {
     pub(crate) sweep_scratch: Vec<f32>,
     /// Data part (per outer iteration): the forward coefficients that the
     /// smoothness part adds to, as [`SHARED_FORWARD`]`.len()` planes per image
-    /// row (row `r` owns `[6 r w, 6 (r + 1) w)`), the diagonal and the
+    /// row (row `r` owns `[4 r w, 4 (r + 1) w)`), the diagonal and the
     /// right-hand side. The data-only couplings ([`DATA_ONLY_FORWARD`]) go
-    /// straight into [`Self::coefficients`]. Held as f64 words (3 per
-    /// pixel) and used as f32 (6 per pixel) through bytemuck: between an
+    /// straight into [`Self::coefficients`]; the smoothness-only ones
+    /// (`SMOOTH_ONLY_FORWARD`) have no data part. Held as f64 words (2 per
+    /// pixel) and used as f32 (4 per pixel) through bytemuck: between an
     /// outer iteration's last assembly and the next linearisation the data
     /// part is dead, and the same memory holds the backtracking's copy of the
     /// depth ([`Self::stash_depth`]; 8 bytes per pixel not allocated).
@@ -501,6 +502,7 @@ impl LinearSystem {
         );
         let smooth = &self.smooth;
         let data_forward: &[f32] = bytemuck::cast_slice(&self.data_forward);
+        let shared = SHARED_FORWARD.len();
         let data_diagonal = &self.data_diagonal;
         let data_rhs = &self.data_rhs;
         let domain = level.domain.as_slice();
@@ -517,7 +519,7 @@ impl LinearSystem {
                         row: r,
                         padded_width: pw,
                         alpha,
-                        data_forward: &data_forward[6 * r * w..6 * (r + 1) * w],
+                        data_forward: &data_forward[shared * r * w..shared * (r + 1) * w],
                         data_diagonal: &data_diagonal[r * w..(r + 1) * w],
                         data_rhs: &data_rhs[r * w..(r + 1) * w],
                         domain: &domain[r * w..(r + 1) * w],

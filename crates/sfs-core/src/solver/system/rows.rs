@@ -11,9 +11,14 @@ use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Reflectance};
 use crate::solver::pyramid::PyramidLevel;
 
-/// The [`FORWARD`] entries with a smoothness part (the data part keeps a
-/// copy of them to add each inner iteration's smoothness part to).
-pub(super) const SHARED_FORWARD: [usize; 6] = [0, 1, 3, 5, 6, 7];
+/// The [`FORWARD`] entries with a data part and a smoothness part (the data
+/// part keeps a copy of them to add each inner iteration's smoothness part
+/// to).
+pub(super) const SHARED_FORWARD: [usize; 4] = [0, 1, 3, 6];
+/// The [`FORWARD`] entries with a smoothness part only, `(-2, 2)` and `(2,
+/// 2)`: the residual's 5-point slots are never two rows and two columns
+/// apart, so the data part there is 0 and not stored (8 bytes per pixel).
+pub(super) const SMOOTH_ONLY_FORWARD: [usize; 2] = [5, 7];
 /// The [`FORWARD`] entries with a data part only, `(-1, 1)` and `(1, 1)`:
 /// written into the coefficients once per outer iteration.
 pub(super) const DATA_ONLY_FORWARD: [usize; 2] = [2, 4];
@@ -376,7 +381,7 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
     let (ky_u, ky_c, ky_d) = (kz_span(kyy, 0, -1), kz_span(kyy, 0, 0), kz_span(kyy, 0, 1));
     let (k_pp, k_pm) = (kz_span(kxy, -1, -1), kz_span(kxy, -1, 1));
     let (k_mp, k_mm) = (kz_span(kxy, 1, -1), kz_span(kxy, 1, 1));
-    let data_forward: [&[f32]; 6] =
+    let data_forward: [&[f32]; SHARED_FORWARD.len()] =
         std::array::from_fn(|k| &inputs.data_forward[k * n..(k + 1) * n]);
     let (data_diagonal, data_rhs) = (&inputs.data_diagonal[..n], &inputs.data_rhs[..n]);
     let domain = &inputs.domain[..n];
@@ -411,11 +416,14 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
     }
     // Forward entries in FORWARD order: (1,0), (2,0), (-1,1), (0,1), (1,1),
     // (-2,2), (0,2), (2,2); those at (-1,1) and (1,1) have no smoothness part
-    // and are in place since the data part (`DATA_ONLY_FORWARD`).
+    // and are in place since the data part (`DATA_ONLY_FORWARD`); those at
+    // (-2,2) and (2,2) have no data part (`SMOOTH_ONLY_FORWARD`: a stored
+    // data part of 0, as once).
     // One plain loop per entry (a macro, not a closure, so that every slice
     // is indexed directly and the loops vectorise).
     let alpha32 = alpha as f32;
     let [f0, f1, _, f3, _, f5, f6, f7] = forward_out;
+    const { assert!(SMOOTH_ONLY_FORWARD[0] == 5 && SMOOTH_ONLY_FORWARD[1] == 7) };
     macro_rules! fill {
         ($out:expr, $k:expr, |$c:ident| $smooth:expr) => {{
             let (out, data) = (&mut $out[..n], &data_forward[$k][..n]);
@@ -424,14 +432,22 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
                 out[$c] = if domain[$c] { value } else { 0.0 };
             }
         }};
+        ($out:expr, |$c:ident| $smooth:expr) => {{
+            let out = &mut $out[..n];
+            for $c in 0..n {
+                // `0 + x`, as with a stored data part of 0 (it turns -0 into 0).
+                let value = 0.0f32 + alpha32 * $smooth;
+                out[$c] = if domain[$c] { value } else { 0.0 };
+            }
+        }};
     }
     // The data planes are in SHARED_FORWARD order.
     fill!(f0, 0, |c| -2.0 * (here[c] + right[c]));
     fill!(f1, 1, |c| right[c] - mm[c] - mp[c]);
     fill!(f3, 2, |c| -2.0 * (here_y[c] + down[c]));
-    fill!(f5, 3, |c| pm[c]);
-    fill!(f6, 4, |c| down[c] - mm[c] - pm[c]);
-    fill!(f7, 5, |c| mm[c]);
+    fill!(f5, |c| pm[c]);
+    fill!(f6, 3, |c| down[c] - mm[c] - pm[c]);
+    fill!(f7, |c| mm[c]);
 }
 
 /// `K z^k` of three consecutive image rows, kept by one task of the

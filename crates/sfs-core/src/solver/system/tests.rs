@@ -3,7 +3,9 @@
 //! and the kept entries' bookkeeping.
 
 use super::layout::{KZ_PLANES, MASK_PLANES, SLOT_OFFSET};
-use super::rows::{BACKWARD, KEPT_ENTRY, KzRows, kz_row};
+use super::rows::{
+    BACKWARD, DATA_ONLY_FORWARD, KEPT_ENTRY, KzRows, SHARED_FORWARD, SMOOTH_ONLY_FORWARD, kz_row,
+};
 use super::*;
 
 use crate::camera::Intrinsics;
@@ -325,10 +327,11 @@ fn kz_rows_are_the_clamped_stencils_bit_for_bit() {
 
 #[test]
 fn the_system_holds_no_kz_for_the_level() {
-    // 40 coefficients, 24 data forward rows, 12 weights, 8 diagonal and
-    // right-hand side, 4 unknowns, 1 byte of masks: 89 bytes per pixel
-    // (90 with the halo at this size); 104 while `K z^k` (12) was stored
-    // and the masks took a byte each (3).
+    // 40 coefficients, 16 data forward rows, 12 weights, 8 diagonal and
+    // right-hand side, 4 unknowns, 1 byte of masks: 81 bytes per pixel
+    // (82 with the halo at this size); 104 while `K z^k` (12) was stored,
+    // the masks took a byte each (3) and the data part kept two planes of
+    // zeros (8).
     let (w, h) = (500, 400);
     let level = PyramidLevel {
         geometry: LevelGeometry::new(w, h, w, h, Intrinsics::centred(200.0, w, h)),
@@ -338,5 +341,28 @@ fn the_system_holds_no_kz_for_the_level() {
     };
     let system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
     let per_pixel = system.memory_bytes() as f64 / (w * h) as f64;
-    assert!(per_pixel < 91.0, "{per_pixel} bytes per pixel");
+    assert!(per_pixel < 83.0, "{per_pixel} bytes per pixel");
+}
+
+#[test]
+fn the_data_part_reaches_no_smoothness_only_entry() {
+    // Every forward entry a pair of residual slots lands in is stored by
+    // the data part: shared or data-only, never smoothness-only; and the
+    // three lists cover the forward half once.
+    let mut listed: Vec<usize> = SHARED_FORWARD
+        .iter()
+        .chain(&DATA_ONLY_FORWARD)
+        .chain(&SMOOTH_ONLY_FORWARD)
+        .copied()
+        .collect();
+    listed.sort_unstable();
+    assert_eq!(listed, (0..FORWARD.len()).collect::<Vec<_>>());
+    for row in KEPT_ENTRY {
+        for entry in row {
+            if entry != BACKWARD && entry != 0 {
+                let k = usize::from(entry) - 1;
+                assert!(!SMOOTH_ONLY_FORWARD.contains(&k), "entry {k}");
+            }
+        }
+    }
 }
