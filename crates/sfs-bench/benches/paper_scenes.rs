@@ -213,17 +213,18 @@ fn main() {
     let model = sfs_core::model::Lambertian {
         intensity_scale: case.scene.intensity_scale,
     };
+    let depth = Grid::filled(n, n, 1.8);
     system
         .linearise_data(
             &model,
             &level,
-            &Grid::filled(n, n, 1.8),
+            &depth,
             sfs_core::model::Derivatives::Exact,
             Cancel::NEVER,
         )
         .uncancelled();
     system
-        .add_smoothness(&level, 1.0, 1e-3, Cancel::NEVER)
+        .add_smoothness(&level, &depth, 1.0, 1e-3, Cancel::NEVER)
         .uncancelled();
     let rows = system.explicit_rows();
     let rhs: Vec<f64> = (0..n * n)

@@ -242,7 +242,13 @@ fn convergence(
             "no exact derivatives"
         );
         system
-            .add_smoothness(&level, defaults.alpha_px, defaults.lambda_px, Cancel::NEVER)
+            .add_smoothness(
+                &level,
+                &depth,
+                defaults.alpha_px,
+                defaults.lambda_px,
+                Cancel::NEVER,
+            )
             .uncancelled();
         Ok(system)
     };

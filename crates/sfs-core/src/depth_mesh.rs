@@ -115,6 +115,24 @@ impl DepthMesh {
         geometry: &LevelGeometry,
         options: MeshOptions,
     ) -> Result<Self, MeshError> {
+        Self::build(depth, geometry, options, true)
+    }
+
+    /// [`Self::new`]'s vertices and triangles without the outline
+    /// ([`Self::edges`] empty): what the exporters write, without the
+    /// edges' memory (about 17 bytes per pixel of a full-resolution mesh,
+    /// the largest part of writing a solve's files).
+    pub fn surface(depth: &Grid<f64>, geometry: &LevelGeometry) -> Result<Self, MeshError> {
+        Self::build(depth, geometry, MeshOptions::default(), false)
+    }
+
+    /// The triangulation, with the outline's edges where `outline`.
+    fn build(
+        depth: &Grid<f64>,
+        geometry: &LevelGeometry,
+        options: MeshOptions,
+        outline: bool,
+    ) -> Result<Self, MeshError> {
         let (width, height) = depth.size();
         if (width, height) != (geometry.width, geometry.height) {
             return Err(MeshError::SizeMismatch {
@@ -167,7 +185,8 @@ impl DepthMesh {
         // Triangles per cell, and the grid edges each cell uses.
         let cells_x = samples_x.saturating_sub(1);
         let cells_y = samples_y.saturating_sub(1);
-        let mut cell_edges = vec![0u8; cells_x * cells_y];
+        let mut cell_edges = vec![0u8; if outline { cells_x * cells_y } else { 0 }];
+        let mut no_edges = 0u8;
         let depth_of = |v: u32| mesh.positions_camera[v as usize][2];
         let connected = |corners: [u32; 3]| {
             let z = corners.map(depth_of);
@@ -192,7 +211,10 @@ impl DepthMesh {
                 let bcd = triangle([b, c, d]);
                 let acd = triangle([a, c, d]);
                 let adb = triangle([a, d, b]);
-                let edges = &mut cell_edges[cell_row * cells_x + cell_column];
+                let edges = match outline {
+                    true => &mut cell_edges[cell_row * cells_x + cell_column],
+                    false => &mut no_edges,
+                };
                 match (acb, bcd, acd, adb) {
                     (Some(t), Some(u), _, _) | (_, _, Some(t), Some(u)) => {
                         triangles.extend([t, u]);
@@ -223,6 +245,9 @@ impl DepthMesh {
             }
         }
         mesh.triangles = triangles;
+        if !outline {
+            return Ok(mesh);
+        }
 
         // Grid edges, each once: a row edge is the bottom of the cell above
         // or the top of the cell below, a column edge the right of the cell
@@ -409,6 +434,27 @@ mod tests {
         edges.sort_unstable();
         edges.dedup();
         assert_eq!(edges.len(), count);
+    }
+
+    #[test]
+    fn the_surface_is_the_mesh_without_its_outline() {
+        let depth = Grid::from_fn(9, 7, |c, r| {
+            if (3..=5).contains(&c) && (2..=3).contains(&r) {
+                0.0
+            } else if c > 6 {
+                9.0
+            } else {
+                5.0 + 0.01 * (c * r) as f64
+            }
+        });
+        let geometry = LevelGeometry::new(9, 7, 9, 7, Intrinsics::centred(50.0, 9, 7));
+        let full = DepthMesh::new(&depth, &geometry).expect("a mesh");
+        let surface = DepthMesh::surface(&depth, &geometry).expect("a mesh");
+        assert!(!full.edges().is_empty());
+        assert!(surface.edges().is_empty());
+        assert_eq!(surface.vertex_pixels(), full.vertex_pixels());
+        assert_eq!(surface.positions_camera(), full.positions_camera());
+        assert_eq!(surface.triangles(), full.triangles());
     }
 
     #[test]

@@ -87,7 +87,7 @@ fn full_resolution_mesh(
 ) -> Result<DepthMesh, IoError> {
     let (w, h) = depth.size();
     let geometry = LevelGeometry::new(w, h, w, h, *camera);
-    DepthMesh::new(depth, &geometry).map_err(|e| write_error(path, e))
+    DepthMesh::surface(depth, &geometry).map_err(|e| write_error(path, e))
 }
 
 /// Writes the depth map as a Wavefront OBJ triangle mesh (camera

@@ -37,15 +37,19 @@ pub fn write_solved(
     let solution = &solved.solution;
     let problem = &solved.problem;
     let camera = problem.camera;
-    let residual = solved.residual();
     io::write_npy_f32(&stage.path("depth.npy"), &solution.depth)?;
     io::write_png16(&stage.path("reprojection.png"), &solution.reprojection)?;
     io::write_png16(&stage.path("input_linear.png"), &problem.image)?;
     // Residual in [-0.5, 0.5] I_ref mapped to [0, 1]: grey 0.5 = explained.
-    io::write_png8(
-        &stage.path("residual.png"),
-        &residual.map(|v| if v.is_finite() { 0.5 + v } else { 0.5 }),
-    )?;
+    // Mapped in place and dropped before the mesh (whose triangulation is
+    // the writing's peak of memory).
+    let mut residual = solved.residual();
+    residual
+        .as_mut_slice()
+        .iter_mut()
+        .for_each(|v| *v = if v.is_finite() { 0.5 + *v } else { 0.5 });
+    io::write_png8(&stage.path("residual.png"), &residual)?;
+    drop(residual);
     if let Some(c) = &problem.confidence
         && solved.confidence_derived
     {

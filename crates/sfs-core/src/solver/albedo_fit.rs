@@ -80,7 +80,7 @@ impl AlbedoFit {
     fn too_small(problem: &Problem, params: &SolverParams, started: Instant) -> Self {
         let (width, height) = problem.image.size();
         Self {
-            albedo: Grid::filled(width, height, 1.0),
+            albedo: None,
             used: false,
             misfit_ratio: f64::NAN,
             margin: f64::NAN,
@@ -107,8 +107,8 @@ impl AlbedoFit {
 
     /// Puts the albedo back into `solution` (its reprojection and
     /// brightness scale become the photograph's: `rho * divisor * R`, `I_ref
-    /// * divisor`) and keeps the fit in it.
-    pub fn restore(self, solution: &mut Solution) {
+    /// * divisor`) and keeps the fit in it, without a rejected estimate.
+    pub fn restore(mut self, solution: &mut Solution) {
         if self.used {
             self.multiply_back(self.divisor, solution);
         }
@@ -120,6 +120,7 @@ impl AlbedoFit {
                 albedo::DEFAULT_EDGE_LOG_STEP
             ));
         }
+        self.forget_rejected();
         solution.albedo_fit = Some(self);
     }
 
@@ -128,9 +129,12 @@ impl AlbedoFit {
     /// (`rho * divisor * R`, `I_ref * divisor`), used or not.
     pub(crate) fn multiply_back(&self, divisor: f64, solution: &mut Solution) {
         solution.scales.intensity *= divisor;
-        solution.reprojection = solution
-            .reprojection
-            .zip_map(&self.albedo, |r, a| r * a * divisor);
+        solution.reprojection = match &self.albedo {
+            Some(albedo) => solution
+                .reprojection
+                .zip_map(albedo, |r, a| r * a * divisor),
+            None => solution.reprojection.map(|r| r * divisor),
+        };
     }
 }
 
@@ -192,7 +196,7 @@ pub fn apply(
         candidates.push(candidate(&ground, EdgeRule::Chains, &cancel_probe)?);
     }
     let mut fit = AlbedoFit {
-        albedo: Grid::filled(problem.image.width(), problem.image.height(), 1.0),
+        albedo: None,
         used: false,
         misfit_ratio: f64::NAN,
         margin: f64::NAN,
@@ -229,7 +233,6 @@ pub fn apply(
                 )?
                 .edge_pairs
                     == 0);
-        fit.albedo = candidates[0].estimate.albedo.clone();
         fit.summary = "albedo 1: no albedo edge found (no step of log brightness above the \
                        edge step and its noise)"
             .into();
@@ -314,11 +317,12 @@ pub fn apply(
     fit.texture = texture.summary;
     let (divided, divisor) = match final_albedo {
         Some(textured) => {
-            fit.albedo = textured;
-            divide_out(problem, &fit.albedo)
+            let divided = divide_out(problem, &textured);
+            fit.albedo = Some(textured);
+            divided
         }
         None => {
-            fit.albedo = chosen.estimate.albedo;
+            fit.albedo = Some(chosen.estimate.albedo);
             (chosen.divided, chosen.divisor)
         }
     };
@@ -704,7 +708,17 @@ mod tests {
         let uniform_one =
             super::super::solve(&plain, &SolverParams::default(), &mut ()).expect("solves");
         let uniform_auto = super::super::solve(&plain, &auto, &mut ()).expect("solves");
-        assert!(!uniform_auto.albedo_fit.as_ref().expect("fit").used);
+        let uniform_fit = uniform_auto.albedo_fit.as_ref().expect("fit");
+        assert!(!uniform_fit.used);
+        // Albedo 1 is kept without a grid of ones (8 bytes per pixel
+        // through the solve), and still reads as 1 on the surface.
+        assert!(uniform_fit.albedo.is_none());
+        let ones = uniform_fit.used_albedo(&uniform_auto.depth);
+        for (a, z) in ones.as_slice().iter().zip(uniform_auto.depth.as_slice()) {
+            assert_eq!(a.is_nan(), !z.is_finite());
+            assert!(a.is_nan() || *a == 1.0);
+        }
+        assert!(fit.used_estimate().is_some());
         assert_eq!(bits(&uniform_one.depth), bits(&uniform_auto.depth));
     }
 
@@ -814,7 +828,8 @@ mod tests {
         assert_eq!(full.edge_pairs, 0, "no edge at the full size");
         let (_, fit) = apply(&photo, &auto(), &mut ()).expect("solves");
         let fit = fit.expect("auto reports its fit");
-        let ratio = |c: usize| fit.albedo.at(c, side / 2) / fit.albedo.at(side / 4, side / 2);
+        let estimate = fit.albedo.as_ref().expect("an estimate with edges");
+        let ratio = |c: usize| estimate.at(c, side / 2) / estimate.at(side / 4, side / 2);
         // Either side of the ramp, away from the Sombrero's rim.
         for (c, want) in [(side / 2 - 40, 1.0), (side / 2 + 40, dark)] {
             assert!(
@@ -859,7 +874,14 @@ mod tests {
             );
             assert_eq!(a.used, b.used);
             assert!((a.misfit_ratio - b.misfit_ratio).abs() < 1e-6);
-            for (x, y) in a.albedo.as_slice().iter().zip(b.albedo.as_slice()) {
+            assert_eq!(a.albedo.is_some(), b.albedo.is_some());
+            let values = |fit: &AlbedoFit| {
+                fit.albedo
+                    .iter()
+                    .flat_map(|g| g.as_slice().to_vec())
+                    .collect::<Vec<_>>()
+            };
+            for (x, y) in values(a).iter().zip(&values(b)) {
                 assert!((x - y).abs() < 1e-9, "albedo {x} against {y}");
             }
             for (z, w) in reference

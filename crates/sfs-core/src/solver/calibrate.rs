@@ -867,11 +867,13 @@ pub fn solve_meeting(
     let judged = albedo.used;
     let (mut divided, divisor) = match divided {
         Some(divided) => (divided, albedo.divisor),
-        None if albedo.misfit_ratio < 1.0 => super::albedo_fit::divide_out(problem, &albedo.albedo),
-        None => {
-            albedo.restore(&mut solution);
-            return Ok((solution, fit));
-        }
+        None => match albedo.albedo.as_ref().filter(|_| albedo.misfit_ratio < 1.0) {
+            Some(estimate) => super::albedo_fit::divide_out(problem, estimate),
+            None => {
+                albedo.restore(&mut solution);
+                return Ok((solution, fit));
+            }
+        },
     };
     let (mut again, mut fit_again) = search_target(&mut divided, params, method, target, observer)?;
     albedo.multiply_back(divisor, &mut again);

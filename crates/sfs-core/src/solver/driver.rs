@@ -312,6 +312,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 let t1 = Instant::now();
                 let change = system.update_weights(
                     level,
+                    depth,
                     lambda,
                     Cancel::new(&|| observer.is_cancelled()),
                 )?;
@@ -338,7 +339,12 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     break;
                 }
                 let t2 = Instant::now();
-                system.assemble(level, alpha, Cancel::new(&|| observer.is_cancelled()))?;
+                system.assemble(
+                    level,
+                    depth,
+                    alpha,
+                    Cancel::new(&|| observer.is_cancelled()),
+                )?;
                 if inner == 0 && (params.linear_tolerance > 0.0 || adaptive || adaptive_default) {
                     // At dz = 0 the residual is the right-hand side.
                     start_residual = system
@@ -378,6 +384,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 {
                     let change = system.update_weights(
                         level,
+                        depth,
                         lambda,
                         Cancel::new(&|| observer.is_cancelled()),
                     )?;

@@ -53,9 +53,13 @@ pub struct Evidence {
 pub struct AlbedoFit {
     /// The estimated relative albedo at the problem's size (1 off the
     /// object and where no edge is found); the solve divided it out only
-    /// when [`Self::used`].
+    /// when [`Self::used`]. `None` where albedo 1 stands and no estimate is
+    /// kept: no edge was found, or the estimate was rejected and the solve
+    /// let it go ([`Self::forget_rejected`]), so that a full-size grid of
+    /// ones or of an unused estimate (8 bytes per pixel) is not held
+    /// through the solve. Always `Some` when [`Self::used`].
     #[serde(skip)]
-    pub albedo: Grid<f64>,
+    pub albedo: Option<Grid<f64>>,
     /// Whether the solve used the estimate (else albedo 1).
     pub used: bool,
     /// The estimate's misfit to the photograph over albedo 1's, both with
@@ -120,15 +124,25 @@ impl AlbedoFit {
     /// estimate when [`Self::used`], else 1 (what `albedo.npy` holds and
     /// the viewer's albedo tab shows).
     pub fn used_albedo(&self, depth: &Grid<f64>) -> Grid<f64> {
-        self.albedo.zip_map(depth, |a, z| {
-            if !z.is_finite() {
-                f64::NAN
-            } else if self.used {
-                *a
-            } else {
-                1.0
-            }
-        })
+        let uniform = |z: &f64| if z.is_finite() { 1.0 } else { f64::NAN };
+        match self.used_estimate() {
+            Some(albedo) => albedo.zip_map(depth, |a, z| if z.is_finite() { *a } else { f64::NAN }),
+            None => depth.map(uniform),
+        }
+    }
+
+    /// The estimate when the solve used it, else `None` (albedo 1).
+    pub fn used_estimate(&self) -> Option<&Grid<f64>> {
+        self.albedo.as_ref().filter(|_| self.used)
+    }
+
+    /// Lets a rejected estimate go (albedo 1 stands: nothing reads it
+    /// after the decision but a known-distance search, which compares it
+    /// before this is called).
+    pub fn forget_rejected(&mut self) {
+        if !self.used {
+            self.albedo = None;
+        }
     }
 
     /// Decides with `ratio`, the estimate's misfit to the photograph over

@@ -46,7 +46,11 @@ pub fn solve_method(
     method: &Method,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    let (divided, albedo) = albedo_fit::apply(problem, params, observer)?;
+    let (divided, mut albedo) = albedo_fit::apply(problem, params, observer)?;
+    // A rejected estimate is not read again: not held through the solve.
+    if let Some(fit) = &mut albedo {
+        fit.forget_rejected();
+    }
     let problem = divided.as_ref().unwrap_or(problem);
     let (mut params, fit) = material_fit::resolve(problem, params, observer)?;
     params.albedo = crate::params::AlbedoChoice::One;

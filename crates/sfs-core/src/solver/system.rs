@@ -19,10 +19,10 @@ use crate::model::{Derivatives, Reflectance};
 use super::problem::rows_per_task;
 use super::pyramid::PyramidLevel;
 pub use layout::{FORWARD, HALO, PLANE_INVERSE_DIAGONAL, PLANE_RHS, PLANES, STENCIL};
-use layout::{MASK_PLANES, SMOOTH_KZ, SMOOTH_PLANES};
+use layout::{KZ_PLANES, MASK_PLANES, MASK_XX, MASK_XY, MASK_YY, SMOOTH_PLANES};
 use rows::{
-    DataRowInputs, DataRowOutputs, MIN_DATA_BLOCK_ROWS, RowInputs, SHARED_FORWARD, WeightInputs,
-    assemble_row, data_row, image_row_blocks, linearise_row, weight_row,
+    DataRowInputs, DataRowOutputs, KzRows, MIN_DATA_BLOCK_ROWS, RowInputs, SHARED_FORWARD,
+    WeightInputs, assemble_row, data_row, image_row_blocks, kz_row, linearise_row, weight_row,
 };
 
 /// One row of the full system (40 bytes): the diagonal, the right-hand side
@@ -68,10 +68,11 @@ pub struct LinearSystem {
     pub(crate) sweep_scratch: Vec<f32>,
     /// Data part (per outer iteration): the forward coefficients that the
     /// smoothness part adds to, as [`SHARED_FORWARD`]`.len()` planes per image
-    /// row (row `r` owns `[6 r w, 6 (r + 1) w)`), the diagonal and the
+    /// row (row `r` owns `[4 r w, 4 (r + 1) w)`), the diagonal and the
     /// right-hand side. The data-only couplings ([`DATA_ONLY_FORWARD`]) go
-    /// straight into [`Self::coefficients`]. Held as f64 words (3 per
-    /// pixel) and used as f32 (6 per pixel) through bytemuck: between an
+    /// straight into [`Self::coefficients`]; the smoothness-only ones
+    /// (`SMOOTH_ONLY_FORWARD`) have no data part. Held as f64 words (2 per
+    /// pixel) and used as f32 (4 per pixel) through bytemuck: between an
     /// outer iteration's last assembly and the next linearisation the data
     /// part is dead, and the same memory holds the backtracking's copy of the
     /// depth ([`Self::stash_depth`]; 8 bytes per pixel not allocated).
@@ -81,20 +82,22 @@ pub struct LinearSystem {
     data_current: bool,
     data_diagonal: Vec<f32>,
     data_rhs: Vec<f32>,
-    /// Smoothness planes, padded like `dz_padded` (0 in the halo), each
-    /// kind as `[xx, yy, xy]`: `K z^k`, the unscaled stencils applied to the
-    /// linearisation point (`z[-1] - 2 z + z[+1]` and the four-point mixed
-    /// difference; 0 where the stencil leaves the domain), per outer
-    /// iteration; weights `W = Psi' k^2` (mixed doubled: it enters `S^2`
-    /// twice), per inner iteration (`W K z^k` is formed where it is used).
-    /// Stored as row blocks like [`Self::coefficients`] ([`SMOOTH_PLANES`]
-    /// planes of padded rows), so that the planes of one row are neighbours
-    /// in memory rather than separate page-aligned buffers whose equal
-    /// offsets collide in the L1 cache.
+    /// Smoothness weights, padded like `dz_padded` (0 in the halo), as
+    /// `[xx, yy, xy]`: `W = Psi' k^2` (mixed doubled: it enters `S^2`
+    /// twice), per inner iteration. Stored as row blocks like
+    /// [`Self::coefficients`] ([`SMOOTH_PLANES`] planes of padded rows), so
+    /// that the planes of one row are neighbours in memory rather than
+    /// separate page-aligned buffers whose equal offsets collide in the L1
+    /// cache. `K z^k`, the unscaled stencils applied to the linearisation
+    /// point, is not stored: the weights' pass and the assembly compute it
+    /// from the depth row by row (`rows::kz_row`; 12 bytes per pixel less).
     smooth: Vec<f32>,
+    /// Address and length of the depth last linearised at (checked by the
+    /// passes that read `K z^k` from the depth they are given).
+    linearised_at: (usize, usize),
     /// The stencils' masks in the same row-block layout ([`MASK_PLANES`]
-    /// planes of bytes): 1 where that stencil centred at the pixel lies in the
-    /// domain, else 0.
+    /// plane of bytes): bit [`MASK_XX`], [`MASK_YY`] or [`MASK_XY`] set
+    /// where that stencil centred at the pixel lies in the domain.
     masks: Vec<u8>,
 }
 
@@ -127,13 +130,13 @@ impl LinearSystem {
                         continue;
                     }
                     let flags = [
-                        at(-1, 0) && at(1, 0),
-                        at(0, -1) && at(0, 1),
-                        at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1),
+                        (at(-1, 0) && at(1, 0), MASK_XX),
+                        (at(0, -1) && at(0, 1), MASK_YY),
+                        (at(-1, -1) && at(1, -1) && at(-1, 1) && at(1, 1), MASK_XY),
                     ];
-                    for (k, on) in flags.into_iter().enumerate() {
-                        block[k * pw + c + HALO] = u8::from(on);
-                    }
+                    block[c + HALO] = flags
+                        .into_iter()
+                        .fold(0, |bits, (on, bit)| if on { bits | bit } else { bits });
                 }
             },
         );
@@ -150,6 +153,7 @@ impl LinearSystem {
             data_diagonal: vec![0.0; n],
             data_rhs: vec![0.0; n],
             smooth: vec![0.0; padded * SMOOTH_PLANES],
+            linearised_at: (0, 0),
             masks,
         })
     }
@@ -298,38 +302,7 @@ impl LinearSystem {
         let pw = self.padded_width();
         let min_rows = rows_per_task(w);
         let height = self.height;
-        let z = depth.as_slice();
-        let masks = &self.masks;
-        image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, height, min_rows).for_each(
-            |(r, block)| {
-                if cancel.is_cancelled() {
-                    return;
-                }
-                let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..];
-                let mask = |k: usize, c: usize| mask_block[k * pw + c + HALO] != 0;
-                let kz = &mut block[SMOOTH_KZ * pw..(SMOOTH_KZ + 3) * pw];
-                let (xx, rest) = kz.split_at_mut(pw);
-                let (yy, xy) = rest.split_at_mut(pw);
-                // Neighbours past the grid's edge read the edge pixel: the
-                // masks are 0 for every stencil that leaves the grid.
-                let at = |c: usize, dc: isize, dr: isize| {
-                    let cc = c.saturating_add_signed(dc).min(w - 1);
-                    let rr = r.saturating_add_signed(dr).min(height - 1);
-                    z[rr * w + cc]
-                };
-                for c in 0..w {
-                    // Differences in f64 (z is large, they are small), stored in f32.
-                    // 0 where the stencil leaves the domain, so that
-                    // `W K z^k` is 0 there whatever the depth off the domain.
-                    let centre = 2.0 * z[r * w + c];
-                    let kept = |k: usize, v: f64| if mask(k, c) { v as f32 } else { 0.0 };
-                    xx[c + HALO] = kept(0, at(c, -1, 0) - centre + at(c, 1, 0));
-                    yy[c + HALO] = kept(1, at(c, 0, -1) - centre + at(c, 0, 1));
-                    xy[c + HALO] =
-                        kept(2, at(c, 1, 1) - at(c, 1, -1) - at(c, -1, 1) + at(c, -1, -1));
-                }
-            },
-        );
+        self.linearised_at = address(depth);
         // The residual and its Jacobian are streamed: each task linearises
         // the pixel rows its block of rows reads (its own and one more on
         // each side) into a buffer of its own, so the whole-level Jacobian
@@ -411,8 +384,9 @@ impl LinearSystem {
     }
 
     /// Adds the smoothness part with `Psi'` evaluated at `z^k + dz` (the
-    /// linearisation point of [`Self::linearise_data`] plus the current
-    /// unknowns) and sets the full rows for the current inner iteration.
+    /// linearisation point of [`Self::linearise_data`], `depth`, the same
+    /// grid unchanged, plus the current unknowns) and sets the full rows for
+    /// the current inner iteration.
     /// Pixels with a non-positive diagonal are not solved for (their `dz`
     /// stays 0).
     ///
@@ -430,12 +404,13 @@ impl LinearSystem {
     pub fn add_smoothness(
         &mut self,
         level: &PyramidLevel,
+        depth: &Grid<f64>,
         alpha: f64,
         lambda: f64,
         cancel: Cancel<'_>,
     ) -> Result<f64, Cancelled> {
-        let change = self.update_weights(level, lambda, cancel)?;
-        self.assemble(level, alpha, cancel)?;
+        let change = self.update_weights(level, depth, lambda, cancel)?;
+        self.assemble(level, depth, alpha, cancel)?;
         Ok(change)
     }
 
@@ -443,14 +418,17 @@ impl LinearSystem {
     /// `z^k + dz` and their relative change, without setting the rows (they
     /// keep the previous weights until [`Self::assemble`]). A caller
     /// that stops the inner iterations once the weights have settled learns
-    /// so without paying for rows it will not solve. Polls `cancel` per
-    /// block of rows, as there.
+    /// so without paying for rows it will not solve. `depth` is the
+    /// linearisation point, as there. Polls `cancel` per block of rows, as
+    /// there.
     pub fn update_weights(
         &mut self,
         level: &PyramidLevel,
+        depth: &Grid<f64>,
         lambda: f64,
         cancel: Cancel<'_>,
     ) -> Result<f64, Cancelled> {
+        self.check_linearisation_point(depth);
         let w = self.width;
         let pw = self.padded_width();
         let h = level.geometry.spacing;
@@ -475,15 +453,23 @@ impl LinearSystem {
         };
         let simd = Simd::detect();
         let masks = &self.masks;
+        let (z, height) = (depth.as_slice(), self.height);
         let (changed, total) =
-            image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, self.height, min_rows)
-                .map(|(r, block)| {
-                    if cancel.is_cancelled() {
-                        return (0.0, 0.0);
-                    }
-                    let mask_block = &masks[(r + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
-                    simd.run(|| weight_row(&inputs, r, mask_block, block))
-                })
+            image_row_blocks(&mut self.smooth, SMOOTH_PLANES * pw, height, min_rows)
+                .map_init(
+                    || vec![0.0f32; KZ_PLANES * pw],
+                    |kz, (r, block)| {
+                        if cancel.is_cancelled() {
+                            return (0.0, 0.0);
+                        }
+                        let mask_block =
+                            &masks[(r + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
+                        simd.run(|| {
+                            kz_row(z, w, height, r, mask_block, kz);
+                            weight_row(&inputs, r, mask_block, kz, block)
+                        })
+                    },
+                )
                 .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
         cancel.check()?;
         Ok(if total > 0.0 {
@@ -496,14 +482,16 @@ impl LinearSystem {
     }
 
     /// The second pass of [`Self::add_smoothness`]: the full rows from the
-    /// data part and the current weights `W` (polling `cancel` per block of
-    /// rows, as there).
+    /// data part and the current weights `W` at the linearisation point
+    /// `depth` (polling `cancel` per block of rows, as there).
     pub fn assemble(
         &mut self,
         level: &PyramidLevel,
+        depth: &Grid<f64>,
         alpha: f64,
         cancel: Cancel<'_>,
     ) -> Result<(), Cancelled> {
+        self.check_linearisation_point(depth);
         let w = self.width;
         let pw = self.padded_width();
         let min_rows = rows_per_task(w);
@@ -514,28 +502,45 @@ impl LinearSystem {
         );
         let smooth = &self.smooth;
         let data_forward: &[f32] = bytemuck::cast_slice(&self.data_forward);
+        let shared = SHARED_FORWARD.len();
         let data_diagonal = &self.data_diagonal;
         let data_rhs = &self.data_rhs;
         let domain = level.domain.as_slice();
-        image_row_blocks(&mut self.coefficients, PLANES * pw, self.height, min_rows).for_each(
-            |(r, block)| {
+        let masks = &self.masks;
+        let (z, size) = (depth.as_slice(), (w, self.height));
+        image_row_blocks(&mut self.coefficients, PLANES * pw, self.height, min_rows).for_each_init(
+            || KzRows::new(pw),
+            |kz_rows, (r, block)| {
                 if cancel.is_cancelled() {
                     return;
                 }
-                let inputs = RowInputs {
-                    row: r,
-                    padded_width: pw,
-                    alpha,
-                    data_forward: &data_forward[6 * r * w..6 * (r + 1) * w],
-                    data_diagonal: &data_diagonal[r * w..(r + 1) * w],
-                    data_rhs: &data_rhs[r * w..(r + 1) * w],
-                    domain: &domain[r * w..(r + 1) * w],
-                    smooth,
-                };
-                simd.run(|| assemble_row(&inputs, block));
+                simd.run(|| {
+                    let inputs = RowInputs {
+                        row: r,
+                        padded_width: pw,
+                        alpha,
+                        data_forward: &data_forward[shared * r * w..shared * (r + 1) * w],
+                        data_diagonal: &data_diagonal[r * w..(r + 1) * w],
+                        data_rhs: &data_rhs[r * w..(r + 1) * w],
+                        domain: &domain[r * w..(r + 1) * w],
+                        smooth,
+                        kz: kz_rows.around(z, size, masks, r),
+                    };
+                    assemble_row(&inputs, block);
+                });
             },
         );
         cancel.check()
+    }
+
+    /// In debug builds, panics unless `depth` is the grid last given to
+    /// [`Self::linearise_data`] (its `K z^k` is read from it).
+    fn check_linearisation_point(&self, depth: &Grid<f64>) {
+        debug_assert_eq!(
+            address(depth),
+            self.linearised_at,
+            "the smoothness part is built at the depth the data part was linearised at"
+        );
     }
 
     /// Whether pixel `(column, row)` is solved for (a positive diagonal).
@@ -694,6 +699,12 @@ impl LinearSystem {
     }
 }
 
+/// A grid's address and length: which depth a system was linearised at.
+fn address(depth: &Grid<f64>) -> (usize, usize) {
+    let values = depth.as_slice();
+    (values.as_ptr() as usize, values.len())
+}
+
 /// Which instruction set the row loops are compiled for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Simd {
@@ -768,7 +779,7 @@ pub(crate) fn test_system(
             .uncancelled()
     );
     system
-        .add_smoothness(&level, alpha, 1e-3, Cancel::NEVER)
+        .add_smoothness(&level, &depth, alpha, 1e-3, Cancel::NEVER)
         .uncancelled();
     system
 }

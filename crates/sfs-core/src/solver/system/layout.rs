@@ -41,11 +41,21 @@ pub const PLANE_INVERSE_DIAGONAL: usize = 8;
 /// Plane of the right-hand side in a row block.
 pub const PLANE_RHS: usize = 9;
 
-/// Planes per padded row of [`LinearSystem::smooth`](super::LinearSystem::smooth).
-pub(super) const SMOOTH_PLANES: usize = 6;
-/// First of the three `[xx, yy, xy]` planes of each kind in a smoothness row
-/// block.
-pub(super) const SMOOTH_KZ: usize = 0;
-pub(super) const SMOOTH_WEIGHT: usize = 3;
-/// Planes per padded row of [`LinearSystem::masks`](super::LinearSystem::masks): `[xx, yy, xy]`.
-pub(super) const MASK_PLANES: usize = 3;
+/// Planes per padded row of [`LinearSystem::smooth`](super::LinearSystem::smooth):
+/// the weights `[xx, yy, xy]`.
+pub(super) const SMOOTH_PLANES: usize = 3;
+/// First of the three `[xx, yy, xy]` weight planes in a smoothness row block.
+pub(super) const SMOOTH_WEIGHT: usize = 0;
+/// Planes per padded row of `K z^k` as the row kernels compute it (`[xx,
+/// yy, xy]`, `rows::kz_row`); held only for the rows a task is working on.
+pub(super) const KZ_PLANES: usize = 3;
+/// Planes per padded row of [`LinearSystem::masks`](super::LinearSystem::masks):
+/// one plane of bytes, the stencils `[xx, yy, xy]` as the bits
+/// [`MASK_XX`], [`MASK_YY`], [`MASK_XY`] (1 byte per pixel, not 3).
+pub(super) const MASK_PLANES: usize = 1;
+/// The bit of the `z_xx` stencil in a mask byte.
+pub(super) const MASK_XX: u8 = 1;
+/// The bit of the `z_yy` stencil in a mask byte.
+pub(super) const MASK_YY: u8 = 2;
+/// The bit of the mixed stencil in a mask byte.
+pub(super) const MASK_XY: u8 = 4;

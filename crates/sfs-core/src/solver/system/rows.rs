@@ -4,15 +4,21 @@
 use rayon::prelude::*;
 
 use super::layout::{
-    FORWARD, HALO, PLANE_INVERSE_DIAGONAL, SLOT_OFFSET, SMOOTH_KZ, SMOOTH_PLANES, SMOOTH_WEIGHT,
+    FORWARD, HALO, KZ_PLANES, MASK_PLANES, MASK_XX, MASK_XY, MASK_YY, PLANE_INVERSE_DIAGONAL,
+    SLOT_OFFSET, SMOOTH_PLANES, SMOOTH_WEIGHT,
 };
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Reflectance};
 use crate::solver::pyramid::PyramidLevel;
 
-/// The [`FORWARD`] entries with a smoothness part (the data part keeps a
-/// copy of them to add each inner iteration's smoothness part to).
-pub(super) const SHARED_FORWARD: [usize; 6] = [0, 1, 3, 5, 6, 7];
+/// The [`FORWARD`] entries with a data part and a smoothness part (the data
+/// part keeps a copy of them to add each inner iteration's smoothness part
+/// to).
+pub(super) const SHARED_FORWARD: [usize; 4] = [0, 1, 3, 6];
+/// The [`FORWARD`] entries with a smoothness part only, `(-2, 2)` and `(2,
+/// 2)`: the residual's 5-point slots are never two rows and two columns
+/// apart, so the data part there is 0 and not stored (8 bytes per pixel).
+pub(super) const SMOOTH_ONLY_FORWARD: [usize; 2] = [5, 7];
 /// The [`FORWARD`] entries with a data part only, `(-1, 1)` and `(1, 1)`:
 /// written into the coefficients once per outer iteration.
 pub(super) const DATA_ONLY_FORWARD: [usize; 2] = [2, 4];
@@ -175,6 +181,74 @@ pub(super) const KEPT_ENTRY: [[u8; 5]; 5] = {
     table
 };
 
+/// `K z^k` of image row `row` of the linearisation point `z` (`width x
+/// height`, row-major): `z[-1] - 2 z + z[+1]` across and down and the
+/// four-point mixed difference, in f64 (z is large, the differences small)
+/// and rounded to f32, into the `[xx, yy, xy]` planes of `out` ([`KZ_PLANES`]
+/// planes of the padded width; the halo is not written). 0 where
+/// `mask_block` (the row's [`MASK_PLANES`] of stencil masks) says the stencil
+/// leaves the domain, so that `W K z^k` is 0 there whatever the depth off
+/// the domain. Neighbours past the grid's edge read the edge pixel (their
+/// masks are 0).
+///
+/// Computed where it is used, by the weights' pass and the assembly, rather
+/// than stored for the level (12 bytes per pixel); the same values as
+/// stored ones.
+#[inline(always)]
+pub(super) fn kz_row(
+    z: &[f64],
+    width: usize,
+    height: usize,
+    row: usize,
+    mask_block: &[u8],
+    out: &mut [f32],
+) {
+    let (w, pw) = (width, width + 2 * HALO);
+    let up = &z[row.saturating_sub(1) * w..][..w];
+    let mid = &z[row * w..][..w];
+    let down = &z[(row + 1).min(height - 1) * w..][..w];
+    let mask = window(mask_block, HALO, 0, w);
+    debug_assert_eq!(mask_block.len(), MASK_PLANES * pw);
+    let mut planes = out[..KZ_PLANES * pw]
+        .chunks_exact_mut(pw)
+        .map(|p| &mut p[HALO..HALO + w]);
+    let mut next = || planes.next().unwrap_or_default();
+    let [xx, yy, xy] = [next(), next(), next()];
+    let kept = |m: u8, bit: u8, v: f64| if m & bit != 0 { v as f32 } else { 0.0 };
+    // One column with its neighbours clamped to the grid.
+    let mut column = |c: usize| {
+        let (l, r) = (c.saturating_sub(1), (c + 1).min(w - 1));
+        let centre = 2.0 * mid[c];
+        xx[c] = kept(mask[c], MASK_XX, mid[l] - centre + mid[r]);
+        yy[c] = kept(mask[c], MASK_YY, up[c] - centre + down[c]);
+        xy[c] = kept(mask[c], MASK_XY, down[r] - up[r] - down[l] + up[l]);
+    };
+    column(0);
+    column(w - 1);
+    if w < 3 {
+        return;
+    }
+    // The interior as straight loops over equal slices (they vectorise):
+    // column c = i + 1, the same arithmetic as `column`.
+    let n = w - 2;
+    let (ml, mc, mr) = (&mid[..n], &mid[1..n + 1], &mid[2..n + 2]);
+    let (ul, uc, ur) = (&up[..n], &up[1..n + 1], &up[2..n + 2]);
+    let (dl, dc, dr) = (&down[..n], &down[1..n + 1], &down[2..n + 2]);
+    let mask = &mask[1..n + 1];
+    let (xx, yy, xy) = (&mut xx[1..n + 1], &mut yy[1..n + 1], &mut xy[1..n + 1]);
+    for i in 0..n {
+        let centre = 2.0 * mc[i];
+        xx[i] = kept(mask[i], MASK_XX, ml[i] - centre + mr[i]);
+    }
+    for i in 0..n {
+        let centre = 2.0 * mc[i];
+        yy[i] = kept(mask[i], MASK_YY, uc[i] - centre + dc[i]);
+    }
+    for i in 0..n {
+        xy[i] = kept(mask[i], MASK_XY, dr[i] - ur[i] - dl[i] + ul[i]);
+    }
+}
+
 /// What [`weight_row`] reads.
 pub(super) struct WeightInputs<'a> {
     pub(super) padded_width: usize,
@@ -188,12 +262,14 @@ pub(super) struct WeightInputs<'a> {
 }
 
 /// `W = Psi'(S^2(z^k + dz)) k^2` per stencil (0 where the stencil leaves the
-/// domain, as `mask_block` says) for image row `row`.
+/// domain, as `mask_block` says) for image row `row`, from the row's `K z^k`
+/// (`kz`, as [`kz_row`] writes it) into its block of weights.
 #[inline(always)]
 pub(super) fn weight_row(
     inputs: &WeightInputs<'_>,
     row: usize,
     mask_block: &[u8],
+    kz: &[f32],
     block: &mut [f32],
 ) -> (f64, f64) {
     let pw = inputs.padded_width;
@@ -209,11 +285,12 @@ pub(super) fn weight_row(
     let (up, down) = (span(-pwi), span(pwi));
     let (up_left, up_right) = (span(-pwi - 1), span(-pwi + 1));
     let (down_left, down_right) = (span(pwi - 1), span(pwi + 1));
-    let (inputs_part, outputs) = block.split_at_mut(SMOOTH_WEIGHT * pw);
-    let plane = |k: usize| window(inputs_part, k * pw + HALO, 0, n);
-    let [mxx, myy, mxy] = [0, 1, 2].map(|k| window(mask_block, k * pw + HALO, 0, n));
-    let [kzxx, kzyy, kzxy] = [SMOOTH_KZ, SMOOTH_KZ + 1, SMOOTH_KZ + 2].map(plane);
-    let mut planes = outputs.chunks_exact_mut(pw).map(|p| &mut p[HALO..HALO + n]);
+    let plane = |k: usize| window(kz, k * pw + HALO, 0, n);
+    let mask = window(mask_block, HALO, 0, n);
+    let [kzxx, kzyy, kzxy] = [0, 1, 2].map(plane);
+    let mut planes = block[SMOOTH_WEIGHT * pw..(SMOOTH_WEIGHT + 3) * pw]
+        .chunks_exact_mut(pw)
+        .map(|p| &mut p[HALO..HALO + n]);
     let mut next = || planes.next().unwrap_or_default();
     let [wxx, wyy, wxy] = [next(), next(), next()];
     let [sxx, syy, sxy] = inputs.scale;
@@ -225,7 +302,8 @@ pub(super) fn weight_row(
         let tyy = kzyy[c] + (up[c] - 2.0 * centre[c] + down[c]);
         let txy = kzxy[c] + (down_right[c] - up_right[c] - down_left[c] + up_left[c]);
         let (zxx, zyy, zxy) = (txx * sxx, tyy * syy, txy * sxy);
-        let (mx, my, mxy) = (f32::from(mxx[c]), f32::from(myy[c]), f32::from(mxy[c]));
+        let bit = |b: u8| f32::from(u8::from(mask[c] & b != 0));
+        let (mx, my, mxy) = (bit(MASK_XX), bit(MASK_YY), bit(MASK_XY));
         let s2 = mx * zxx * zxx + my * zyy * zyy + 2.0 * mxy * zxy * zxy;
         let psi = 1.0 / (1.0 + s2 * il2).sqrt();
         let (axx, ayy, axy) = (mx * psi * gxx, my * psi * gyy, mxy * psi * gxy);
@@ -254,7 +332,11 @@ pub(super) struct RowInputs<'a> {
     pub(super) data_diagonal: &'a [f32],
     pub(super) data_rhs: &'a [f32],
     pub(super) domain: &'a [bool],
+    /// The weights' row blocks of the whole level.
     pub(super) smooth: &'a [f32],
+    /// `K z^k` of image rows `row - 1`, `row`, `row + 1` ([`kz_row`]'s
+    /// planes; all 0 for a row outside the image).
+    pub(super) kz: [&'a [f32]; 3],
 }
 
 /// Full rows of one image row into its coefficient block: data part plus
@@ -280,8 +362,14 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
         let start = (row.wrapping_add_signed(dy) * SMOOTH_PLANES + k) * pw + HALO;
         window(smooth, start, dx, n)
     };
+    // Plane `k` of `K z^k` in image row `row + dy` (`dy` in -1..=1),
+    // shifted by `dx` columns.
+    let kz_span = |k: usize, dx: isize, dy: isize| {
+        let rows = inputs.kz[dy.wrapping_add(1) as usize];
+        window(rows, k * pw + HALO, dx, n)
+    };
     let (wxx, wyy, wxy) = (SMOOTH_WEIGHT, SMOOTH_WEIGHT + 1, SMOOTH_WEIGHT + 2);
-    let (kxx, kyy, kxy) = (SMOOTH_KZ, SMOOTH_KZ + 1, SMOOTH_KZ + 2);
+    let (kxx, kyy, kxy) = (0, 1, 2);
     let (left, here, right) = (span(wxx, -1, 0), span(wxx, 0, 0), span(wxx, 1, 0));
     let (up, here_y, down) = (span(wyy, 0, -1), span(wyy, 0, 0), span(wyy, 0, 1));
     // Mixed stencils at p = q - (a, b): names give (a, b) as m/p signs.
@@ -289,11 +377,11 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
     let pm = span(wxy, -1, 1);
     let mp = span(wxy, 1, -1);
     let pp = span(wxy, -1, -1);
-    let (kx_l, kx_c, kx_r) = (span(kxx, -1, 0), span(kxx, 0, 0), span(kxx, 1, 0));
-    let (ky_u, ky_c, ky_d) = (span(kyy, 0, -1), span(kyy, 0, 0), span(kyy, 0, 1));
-    let (k_pp, k_pm) = (span(kxy, -1, -1), span(kxy, -1, 1));
-    let (k_mp, k_mm) = (span(kxy, 1, -1), span(kxy, 1, 1));
-    let data_forward: [&[f32]; 6] =
+    let (kx_l, kx_c, kx_r) = (kz_span(kxx, -1, 0), kz_span(kxx, 0, 0), kz_span(kxx, 1, 0));
+    let (ky_u, ky_c, ky_d) = (kz_span(kyy, 0, -1), kz_span(kyy, 0, 0), kz_span(kyy, 0, 1));
+    let (k_pp, k_pm) = (kz_span(kxy, -1, -1), kz_span(kxy, -1, 1));
+    let (k_mp, k_mm) = (kz_span(kxy, 1, -1), kz_span(kxy, 1, 1));
+    let data_forward: [&[f32]; SHARED_FORWARD.len()] =
         std::array::from_fn(|k| &inputs.data_forward[k * n..(k + 1) * n]);
     let (data_diagonal, data_rhs) = (&inputs.data_diagonal[..n], &inputs.data_rhs[..n]);
     let domain = &inputs.domain[..n];
@@ -328,11 +416,14 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
     }
     // Forward entries in FORWARD order: (1,0), (2,0), (-1,1), (0,1), (1,1),
     // (-2,2), (0,2), (2,2); those at (-1,1) and (1,1) have no smoothness part
-    // and are in place since the data part (`DATA_ONLY_FORWARD`).
+    // and are in place since the data part (`DATA_ONLY_FORWARD`); those at
+    // (-2,2) and (2,2) have no data part (`SMOOTH_ONLY_FORWARD`: a stored
+    // data part of 0, as once).
     // One plain loop per entry (a macro, not a closure, so that every slice
     // is indexed directly and the loops vectorise).
     let alpha32 = alpha as f32;
     let [f0, f1, _, f3, _, f5, f6, f7] = forward_out;
+    const { assert!(SMOOTH_ONLY_FORWARD[0] == 5 && SMOOTH_ONLY_FORWARD[1] == 7) };
     macro_rules! fill {
         ($out:expr, $k:expr, |$c:ident| $smooth:expr) => {{
             let (out, data) = (&mut $out[..n], &data_forward[$k][..n]);
@@ -341,14 +432,83 @@ pub(super) fn assemble_row<'a>(inputs: &RowInputs<'a>, block: &mut [f32]) {
                 out[$c] = if domain[$c] { value } else { 0.0 };
             }
         }};
+        ($out:expr, |$c:ident| $smooth:expr) => {{
+            let out = &mut $out[..n];
+            for $c in 0..n {
+                // `0 + x`, as with a stored data part of 0 (it turns -0 into 0).
+                let value = 0.0f32 + alpha32 * $smooth;
+                out[$c] = if domain[$c] { value } else { 0.0 };
+            }
+        }};
     }
     // The data planes are in SHARED_FORWARD order.
     fill!(f0, 0, |c| -2.0 * (here[c] + right[c]));
     fill!(f1, 1, |c| right[c] - mm[c] - mp[c]);
     fill!(f3, 2, |c| -2.0 * (here_y[c] + down[c]));
-    fill!(f5, 3, |c| pm[c]);
-    fill!(f6, 4, |c| down[c] - mm[c] - pm[c]);
-    fill!(f7, 5, |c| mm[c]);
+    fill!(f5, |c| pm[c]);
+    fill!(f6, 3, |c| down[c] - mm[c] - pm[c]);
+    fill!(f7, |c| mm[c]);
+}
+
+/// `K z^k` of three consecutive image rows, kept by one task of the
+/// assembly as it walks its rows in order: each row is computed once per
+/// task (the first row's neighbours above once more), not stored for the
+/// level.
+pub(super) struct KzRows {
+    /// Three slots of [`KZ_PLANES`] padded planes; image row `x` lives in
+    /// slot `x mod 3`.
+    values: Vec<f32>,
+    /// The image row in each slot (`isize::MIN`: none yet).
+    rows: [isize; 3],
+    padded_width: usize,
+}
+
+impl KzRows {
+    /// Empty slots for rows of `padded_width`.
+    pub(super) fn new(padded_width: usize) -> Self {
+        Self {
+            values: vec![0.0; 3 * KZ_PLANES * padded_width],
+            rows: [isize::MIN; 3],
+            padded_width,
+        }
+    }
+
+    /// `K z^k` of image rows `row - 1`, `row` and `row + 1` of `z` (`width x
+    /// height`; a row outside the image is all 0), with the stencils' masks
+    /// `masks` of the whole level (row blocks of [`MASK_PLANES`] padded
+    /// planes), computing only the rows not already held.
+    #[inline(always)]
+    pub(super) fn around(
+        &mut self,
+        z: &[f64],
+        (width, height): (usize, usize),
+        masks: &[u8],
+        row: usize,
+    ) -> [&[f32]; 3] {
+        let pw = self.padded_width;
+        let len = KZ_PLANES * pw;
+        let row = row as isize;
+        for x in row - 1..=row + 1 {
+            let slot = x.rem_euclid(3) as usize;
+            if self.rows[slot] == x {
+                continue;
+            }
+            let out = &mut self.values[slot * len..(slot + 1) * len];
+            if x < 0 || x as usize >= height {
+                out.fill(0.0);
+            } else {
+                let x = x as usize;
+                let mask_block = &masks[(x + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
+                kz_row(z, width, height, x, mask_block, out);
+            }
+            self.rows[slot] = x;
+        }
+        let at = |x: isize| {
+            let slot = x.rem_euclid(3) as usize;
+            &self.values[slot * len..(slot + 1) * len]
+        };
+        [at(row - 1), at(row), at(row + 1)]
+    }
 }
 
 /// The blocks of image rows `0..height` of a buffer laid out as padded row

@@ -2,8 +2,10 @@
 //! the data part across blocks of rows, stashed depths, the norms, and the weights'
 //! and the kept entries' bookkeeping.
 
-use super::layout::SLOT_OFFSET;
-use super::rows::{BACKWARD, KEPT_ENTRY};
+use super::layout::{KZ_PLANES, MASK_PLANES, SLOT_OFFSET};
+use super::rows::{
+    BACKWARD, DATA_ONLY_FORWARD, KEPT_ENTRY, KzRows, SHARED_FORWARD, SMOOTH_ONLY_FORWARD, kz_row,
+};
 use super::*;
 
 use crate::camera::Intrinsics;
@@ -51,7 +53,7 @@ fn rhs_is_minus_half_the_energy_gradient_and_matrix_is_symmetric() {
                 .uncancelled()
         );
         system
-            .add_smoothness(&level, alpha, lambda, Cancel::NEVER)
+            .add_smoothness(&level, &depth, alpha, lambda, Cancel::NEVER)
             .uncancelled();
         let energy = |z: &Grid<f64>| {
             level_energy(&model, &level, z, alpha, lambda, Cancel::NEVER)
@@ -120,7 +122,7 @@ fn the_data_part_is_whole_across_the_blocks_of_rows() {
     let mut system = linearised(&level, &depth, &model);
     // alpha 0: the rows are the data part alone.
     system
-        .add_smoothness(&level, 0.0, 1.0, Cancel::NEVER)
+        .add_smoothness(&level, &depth, 0.0, 1.0, Cancel::NEVER)
         .uncancelled();
     let data_energy = |z: &Grid<f64>| {
         level_energy(&model, &level, z, 0.0, 1.0, Cancel::NEVER)
@@ -175,7 +177,7 @@ fn a_stashed_depth_comes_back_bit_for_bit_and_needs_a_new_linearisation() {
     }
     let assembled = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         system
-            .add_smoothness(&level, 1.0, 1.0, Cancel::NEVER)
+            .add_smoothness(&level, &depth, 1.0, 1.0, Cancel::NEVER)
             .uncancelled()
     }));
     assert!(assembled.is_err(), "the data part was overwritten");
@@ -185,7 +187,7 @@ fn a_stashed_depth_comes_back_bit_for_bit_and_needs_a_new_linearisation() {
             .uncancelled()
     );
     system
-        .add_smoothness(&level, 1.0, 1.0, Cancel::NEVER)
+        .add_smoothness(&level, &depth, 1.0, 1.0, Cancel::NEVER)
         .uncancelled();
 }
 
@@ -216,7 +218,7 @@ fn weights_alone_leave_the_rows_until_they_are_assembled() {
     let assembled = || {
         let mut system = linearised(&level, &depth, &model);
         system
-            .add_smoothness(&level, 0.5, 0.1, Cancel::NEVER)
+            .add_smoothness(&level, &depth, 0.5, 0.1, Cancel::NEVER)
             .uncancelled();
         system
     };
@@ -231,14 +233,16 @@ fn weights_alone_leave_the_rows_until_they_are_assembled() {
     }
     let before = split.coefficients.clone();
     let change = split
-        .update_weights(&level, 0.1, Cancel::NEVER)
+        .update_weights(&level, &depth, 0.1, Cancel::NEVER)
         .uncancelled();
     assert!(change > 0.0);
     assert_eq!(split.coefficients, before);
-    split.assemble(&level, 0.5, Cancel::NEVER).uncancelled();
+    split
+        .assemble(&level, &depth, 0.5, Cancel::NEVER)
+        .uncancelled();
     assert_eq!(
         fused
-            .add_smoothness(&level, 0.5, 0.1, Cancel::NEVER)
+            .add_smoothness(&level, &depth, 0.5, 0.1, Cancel::NEVER)
             .uncancelled(),
         change
     );
@@ -260,6 +264,104 @@ fn the_kept_entries_are_the_diagonal_and_the_forward_half() {
             } else {
                 assert_eq!(entry, BACKWARD);
                 assert!(FORWARD.contains(&(-offset.0, -offset.1)));
+            }
+        }
+    }
+}
+
+#[test]
+fn kz_rows_are_the_clamped_stencils_bit_for_bit() {
+    // Domain holes at the edges and inside, and widths below and above
+    // the interior loop's three columns: every value equals the stencils
+    // evaluated pixel by pixel with neighbours clamped to the grid (the
+    // values the system once stored for the level).
+    for (w, h) in [(9, 8), (2, 5), (1, 3), (37, 6)] {
+        let depth = Grid::from_fn(w, h, |c, r| {
+            1e3 + 0.05 * ((c * 7 + r * 3) as f64).sin() + 0.03 * (r as f64 * 0.9).cos()
+        });
+        let level = PyramidLevel {
+            geometry: LevelGeometry::new(w, h, w, h, Intrinsics::centred(12.0, w, h)),
+            image: std::borrow::Cow::Owned(Grid::filled(w, h, 0.3)),
+            confidence: Confidence::from_grid(Grid::filled(w, h, 1.0), Cancel::NEVER).uncancelled(),
+            domain: Grid::from_fn(w, h, |c, r| (c * 5 + r * 3) % 7 != 0 || c + 1 == w),
+        };
+        let system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
+        let pw = system.padded_width();
+        let z = |c: usize, dc: isize, r: usize, dr: isize| {
+            let cc = c.saturating_add_signed(dc).min(w - 1);
+            let rr = r.saturating_add_signed(dr).min(h - 1);
+            *depth.at(cc, rr)
+        };
+        let mut rows = KzRows::new(pw);
+        for r in 0..h {
+            let mask_block = &system.masks[(r + HALO) * MASK_PLANES * pw..][..MASK_PLANES * pw];
+            let mut out = vec![f32::NAN; KZ_PLANES * pw];
+            kz_row(depth.as_slice(), w, h, r, mask_block, &mut out);
+            let around = rows.around(depth.as_slice(), (w, h), &system.masks, r);
+            // The same values (the halo, which `kz_row` leaves, aside).
+            for k in 0..KZ_PLANES {
+                let inside = k * pw + HALO..k * pw + HALO + w;
+                assert_eq!(around[1][inside.clone()], out[inside]);
+            }
+            for c in 0..w {
+                let centre = 2.0 * depth.at(c, r);
+                let want = [
+                    z(c, -1, r, 0) - centre + z(c, 1, r, 0),
+                    z(c, 0, r, -1) - centre + z(c, 0, r, 1),
+                    z(c, 1, r, 1) - z(c, 1, r, -1) - z(c, -1, r, 1) + z(c, -1, r, -1),
+                ];
+                for (k, want) in want.into_iter().enumerate() {
+                    let on = mask_block[c + HALO] & (1 << k) != 0;
+                    let want = if on { want as f32 } else { 0.0 };
+                    let got = out[k * pw + c + HALO];
+                    assert_eq!(
+                        got.to_bits(),
+                        want.to_bits(),
+                        "{w}x{h} ({c}, {r}) plane {k}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_system_holds_no_kz_for_the_level() {
+    // 40 coefficients, 16 data forward rows, 12 weights, 8 diagonal and
+    // right-hand side, 4 unknowns, 1 byte of masks: 81 bytes per pixel
+    // (82 with the halo at this size); 104 while `K z^k` (12) was stored,
+    // the masks took a byte each (3) and the data part kept two planes of
+    // zeros (8).
+    let (w, h) = (500, 400);
+    let level = PyramidLevel {
+        geometry: LevelGeometry::new(w, h, w, h, Intrinsics::centred(200.0, w, h)),
+        image: std::borrow::Cow::Owned(Grid::filled(w, h, 0.3)),
+        confidence: Confidence::from_grid(Grid::filled(w, h, 1.0), Cancel::NEVER).uncancelled(),
+        domain: Grid::filled(w, h, true),
+    };
+    let system = LinearSystem::new(&level, Cancel::NEVER).uncancelled();
+    let per_pixel = system.memory_bytes() as f64 / (w * h) as f64;
+    assert!(per_pixel < 83.0, "{per_pixel} bytes per pixel");
+}
+
+#[test]
+fn the_data_part_reaches_no_smoothness_only_entry() {
+    // Every forward entry a pair of residual slots lands in is stored by
+    // the data part: shared or data-only, never smoothness-only; and the
+    // three lists cover the forward half once.
+    let mut listed: Vec<usize> = SHARED_FORWARD
+        .iter()
+        .chain(&DATA_ONLY_FORWARD)
+        .chain(&SMOOTH_ONLY_FORWARD)
+        .copied()
+        .collect();
+    listed.sort_unstable();
+    assert_eq!(listed, (0..FORWARD.len()).collect::<Vec<_>>());
+    for row in KEPT_ENTRY {
+        for entry in row {
+            if entry != BACKWARD && entry != 0 {
+                let k = usize::from(entry) - 1;
+                assert!(!SMOOTH_ONLY_FORWARD.contains(&k), "entry {k}");
             }
         }
     }
