@@ -75,10 +75,9 @@ pub const MIN_ESTIMATE_SIDE: usize = 40;
 pub use super::fits::{AlbedoFit, CLOSE_MARGIN, Evidence, MIN_GAIN};
 
 impl AlbedoFit {
-    /// The fit of a photograph below [`MIN_ESTIMATE_SIDE`]: albedo 1, not
-    /// estimated, and a given edge step without effect.
-    fn too_small(problem: &Problem, params: &SolverParams, started: Instant) -> Self {
-        let (width, height) = problem.image.size();
+    /// Albedo 1, before (or without) an estimate: the fields a decision
+    /// fills start empty.
+    fn albedo_one(params: &SolverParams, working_side: usize, noise_sigma: f64) -> Self {
         Self {
             albedo: None,
             used: false,
@@ -88,20 +87,33 @@ impl AlbedoFit {
             explained_share: 0.0,
             min_albedo: 1.0,
             edge_log_step: params.albedo_edge,
-            edge_step_without_effect: params.albedo_edge != albedo::DEFAULT_EDGE_LOG_STEP,
+            edge_step_without_effect: false,
             edge_rule: EdgeRule::Steps,
             cut_pairs: 0,
             texture: TextureSummary::UNMEASURED,
-            noise_sigma: f64::NAN,
+            noise_sigma,
             noise_share: 0.0,
             divisor: 1.0,
-            working_side: width.max(height),
+            working_side,
             evidence: Evidence::default(),
+            seconds: 0.0,
+            summary: String::new(),
+        }
+    }
+
+    /// The fit of a photograph below [`MIN_ESTIMATE_SIDE`]: albedo 1, not
+    /// estimated (its noise not measured), and a given edge step without
+    /// effect.
+    fn too_small(problem: &Problem, params: &SolverParams, started: Instant) -> Self {
+        let (width, height) = problem.image.size();
+        Self {
+            edge_step_without_effect: params.albedo_edge != albedo::DEFAULT_EDGE_LOG_STEP,
             seconds: started.elapsed().as_secs_f64(),
             summary: format!(
                 "albedo 1: not estimated, the photograph ({width}x{height} px) is below \
                  {MIN_ESTIMATE_SIDE} px, too small to tell an albedo edge from shading"
             ),
+            ..Self::albedo_one(params, width.max(height), f64::NAN)
         }
     }
 
@@ -195,27 +207,11 @@ pub fn apply(
     if chains_judged {
         candidates.push(candidate(&ground, EdgeRule::Chains, &cancel_probe)?);
     }
-    let mut fit = AlbedoFit {
-        albedo: None,
-        used: false,
-        misfit_ratio: f64::NAN,
-        margin: f64::NAN,
-        edge_share: 0.0,
-        explained_share: 0.0,
-        min_albedo: 1.0,
-        edge_log_step: params.albedo_edge,
-        edge_step_without_effect: false,
-        edge_rule: EdgeRule::Steps,
-        cut_pairs: 0,
-        texture: TextureSummary::UNMEASURED,
+    let mut fit = AlbedoFit::albedo_one(
+        params,
+        plain.image.width().max(plain.image.height()),
         noise_sigma,
-        noise_share: 0.0,
-        divisor: 1.0,
-        working_side: plain.image.width().max(plain.image.height()),
-        evidence: Evidence::default(),
-        seconds: 0.0,
-        summary: String::new(),
-    };
+    );
     if candidates.iter().all(|c| c.edge_pairs == 0) {
         // A lower step than the default's finds a superset of its edges
         // (every test of `albedo::estimate` is a threshold on the step);
