@@ -177,17 +177,6 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             scene.intensity_scale
         );
     }
-    // The depth-map shading keeps the scene's intensity scale: where the
-    // depth's upwind slopes make a pixel brighter than 1, the written image
-    // would saturate and no longer follow the model.
-    let brightest = scene.image.as_slice().iter().copied().fold(0.0, f64::max);
-    if brightest > 1.0 {
-        anyhow::bail!(
-            "--shading {} gives a brightest pixel of {brightest:.3} (above 1: the image would \
-             saturate); use --shading mesh, or move the object with --distance",
-            args.shading.name()
-        );
-    }
     io::write_png16(&stage.path("image16.png"), &scene.image)?;
     io::write_png8(&stage.path("image8.png"), &scene.image)?;
     if let Some(sigma) = args.noise {

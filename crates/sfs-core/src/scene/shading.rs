@@ -62,7 +62,9 @@ impl Shading {
 /// ([`LightModel::with_material`]), evaluated by [`model::reproject`] with
 /// the upwind derivatives over the object's pixels only. Everything else
 /// (depth, mask, camera, lights, material, intensity scale) is kept, so the
-/// two shadings of one scene differ in their image alone; the normals are
+/// two shadings of one scene differ in their image alone, except where the
+/// image would exceed 1: then image and scale are scaled down together to
+/// the scene's own brightest value. The normals are
 /// dropped (the image was not shaded with them). A pixel whose value is not
 /// finite gets 0, as the solver's reprojection does.
 pub fn shade_from_depth(scene: &Scene) -> Scene {
@@ -77,8 +79,23 @@ pub fn shade_from_depth(scene: &Scene) -> Scene {
         Cancel::NEVER,
     )
     .uncancelled();
+    // The same intensity scale as the scene's own shading, so both images
+    // compare pixel for pixel; where the depth's upwind slopes would make a
+    // pixel brighter than 1 (a highlight the interpolated normals spread
+    // out), the image and the scale are brought down together so the
+    // brightest pixel is the scene's own brightest (a saturated file would
+    // no longer follow the model).
+    let brightest = image.as_slice().iter().copied().fold(0.0, f64::max);
+    let own_brightest = scene.image.as_slice().iter().copied().fold(0.0, f64::max);
+    let (image, intensity_scale) = if brightest > 1.0 && own_brightest > 0.0 {
+        let k = own_brightest.min(1.0) / brightest;
+        (image.map(|v| v * k), scene.intensity_scale * k)
+    } else {
+        (image, scene.intensity_scale)
+    };
     Scene {
         image,
+        intensity_scale,
         normals: None,
         ..scene.clone()
     }
