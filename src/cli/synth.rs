@@ -10,6 +10,7 @@ use sfs_core::camera_file::LightEntry;
 use sfs_core::grid::Grid;
 use sfs_core::io;
 use sfs_core::light::PointLight;
+use sfs_core::scene::shading::Shading;
 use sfs_core::scene::{self, Scene, mesh, sombrero};
 
 /// Arguments of `synth`.
@@ -49,6 +50,13 @@ pub struct SynthArgs {
     /// The surface's material [default: lambert]; recorded in scene.json.
     #[command(flatten)]
     pub material: super::lights::MaterialArgs,
+    /// How the image is shaded: `mesh` (the renderer's own normals: a
+    /// mesh's interpolated normals, the Sombrero's exact gradient) or
+    /// `depth-map` (the ground-truth depth map through the solver's model
+    /// with its upwind derivatives, object neighbours only: the true depth
+    /// explains the image exactly, the paper's Table 1 convention).
+    #[arg(long, value_name = "KIND", default_value = "mesh", value_parser = parse_shading)]
+    pub shading: Shading,
     /// Output folder (created if needed).
     #[arg(long, value_parser = super::parse::parse_path)]
     pub out: PathBuf,
@@ -85,9 +93,10 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
     }
     let lights = args.lights.lights()?.unwrap_or_default();
     let material = args.material.material()?.unwrap_or_default();
+    let shading = args.shading;
     let render: Box<Renderer> = if args.scene == "sombrero" {
         Box::new(move |lights: &[PointLight]| {
-            Ok(sombrero::sombrero_shaded(width, height, lights, material))
+            Ok(shading.apply(sombrero::sombrero_shaded(width, height, lights, material)))
         })
     } else {
         let path = Path::new(&args.scene);
@@ -102,9 +111,9 @@ pub fn render_scene(args: &SynthArgs) -> Result<(Scene, Option<Grid<bool>>)> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| "mesh".into());
         Box::new(move |lights: &[PointLight]| {
-            Ok(mesh::render_shaded(
+            Ok(shading.apply(mesh::render_shaded(
                 &mesh, width, height, &placement, lights, material, &name,
-            )?)
+            )?))
         })
     };
     if args.shadows {
@@ -197,10 +206,11 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     };
     finish(stage, &camera, &args.out)?;
     eprintln!(
-        "wrote {} ({w}x{h}, f = {:.1} px, s = {:.4}) to {}",
+        "wrote {} ({w}x{h}, f = {:.1} px, s = {:.4}, {} shading) to {}",
         scene.name,
         scene.camera.focal_px,
         scene.intensity_scale,
+        args.shading.name(),
         args.out.display()
     );
     Ok(())
@@ -221,6 +231,13 @@ fn run_set(args: &SynthArgs) -> Result<()> {
     let count = args.ps_leds.unwrap_or(2) as usize;
     if !args.lights.positions.is_empty() || !args.lights.indices.is_empty() {
         anyhow::bail!("--ps-leds places its own LEDs: leave out --light and --light-index");
+    }
+    if args.shading != Shading::Mesh {
+        anyhow::bail!(
+            "--shading {} renders through the one-photograph solver's model; a --ps-leds set is \
+             shaded with its normals (leave out --shading)",
+            args.shading.name()
+        );
     }
     if args.shadows || args.inpaint_disc.is_some() {
         anyhow::bail!(
@@ -322,6 +339,14 @@ fn refuse_unused(args: &SynthArgs) -> Result<()> {
     Ok(())
 }
 
+/// The `--shading` named `text`.
+fn parse_shading(text: &str) -> Result<Shading, String> {
+    Shading::from_name(text).ok_or_else(|| {
+        let names: Vec<&str> = Shading::NAMES.iter().map(|(n, _)| *n).collect();
+        format!("unknown shading {text:?}: expected {}", names.join(" or "))
+    })
+}
+
 impl SynthArgs {
     /// A copy for rendering one light of a set.
     fn clone_for_render(&self) -> SynthArgs {
@@ -336,6 +361,7 @@ impl SynthArgs {
             shadows: false,
             lights: super::lights::LightArgs::default(),
             material: self.material.clone(),
+            shading: self.shading,
             out: self.out.clone(),
             ps_leds: None,
             albedo_pattern: self.albedo_pattern.clone(),

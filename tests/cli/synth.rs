@@ -238,3 +238,84 @@ fn a_reused_synth_folder_holds_one_runs_files() {
     assert!(names.contains(&"notes.txt".to_owned()), "{names:?}");
     assert!(names.contains(&"image16.png".to_owned()), "{names:?}");
 }
+
+/// Issue 51: `synth --shading depth-map` renders the true depth through the
+/// core's model (the same image `scene::shading` computes), with the light
+/// beside the lens, a material and noise; the depth and the scale are the
+/// mesh shading's, the image is not; a set refuses it by name.
+#[test]
+fn h13_synth_shades_from_the_depth_map_through_the_cores_model() {
+    let options = "sombrero --size 48x40 --light 0.3,0,0 --reflectance blinn-phong --specular 0.3 \
+                   --shininess 30 --noise 5";
+    let (_mesh_dir, mesh) = synth_in_temp("mesh", options);
+    let (_dir, depth_map) = synth_in_temp("depth_map", &format!("{options} --shading depth-map"));
+    let read = |dir: &Path, name: &str| {
+        sfs_core::io::read_image(&dir.join(name), false).expect("a written image")
+    };
+    assert_eq!(
+        std::fs::read(mesh.join("depth_gt.npy")).expect("depth_gt.npy"),
+        std::fs::read(depth_map.join("depth_gt.npy")).expect("depth_gt.npy"),
+    );
+    // The same camera, light and material; the gloss's highlight would pass
+    // 1 at the mesh's scale, so the depth-map image and its scale come down
+    // together.
+    let without_scale = |dir: &Path| {
+        let mut camera = read_json(&dir.join("scene.json"));
+        camera.as_object_mut().map(|o| o.remove("intensity_scale"));
+        camera
+    };
+    assert_eq!(without_scale(&mesh), without_scale(&depth_map));
+    assert!(depth_map.join("noisy8.png").is_file());
+    // The core's depth-map shading of the same scene, to 16-bit rounding.
+    let light = sfs_core::light::PointLight {
+        position: [0.3, 0.0, 0.0],
+        ..sfs_core::light::PointLight::CENTRED
+    };
+    let material = sfs_core::material::Material::BlinnPhong {
+        specular: 0.3,
+        shininess: 30.0,
+    };
+    let core = sfs_core::scene::shading::shade_from_depth(
+        &sfs_core::scene::sombrero::sombrero_shaded(48, 40, &[light], material),
+    );
+    let written = read(&depth_map, "image16.png");
+    let largest = written
+        .as_slice()
+        .iter()
+        .zip(core.image.as_slice())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(largest <= 1.0 / 65535.0, "{largest}");
+    let mesh_image = read(&mesh, "image16.png");
+    let differs = mesh_image
+        .as_slice()
+        .iter()
+        .zip(written.as_slice())
+        .filter(|(a, b)| (*a - *b).abs() > 1e-3)
+        .count();
+    assert!(differs > 100, "the shadings differ: {differs} pixels");
+
+    let dir = tempdir().unwrap();
+    let out = s(&dir.path().join("set"));
+    for (line, says) in [
+        (
+            vec![
+                "synth",
+                "sombrero",
+                "--ps-leds",
+                "3",
+                "--shading",
+                "depth-map",
+            ],
+            &["--shading depth-map", "--ps-leds"][..],
+        ),
+        (
+            vec!["synth", "sombrero", "--shading", "normals"],
+            &["--shading", "normals", "mesh or depth-map"][..],
+        ),
+    ] {
+        let mut args: Vec<String> = line.iter().map(|w| w.to_string()).collect();
+        args.extend(["--out".into(), out.clone()]);
+        crate::common::assert_refused(&args, says);
+    }
+}

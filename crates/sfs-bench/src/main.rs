@@ -23,6 +23,7 @@ mod face;
 mod figures;
 mod holes;
 mod lights;
+mod like_for_like;
 mod markdown;
 mod paper_figures;
 mod ps;
@@ -108,6 +109,7 @@ fn run(args: &BenchArgs) -> Result<()> {
         Part::Edges => edges::run(args).map(|_| "edges"),
         Part::Corpus => corpus::run(args).map(|()| "corpus"),
         Part::Real => real::run(args).map(|()| "real"),
+        Part::Table1 => like_for_like::run_part(args).map(|()| "table1"),
         Part::Shadows => shadows::run(args).map(|_| "shadows"),
         Part::All | Part::Paper | Part::Robustness | Part::Lights => {
             run::run(args, started).map(|()| "report")

@@ -14,7 +14,7 @@ use super::markdown::{table, table_head, write_markdown};
 use super::shared::{
     ALPHA_CLEAN, ALPHA_NOISY, NOISE_SEED, NOISE_SIGMA, POST_WEIGHT, TV_ITERATIONS,
 };
-use super::{lights, robustness};
+use super::{lights, like_for_like, robustness};
 use sfs_core::memory::proc_mib;
 
 /// One solve of the report.
@@ -120,6 +120,8 @@ pub struct Report {
     pub robustness: robustness::Robustness,
     /// Lights beside the lens.
     pub lights: Vec<lights::LightRow>,
+    /// Table 1 like for like: mesh and depth-map renders at the defaults.
+    pub like_for_like: Vec<like_for_like::LikeRow>,
     /// Scenes that could not be run, and why.
     pub skipped: Vec<String>,
     /// Wall time of the whole benchmark.
@@ -183,6 +185,18 @@ fn paper(scene: &str) -> Option<&'static Paper> {
         .map(|(_, figures)| figures)
 }
 
+/// The paper's RSE of its own method on `scene`, clean or `noisy` (Table 1;
+/// `None`: a scene or condition the paper did not report).
+pub(super) fn paper_rse(scene: &str, noisy: bool) -> Option<f64> {
+    let p = paper(scene)?;
+    let rse = if noisy {
+        p.noisy_rse[2]
+    } else {
+        p.clean_rse[2]
+    };
+    (!rse.is_nan()).then_some(rse)
+}
+
 /// A number to five decimals; a dash for NaN (not reported).
 fn fmt(v: f64) -> String {
     if v.is_nan() {
@@ -212,6 +226,7 @@ fn markdown(report: &Report, conditions: &Conditions) -> String {
     header(&mut md, report, conditions);
     let scenes = scenes(report);
     table1(&mut md, report, &scenes);
+    md.push_str(&like_for_like::markdown(&report.like_for_like));
     table2(&mut md, report, &scenes);
     table3(&mut md, report, &scenes);
     speedups(&mut md, report);
@@ -581,6 +596,7 @@ mod tests {
             figures: Vec::new(),
             robustness: robustness::Robustness::default(),
             lights: Vec::new(),
+            like_for_like: Vec::new(),
             skipped: vec!["dragon: no mesh".into()],
             total_seconds: 12.0,
         };

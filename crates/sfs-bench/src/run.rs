@@ -560,6 +560,12 @@ pub(super) fn run(args: &BenchArgs, started: Instant) -> Result<()> {
     let alpha_sweep = alpha_sweep(&runner, &benches, &args.out, &mut got)?;
     let inpainting = inpainting(&runner, &benches, &args.out, &mut got)?;
     let (robustness, lights) = defaults_parts(args, &mut got.skipped)?;
+    let like_for_like = if matches!(args.part, Part::All | Part::Paper) {
+        let names: Vec<&str> = wanted_renders(args).collect();
+        super::like_for_like::run(&names, &args.meshes, args.quick, &mut got.skipped)?
+    } else {
+        Vec::new()
+    };
     let report = Report {
         command: super::shared::command_line(),
         quick: args.quick,
@@ -572,6 +578,7 @@ pub(super) fn run(args: &BenchArgs, started: Instant) -> Result<()> {
         figures: got.figures,
         robustness,
         lights,
+        like_for_like,
         skipped: got.skipped,
         total_seconds: started.elapsed().as_secs_f64(),
     };

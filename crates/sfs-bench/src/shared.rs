@@ -124,6 +124,10 @@ pub enum Part {
     /// The rates of the automatic decisions (depth unit, albedo) over a
     /// randomized corpus of renders (corpus.md, corpus.json).
     Corpus,
+    /// The paper's Table 1 like for like: each scene rendered with mesh
+    /// and with depth-map shading, clean and noisy, at the defaults, beside
+    /// the paper's RSE (table1.md, table1.json).
+    Table1,
 }
 
 // The paper part's settings; run.rs uses them, report.rs states them.

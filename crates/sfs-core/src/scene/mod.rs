@@ -7,6 +7,7 @@ use crate::grid::Grid;
 
 pub mod mesh;
 pub mod photometric;
+pub mod shading;
 pub mod shadow;
 pub mod sombrero;
 
