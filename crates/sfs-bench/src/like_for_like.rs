@@ -16,7 +16,7 @@ use sfs_core::params::SolverParams;
 use sfs_core::scene::shading::Shading;
 
 use super::markdown::{SceneReport, markdown_head, skipped_meshes};
-use super::report::paper_rse;
+use super::paper_table::paper_rse;
 use super::scenes::{noisy, problem, render_or_skip, timed_solve};
 use super::shared::{BenchArgs, NOISE_SIGMA, wanted_renders};
 

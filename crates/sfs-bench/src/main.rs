@@ -26,6 +26,7 @@ mod lights;
 mod like_for_like;
 mod markdown;
 mod paper_figures;
+mod paper_table;
 mod ps;
 mod real;
 mod reflectance;
