@@ -228,6 +228,17 @@ pub enum InitialDepth {
     /// object pixel `b` of the coarsest level, assume the surface faces the
     /// light, `z0 = Q_b sqrt(s / I_b)`; the whole pyramid runs from it.
     FromImage,
+    /// The start [`InitialDepth::FastMarching`] falls back to where fast
+    /// marching cannot serve (lights far off the optical centre, a material
+    /// whose brightness does not grow as the surface turns to the light):
+    /// the pyramid walked up from [`InitialDepth::FromImage`]'s constant
+    /// (from the plane that best explains the image, lights off the
+    /// centre); on an image more than twice
+    /// [`WALK_SIDE`](crate::solver::WALK_SIDE) on a side, walked on a
+    /// working copy of that side and refined at full size. The searches of
+    /// the depth unit name it for all their solves, so that no solve of a
+    /// search changes its start.
+    Walk,
     /// A constant depth (depth units, > 0).
     Constant(f64),
     /// Warm start from a full-resolution depth map (NaN where unknown): the

@@ -752,6 +752,7 @@ impl SolvedPhotograph {
                 match &self.params.initial_depth {
                     InitialDepth::FastMarching => "fast-marching".into(),
                     InitialDepth::FromImage => "image".into(),
+                    InitialDepth::Walk => "walk".into(),
                     InitialDepth::Constant(z) => z.to_string(),
                     InitialDepth::Map(_) => "map".into(),
                 }

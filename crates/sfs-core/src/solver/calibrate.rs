@@ -786,7 +786,7 @@ fn search_params(
                 ) =>
         {
             SolverParams {
-                initial_depth: crate::params::InitialDepth::FromImage,
+                initial_depth: crate::params::InitialDepth::Walk,
                 ..params.clone()
             }
         }

@@ -59,9 +59,26 @@ fn solve_on_worker<M: Reflectance>(
     model: &M,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
+    solve_with_effects(problem, params, model, observer).map(|(solution, _)| solution)
+}
+
+/// [`solve_on_worker`] with what its decisions did (for a walked start's
+/// refinement, which reports the options of the whole solve).
+fn solve_with_effects<M: Reflectance>(
+    problem: &Problem,
+    params: &SolverParams,
+    model: &M,
+    observer: &mut dyn SolveObserver,
+) -> Result<(Solution, Effects), SolveError> {
     let start = Instant::now();
-    let mut prepared = prepare(problem, params, Some(start), observer)?;
+    // The default start where fast marching cannot serve a large image: the
+    // same scheme on a working copy (see `prepare::WALK_SIDE`).
+    let mut walker = |copy: &Problem, observer: &mut dyn SolveObserver| {
+        solve_with_effects(copy, params, model, observer)
+    };
+    let mut prepared = prepare(problem, params, Some(start), Some(&mut walker), observer)?;
     let initial = prepared.take_depth();
+    let walked = prepared.walked.take();
     let alternatives = std::mem::take(&mut prepared.alternatives);
     let initial = pick_start(initial, alternatives, model, params, &prepared, observer)?;
     let mut scheme = GaussNewton {
@@ -76,7 +93,8 @@ fn solve_on_worker<M: Reflectance>(
     };
     // A start computed by another method (fast marching) is shown to the
     // observer as the first level, so a viewer has a surface at once.
-    let show_start = matches!(params.initial_depth, InitialDepth::FastMarching);
+    // (The walked start's own levels were shown as the walk ran.)
+    let show_start = matches!(params.initial_depth, InitialDepth::FastMarching) && walked.is_none();
     let walk = coarse_to_fine(
         model,
         &prepared,
@@ -87,12 +105,16 @@ fn solve_on_worker<M: Reflectance>(
         observer,
         &mut scheme,
     )?;
-    let phases = scheme.phases;
+    let mut phases = scheme.phases;
+    if let Some(walked) = &walked {
+        scheme.effects.merge(walked.effects);
+    }
     let unused_parameters = unused_parameters(
         params,
         Path {
             refines_warm_start: prepared.refines_warm_start,
             refines_holes: prepared.refines_holes,
+            walked_start: walked.is_some(),
             linear_solver: scheme.schedule.linear_solver,
             kappa: scheme.schedule.kappa,
             kappa_max: scheme.schedule.kappa_max,
@@ -101,11 +123,20 @@ fn solve_on_worker<M: Reflectance>(
         },
         scheme.effects,
     );
-    let iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
+    let effects = scheme.effects;
+    let mut iterations = walk.reports.iter().map(|l| l.energies.len()).sum();
+    if let Some(walked) = &walked {
+        phases.add(&walked.phases);
+        iterations += walked.iterations;
+    }
     let mut solution =
         walk.into_solution(problem, params, &mut prepared, start, iterations, phases)?;
+    if let Some(walked) = walked {
+        // The copy's levels first: the report lists every level solved.
+        solution.levels.splice(0..0, walked.reports);
+    }
     solution.unused_parameters = unused_parameters;
-    Ok(solution)
+    Ok((solution, effects))
 }
 
 /// Of several full-resolution starts (holes leave fast marching's start

@@ -381,7 +381,7 @@ fn run<M: Reflectance>(
 ) -> Result<Solution, SolveError> {
     let start = Instant::now();
     explicit.validate()?;
-    let mut prepared = prepare(problem, params, None, observer)?;
+    let mut prepared = prepare(problem, params, None, None, observer)?;
     let initial = prepared.take_depth();
     let mut scheme = Descent {
         model,

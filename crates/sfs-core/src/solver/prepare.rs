@@ -17,7 +17,9 @@ use crate::params::{
 
 pub use super::plane_start::nearest_object_depth;
 use super::plane_start::plane_fit;
-use super::problem::{LevelResult, Problem, SolveError, SolveObserver, check_cancelled, masked};
+use super::problem::{
+    LevelResult, Problem, Solution, SolveError, SolveObserver, check_cancelled, masked,
+};
 use super::pyramid::{self, PyramidLevel};
 
 /// A validated problem ready for a coarse-to-fine scheme: its pyramid
@@ -71,6 +73,75 @@ pub(crate) struct Prepared<'a> {
     /// Whether the full-resolution surface is held behind the shadow's
     /// bound ([`SolverParams::shadow_bound`]).
     pub shadow_bound: bool,
+    /// The walk on a working copy that gave the start (see [`WALK_SIDE`]):
+    /// its levels' reports, phases and iterations, which are the solve's
+    /// too; `None` for every other start.
+    pub walked: Option<WalkedStart>,
+}
+
+/// The longest side of the working copy on which the default start walks
+/// the pyramid where fast marching cannot serve (lights far off the
+/// optical centre, a material whose brightness does not grow as the
+/// surface turns to the light): on an image more than twice as large, the
+/// walk's fine levels cost nearly all of its time (the shared face at
+/// 1296x864: 39 levels at eta 0.9, the top eight 80 % of the time) while
+/// each changes the energy by well under 1 %. The walk there runs on a
+/// working copy of this side (area-averaged, the parameters unchanged), and
+/// its surface is refined at full size as a warm start (the fast-marching
+/// start's schedule). `--init-depth from-image` keeps the paper's walk over
+/// the whole pyramid.
+pub const WALK_SIDE: usize = 256;
+
+/// What the working copy's walk ran, carried into the solve's report.
+pub(crate) struct WalkedStart {
+    /// The copy's levels, coarsest first.
+    pub reports: Vec<super::problem::LevelReport>,
+    /// Its phases.
+    pub phases: super::problem::PhaseTimes,
+    /// Its outer iterations.
+    pub iterations: usize,
+    /// What its decisions did (for the unused options).
+    pub effects: super::unused::Effects,
+}
+
+/// Solves a working copy of the problem by the same scheme and parameters
+/// (the start of [`WALK_SIDE`]); given to [`prepare`] by the scheme, so that
+/// the preparation does not import it.
+pub(crate) type Walker<'w> = dyn FnMut(
+        &Problem,
+        &mut dyn SolveObserver,
+    ) -> Result<(Solution, super::unused::Effects), SolveError>
+    + 'w;
+
+/// Passes the working copy's levels on to the user's observer as the first
+/// levels of the solve (one level follows: the refinement at full size),
+/// timed from the solve's start.
+struct WalkLevels<'a> {
+    observer: &'a mut dyn SolveObserver,
+    start: Instant,
+    shown: usize,
+}
+
+impl SolveObserver for WalkLevels<'_> {
+    fn on_iteration(&mut self, report: &super::problem::IterationReport) {
+        self.observer
+            .on_iteration(&super::problem::IterationReport {
+                levels: report.levels + 1,
+                elapsed: self.start.elapsed(),
+                ..report.clone()
+            });
+    }
+    fn on_level(&mut self, result: &LevelResult) {
+        self.shown = self.shown.max(result.level + 1);
+        self.observer.on_level(&LevelResult {
+            levels: result.levels + 1,
+            elapsed: self.start.elapsed(),
+            ..result.clone()
+        });
+    }
+    fn is_cancelled(&self) -> bool {
+        self.observer.is_cancelled()
+    }
 }
 
 impl Prepared<'_> {
@@ -105,10 +176,16 @@ impl Crop {
 /// before a fast-marching start on a large image, sends the start's preview
 /// to `observer` (level 0 of 3: preview, start, refined; timed from
 /// `start`).
+///
+/// With `walker` (a scheme that can solve a working copy), where the
+/// default start cannot march a photograph more than twice [`WALK_SIDE`],
+/// the start is `walker`'s solve of a working copy, its levels shown to
+/// `observer` as the solve's first.
 pub(crate) fn prepare<'a>(
     problem: &'a Problem,
     params: &SolverParams,
     preview: Option<Instant>,
+    walker: Option<&mut Walker<'_>>,
     observer: &mut dyn SolveObserver,
 ) -> Result<Prepared<'a>, SolveError> {
     params.validate()?;
@@ -186,11 +263,40 @@ pub(crate) fn prepare<'a>(
         && (problem.light_is_centred()
             || super::light_frame::serves(problem, &finest, scales.depth, material));
     // That start takes seconds on a photograph: its preview goes out first.
-    let shown = match preview {
+    let mut shown = match preview {
         Some(start) if fast_marching_start_wanted && problem.light_is_centred() => usize::from(
             super::preview::send_preview(problem, material, 3, start, observer)?,
         ),
         _ => 0,
+    };
+    // Where the default start cannot march a large image, it walks the
+    // pyramid on a working copy (see `WALK_SIDE`).
+    let walk_wanted = match params.initial_depth {
+        InitialDepth::FastMarching => !fast_marching_start_wanted,
+        InitialDepth::Walk => true,
+        _ => false,
+    } && w.max(h) > 2 * WALK_SIDE;
+    let (walked, walked_depth) = match walker {
+        Some(walker) if walk_wanted => {
+            let copy = super::working::working_copy(problem, WALK_SIDE);
+            let mut levels = WalkLevels {
+                observer: &mut *observer,
+                start: preview.unwrap_or_else(Instant::now),
+                shown: 0,
+            };
+            let (solution, effects) = walker(&copy, &mut levels)?;
+            shown = levels.shown;
+            let coarse_domain = solution.depth.map(|z| z.is_finite());
+            let depth = pyramid::upsample_depth(&solution.depth, &coarse_domain, &finest.domain);
+            let walked = WalkedStart {
+                reports: solution.levels,
+                phases: solution.phases,
+                iterations: solution.iterations,
+                effects,
+            };
+            (Some(walked), Some(depth))
+        }
+        _ => (None, None),
     };
     let cancelled = || observer.is_cancelled();
     let cancel = Cancel::new(&cancelled);
@@ -220,7 +326,9 @@ pub(crate) fn prepare<'a>(
     };
     let warm = match &params.initial_depth {
         InitialDepth::Map(map) => Some(map),
-        InitialDepth::FastMarching => fast_marching.as_ref(),
+        InitialDepth::FastMarching | InitialDepth::Walk => {
+            fast_marching.as_ref().or(walked_depth.as_ref())
+        }
         _ => None,
     };
     let sizes = if warm.is_some() {
@@ -319,6 +427,7 @@ pub(crate) fn prepare<'a>(
         shadow,
         lights: &problem.lights,
         shadow_bound: params.shadow_bound,
+        walked,
     })
 }
 

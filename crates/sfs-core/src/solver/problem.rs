@@ -186,6 +186,20 @@ pub struct PhaseTimes {
     pub linear_iterations: usize,
 }
 
+impl PhaseTimes {
+    /// Adds another part's times and counts (a walked start's, its
+    /// refinement's).
+    pub fn add(&mut self, other: &PhaseTimes) {
+        self.linearise_seconds += other.linearise_seconds;
+        self.assemble_seconds += other.assemble_seconds;
+        self.linear_seconds += other.linear_seconds;
+        self.hierarchy_seconds += other.hierarchy_seconds;
+        self.update_seconds += other.update_seconds;
+        self.inner_iterations += other.inner_iterations;
+        self.linear_iterations += other.linear_iterations;
+    }
+}
+
 /// The result of a solve.
 #[derive(Clone, Debug)]
 pub struct Solution {

@@ -34,11 +34,26 @@ pub(crate) struct Effects {
     pub kappa_max_bound: bool,
 }
 
+impl Effects {
+    /// The effects of two parts of one solve (a walked start and its
+    /// refinement): a decision differed where it differed in either.
+    pub(crate) fn merge(&mut self, other: Effects) {
+        self.level_stop_differed |= other.level_stop_differed;
+        self.inner_stop_differed |= other.inner_stop_differed;
+        self.energy_rose |= other.energy_rose;
+        self.inner_count_differed |= other.inner_count_differed;
+        self.kappa_max_bound |= other.kappa_max_bound;
+    }
+}
+
 /// How the solve ran, resolved for its problem.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Path {
     /// A full-resolution start refined on the full image alone (no pyramid).
     pub refines_warm_start: bool,
+    /// That start was walked up the pyramid on a working copy (the
+    /// pyramid's parameters apply there).
+    pub walked_start: bool,
     /// That start refined across holes (`kappa-holes` applies).
     pub refines_holes: bool,
     /// The linear solver each level ran.
@@ -74,10 +89,14 @@ pub(crate) fn unused_parameters(
 ) -> Vec<String> {
     let why = |name: &str| -> Option<&'static str> {
         match name {
-            "eta" | "min-level-side" | "anti-alias" if path.refines_warm_start => Some(
-                "the solve refines a full-resolution start (--init-depth fast-marching) on the \
-                 full image alone, without a pyramid (--init-depth constant walks one)",
-            ),
+            "eta" | "min-level-side" | "anti-alias"
+                if path.refines_warm_start && !path.walked_start =>
+            {
+                Some(
+                    "the solve refines a full-resolution start (--init-depth fast-marching) on \
+                     the full image alone, without a pyramid (--init-depth constant walks one)",
+                )
+            }
             "kappa-holes" if !path.refines_holes => Some(
                 "no full-resolution start was refined across holes (wide regions of confidence \
                  below 0.5 in a clean image)",
@@ -196,6 +215,7 @@ mod tests {
     fn path() -> Path {
         Path {
             refines_warm_start: true,
+            walked_start: false,
             refines_holes: false,
             linear_solver: LinearSolver::Sor,
             kappa: 5,
@@ -269,5 +289,33 @@ mod tests {
             let unused = unused_parameters(&set(name, value), pyramid, acted);
             assert!(unused.is_empty(), "{name}: {unused:?}");
         }
+    }
+
+    #[test]
+    fn a_walked_start_uses_the_pyramids_parameters() {
+        let walked = Path {
+            walked_start: true,
+            ..path()
+        };
+        for (name, value) in [("eta", "0.5"), ("min-level-side", "8")] {
+            assert_eq!(
+                unused_parameters(&set(name, value), path(), Effects::default()).len(),
+                1,
+                "{name} without a pyramid"
+            );
+            let unused = unused_parameters(&set(name, value), walked, Effects::default());
+            assert!(unused.is_empty(), "{name}: {unused:?}");
+        }
+    }
+
+    #[test]
+    fn merged_effects_keep_every_part_that_differed() {
+        let mut effects = Effects::default();
+        effects.merge(Effects {
+            inner_stop_differed: true,
+            ..Effects::default()
+        });
+        effects.merge(Effects::default());
+        assert!(effects.inner_stop_differed && !effects.level_stop_differed);
     }
 }
