@@ -363,3 +363,135 @@ fn a_known_distance_on_a_large_image_is_met_and_repeatable() {
         again.intensity_scale.to_bits()
     );
 }
+
+/// Records the levels an observer is shown.
+#[derive(Default)]
+struct Levels(Vec<(usize, usize, (usize, usize))>);
+
+impl sfs_core::solver::SolveObserver for Levels {
+    fn on_level(&mut self, result: &sfs_core::solver::LevelResult) {
+        self.0.push((
+            result.level,
+            result.levels,
+            (result.geometry.width, result.geometry.height),
+        ));
+    }
+}
+
+/// Where fast marching cannot serve (an LED far in front of the camera)
+/// an image more than twice `WALK_SIDE` walks the pyramid on a working
+/// copy and refines its surface at full size: the observer sees the copy's
+/// levels and then the full size, numbered as one solve; the report lists
+/// them all; the depth is as good as the paper's walk over the whole
+/// pyramid (`--init-depth from-image`) with a fraction of its inner
+/// iterations' pixels; and the rule is the same at another exposure.
+#[test]
+fn a_large_image_the_light_far_off_walks_a_working_copy_then_refines() {
+    let side = 2 * sfs_core::solver::WALK_SIDE + 28;
+    let lights = [PointLight {
+        position: [0.0, -0.1, 1.05],
+        direction: None,
+        mu: 0.0,
+        intensity: 1.0,
+    }];
+    let scene = sombrero_lit(side, side, &lights);
+    let lit = problem(&scene, &lights);
+    let mut shown = Levels::default();
+    let walked = solve(&lit, &SolverParams::default(), &mut shown).expect("solves");
+    let paper = solve(
+        &lit,
+        &SolverParams {
+            initial_depth: sfs_core::params::InitialDepth::FromImage,
+            ..SolverParams::default()
+        },
+        &mut (),
+    )
+    .expect("solves");
+    // The copy's levels, then the full size; one count for all.
+    let count = shown.0.len();
+    assert!(count > 2, "{:?}", shown.0);
+    for (k, (level, levels, (w, h))) in shown.0.iter().enumerate() {
+        assert_eq!((*level, *levels), (k, count), "{:?}", shown.0);
+        let full = k + 1 == count;
+        assert_eq!(
+            full,
+            (*w, *h) == (side, side),
+            "level {k} of {count} is {w}x{h}"
+        );
+        assert!(full || w.max(h) <= &sfs_core::solver::WALK_SIDE);
+    }
+    // The report lists the levels solved; the observer saw the copy's
+    // start (its plane) first.
+    assert_eq!(walked.levels.len() + 1, count);
+    assert!(walked.unused_parameters.is_empty());
+    // Work: inner iterations times the level's pixels.
+    let work = |s: &sfs_core::solver::Solution| -> f64 {
+        s.levels
+            .iter()
+            .map(|l| (l.energies.len() * l.width * l.height) as f64)
+            .sum()
+    };
+    assert!(
+        work(&walked) < 0.5 * work(&paper),
+        "walked {} against the paper's walk {}",
+        work(&walked),
+        work(&paper)
+    );
+    let (walked_rse, paper_rse) = (rse(&walked.depth, &scene), rse(&paper.depth, &scene));
+    assert!(
+        walked_rse <= 1.1 * paper_rse,
+        "walked {walked_rse} against the paper's walk {paper_rse}"
+    );
+    let darker = Problem {
+        image: lit.image.map(|v| v * 0.25),
+        intensity_scale: lit.intensity_scale * 0.25,
+        ..lit.clone()
+    };
+    let again = solve(&darker, &SolverParams::default(), &mut ()).expect("solves");
+    let difference = common::largest_relative_difference(&again.depth, 1.0, &walked.depth);
+    assert!(
+        difference < common::ROUND_OFF,
+        "exposure x0.25 moved the depth by {difference}"
+    );
+}
+
+/// A large photograph whose depth unit is searched (here its object's
+/// distance) shows a quick look first: one level no larger than
+/// `PREVIEW_WALK_SIDE`, labelled level 0 of 1, before any level of the
+/// solve; the solve's own levels follow and end at the full size.
+#[test]
+fn a_searched_unit_shows_a_quick_look_first() {
+    use sfs_core::solver::depth_unit::{DistanceCues, PREVIEW_WALK_SIDE, solve_photograph};
+    let side = 2 * sfs_core::solver::WALK_SIDE + 28;
+    let lights = [PointLight {
+        position: [0.0, -0.1, 1.05],
+        direction: None,
+        mu: 0.0,
+        intensity: 1.0,
+    }];
+    let scene = sombrero_lit(side, side, &lights);
+    let mut depths = scene.depth_gt.finite_values();
+    depths.sort_by(f64::total_cmp);
+    let cues = DistanceCues {
+        distance: Some(depths[depths.len() / 2]),
+        ..DistanceCues::default()
+    };
+    let mut unknown = Problem {
+        intensity_scale: 1.0,
+        ..problem(&scene, &lights)
+    };
+    let mut shown = Levels::default();
+    solve_photograph(
+        &mut unknown,
+        &SolverParams::default(),
+        &Method::Linearised,
+        &cues,
+        &mut shown,
+    )
+    .expect("solves");
+    let (level, levels, (w, h)) = shown.0[0];
+    assert_eq!((level, levels), (0, 1), "{:?}", shown.0);
+    assert!(w.max(h) <= PREVIEW_WALK_SIDE, "{:?}", shown.0);
+    assert!(shown.0.len() > 2, "{:?}", shown.0);
+    assert_eq!(shown.0.last().map(|l| l.2), Some((side, side)));
+}

@@ -327,6 +327,13 @@ pub fn solve_photograph(
         ));
     }
     let aim = aim_of(problem, cues);
+    // Lights off the centre: every cue but a given scale is searched with
+    // trial solves (seconds on a photograph) before the solve shows a
+    // level; a quick look goes out first.
+    let searches = !cues.known_depths.is_empty() || cues.distance.is_some() || !cues.scale_given;
+    if searches && !problem.light_is_centred() {
+        send_walk_preview(problem, params, observer)?;
+    }
     let mut unit = DepthUnit {
         source: UnitSource::Guess,
         cue_distance: f64::NAN,
@@ -409,6 +416,68 @@ pub fn solve_photograph(
     unit.intensity_scale = problem.intensity_scale;
     unit.solved_distance = calibrate::median_depth(&solution.depth);
     Ok((solution, unit))
+}
+
+/// The longest side of the quick look [`send_walk_preview`] solves.
+pub const PREVIEW_WALK_SIDE: usize = 128;
+
+/// Keeps the last level a solve shows; passes cancellation through.
+struct LastLevel<'a> {
+    observer: &'a mut dyn SolveObserver,
+    last: Option<super::problem::LevelResult>,
+}
+
+impl SolveObserver for LastLevel<'_> {
+    fn on_level(&mut self, result: &super::problem::LevelResult) {
+        self.last = Some(result.clone());
+    }
+    fn is_cancelled(&self) -> bool {
+        self.observer.is_cancelled()
+    }
+}
+
+/// Sends a quick look of a photograph larger than
+/// [`PREVIEW_ABOVE_PIXELS`](super::preview::PREVIEW_ABOVE_PIXELS) to
+/// `observer` as level 0 of 1, before the searches of its depth unit: the
+/// linearised walk on a working copy of [`PREVIEW_WALK_SIDE`] at the
+/// problem's present intensity scale (albedo 1, the material as a search
+/// solves it). Its unit is not yet decided; the solve's own levels replace
+/// it. A copy that cannot be solved sends nothing; cancellation is passed
+/// on.
+fn send_walk_preview(
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+) -> Result<(), SolveError> {
+    let started = std::time::Instant::now();
+    let (w, h) = problem.image.size();
+    if w * h <= super::preview::PREVIEW_ABOVE_PIXELS {
+        return Ok(());
+    }
+    let copy = super::working::working_copy(problem, PREVIEW_WALK_SIDE);
+    let quick = SolverParams {
+        albedo: crate::params::AlbedoChoice::One,
+        initial_depth: crate::params::InitialDepth::Walk,
+        ..params.without_fit()
+    };
+    let mut last = LastLevel {
+        observer: &mut *observer,
+        last: None,
+    };
+    match super::driver::solve(&copy, &quick, &mut last) {
+        Err(SolveError::Cancelled) => return Err(SolveError::Cancelled),
+        Err(_) => return Ok(()),
+        Ok(_) => {}
+    }
+    if let Some(level) = last.last {
+        observer.on_level(&super::problem::LevelResult {
+            level: 0,
+            levels: 1,
+            elapsed: started.elapsed(),
+            ..level
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]
