@@ -37,6 +37,7 @@ mod scenes;
 mod shadows;
 mod shared;
 mod speed;
+mod speed_photo;
 use shared::{BenchArgs, Part, SCENE_NAMES};
 
 /// Refuses an `--explicit-seconds` that is not a positive number and a

@@ -102,6 +102,8 @@ pub struct SpeedReport {
     pub cancels: Vec<CancelRow>,
     /// SOR against V-cycles on the same systems.
     pub convergence: Vec<ConvergenceRow>,
+    /// Issue 50's rows of photographs and decisions (`speed_photo`).
+    pub photographs: Vec<super::speed_photo::PhotoSpeedRow>,
     /// Scenes not run (missing meshes).
     pub skipped: Vec<String>,
 }
@@ -403,11 +405,20 @@ pub fn run(args: &BenchArgs, large: bool) -> Result<SpeedReport> {
         .save(&args.out.join(&figure))?;
         rows.extend(group);
     }
+    // Issue 50's rows of photographs and decisions: not in the quick run
+    // (each takes seconds to minutes).
+    let photographs = if args.quick {
+        Vec::new()
+    } else {
+        eprintln!("speed: the photographs' and decisions' rows");
+        super::speed_photo::rows(args, &mut skipped)?
+    };
     let report = SpeedReport {
         command: super::shared::command_line(),
         rows,
         cancels,
         convergence: convergence_rows,
+        photographs,
         skipped,
     };
     super::markdown::write_part(&args.out, "speed", &report, &markdown(&report))?;
@@ -613,6 +624,25 @@ fn issue_50_targets(report: &SpeedReport) -> String {
                 row.seconds,
                 row.bytes_per_pixel,
                 if met { "yes" } else { "no" }
+            );
+        }
+    }
+    if !report.photographs.is_empty() {
+        md.push_str(
+            "\nIssue 50's rows of photographs and decisions (from the files, as the command \
+             line and the viewer run them):\n\n\
+             | what | issue's today | target | now | met |\n\
+             | --- | --- | --- | --- | --- |\n",
+        );
+        for row in &report.photographs {
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {} | {} |",
+                row.what,
+                row.today,
+                row.target,
+                row.now,
+                if row.met { "yes" } else { "no" }
             );
         }
     }
