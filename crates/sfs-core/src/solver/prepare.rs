@@ -85,7 +85,7 @@ pub(crate) struct Prepared<'a> {
 /// surface turns to the light): on an image more than twice as large, the
 /// walk's fine levels cost nearly all of its time (the shared face at
 /// 1296x864: 39 levels at eta 0.9, the top eight 80 % of the time) while
-/// each changes the energy by well under 1 %. The walk there runs on a
+/// each level's iterations lower its energy by about 1 %. The walk runs on a
 /// working copy of this side (area-averaged, the parameters unchanged), and
 /// its surface is refined at full size as a warm start (the fast-marching
 /// start's schedule). `--init-depth from-image` keeps the paper's walk over
