@@ -495,3 +495,31 @@ fn a_searched_unit_shows_a_quick_look_first() {
     assert!(shown.0.len() > 2, "{:?}", shown.0);
     assert_eq!(shown.0.last().map(|l| l.2), Some((side, side)));
 }
+
+/// A distance the depth cannot follow (in front of an LED that sits
+/// before the camera: the surface stays beyond the light whatever the
+/// intensity scale) ends the search after the solves that show it, instead
+/// of walking the scale through every solve allowed; it is reported unmet.
+#[test]
+fn a_distance_the_depth_does_not_follow_ends_the_search() {
+    use sfs_core::solver::calibrate::{DistanceTarget, solve_meeting};
+    let side = 96;
+    let lights = [PointLight {
+        position: [0.0, -0.1, 1.05],
+        direction: None,
+        mu: 0.0,
+        intensity: 1.0,
+    }];
+    let scene = sombrero_lit(side, side, &lights);
+    let mut unknown = problem(&scene, &lights);
+    let (_, fit) = solve_meeting(
+        &mut unknown,
+        &SolverParams::default(),
+        &Method::Linearised,
+        &DistanceTarget::Median(0.5),
+        &mut (),
+    )
+    .expect("solves");
+    assert!(!fit.converged, "{fit:?}");
+    assert!(fit.solves <= 4, "{fit:?}");
+}

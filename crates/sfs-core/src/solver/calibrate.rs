@@ -663,6 +663,15 @@ fn least_squares_factor(solved: &[f64], points: &[KnownDepth]) -> f64 {
 /// searched on (images more than twice as large).
 const KNOWN_DEPTH_SEARCH_SIDE: usize = 256;
 
+/// A secant slope of `log k` over `log s` below this in size is flat: the
+/// depth moves as `sqrt(s)` (slope -1/2) where the shading holds it, and a
+/// tenth of that is not following `s`.
+const FLAT_SLOPE: f64 = 0.05;
+/// A flat slope ends a search once measured over a change of `s` by at
+/// least this factor (the shared face's LED 1 at 648 px: `k` 0.690 from
+/// `s` x1 to x1/400, then a jump to another branch; 25 solves before).
+const FLAT_STEP: f64 = 1.1;
+
 /// The secant search of `s` (lights off the centre) from
 /// `problem.intensity_scale` until the factor onto `target` is within
 /// `tolerance` of 1, at most `max_solves` solves, the first
@@ -696,6 +705,13 @@ fn search_scale(
                 if slope < -0.05 {
                     measured = slope;
                     slope
+                } else if slope.abs() < FLAT_SLOPE && (log_s - s0).abs() >= FLAT_STEP.ln() {
+                    // The depth did not follow a change of `s` large enough
+                    // to show (it should move as sqrt(s)): something else
+                    // holds it (the lights, where the surface must stay
+                    // beyond them). More solves only walk `s` away; the
+                    // best one is kept and the search reports it unmet.
+                    break;
                 } else {
                     slope_hint
                 }
