@@ -25,6 +25,17 @@ fn flash_beside_the_lens() -> PointLight {
     }
 }
 
+/// An LED 1.05 in front of the camera, 0.1 above the axis (the surface
+/// must stay beyond it).
+fn led_before_the_camera() -> PointLight {
+    PointLight {
+        position: [0.0, -0.1, 1.05],
+        direction: None,
+        mu: 0.0,
+        intensity: 1.0,
+    }
+}
+
 fn rse(depth: &sfs_core::grid::Grid<f64>, scene: &Scene) -> f64 {
     metrics::rse(depth, &scene.depth_gt).expect("measurable")
 }
@@ -272,12 +283,7 @@ fn a_camera_files_scale_counts_only_when_marked_measured() {
 #[test]
 fn an_led_in_front_of_the_camera_starts_the_surface_beyond_it() {
     let side = 96;
-    let lights = [PointLight {
-        position: [0.0, -0.1, 1.05],
-        direction: None,
-        mu: 0.0,
-        intensity: 1.0,
-    }];
+    let lights = [led_before_the_camera()];
     let mut scene = sombrero_lit(side, side, &lights);
     // The object a disc in the middle of the view, as a face in a portrait.
     let radius = side as f64 / 4.0;
@@ -305,13 +311,19 @@ fn an_led_in_front_of_the_camera_starts_the_surface_beyond_it() {
     // The plane up the pyramid: more than one level.
     assert!(solution.levels.len() > 1);
     // The rule is the same at another exposure (image and scale x0.25).
+    assert_exposure_moves_nothing(&lit, &solution.depth);
+}
+
+/// The defaults' solve of `lit` at a quarter of its exposure (image and
+/// scale x0.25) gives `depth` to round-off.
+fn assert_exposure_moves_nothing(lit: &Problem, depth: &sfs_core::grid::Grid<f64>) {
     let darker = Problem {
         image: lit.image.map(|v| v * 0.25),
         intensity_scale: lit.intensity_scale * 0.25,
         ..lit.clone()
     };
     let again = solve(&darker, &SolverParams::default(), &mut ()).expect("solves");
-    let difference = common::largest_relative_difference(&again.depth, 1.0, &solution.depth);
+    let difference = common::largest_relative_difference(&again.depth, 1.0, depth);
     assert!(
         difference < common::ROUND_OFF,
         "exposure x0.25 moved the depth by {difference}"
@@ -388,12 +400,7 @@ impl sfs_core::solver::SolveObserver for Levels {
 #[test]
 fn a_large_image_the_light_far_off_walks_a_working_copy_then_refines() {
     let side = 2 * sfs_core::solver::WALK_SIDE + 28;
-    let lights = [PointLight {
-        position: [0.0, -0.1, 1.05],
-        direction: None,
-        mu: 0.0,
-        intensity: 1.0,
-    }];
+    let lights = [led_before_the_camera()];
     let scene = sombrero_lit(side, side, &lights);
     let lit = problem(&scene, &lights);
     let mut shown = Levels::default();
@@ -442,17 +449,7 @@ fn a_large_image_the_light_far_off_walks_a_working_copy_then_refines() {
         walked_rse <= 1.1 * paper_rse,
         "walked {walked_rse} against the paper's walk {paper_rse}"
     );
-    let darker = Problem {
-        image: lit.image.map(|v| v * 0.25),
-        intensity_scale: lit.intensity_scale * 0.25,
-        ..lit.clone()
-    };
-    let again = solve(&darker, &SolverParams::default(), &mut ()).expect("solves");
-    let difference = common::largest_relative_difference(&again.depth, 1.0, &walked.depth);
-    assert!(
-        difference < common::ROUND_OFF,
-        "exposure x0.25 moved the depth by {difference}"
-    );
+    assert_exposure_moves_nothing(&lit, &walked.depth);
 }
 
 /// A large photograph whose depth unit is searched (here its object's
@@ -463,12 +460,7 @@ fn a_large_image_the_light_far_off_walks_a_working_copy_then_refines() {
 fn a_searched_unit_shows_a_quick_look_first() {
     use sfs_core::solver::depth_unit::{DistanceCues, PREVIEW_WALK_SIDE, solve_photograph};
     let side = 2 * sfs_core::solver::WALK_SIDE + 28;
-    let lights = [PointLight {
-        position: [0.0, -0.1, 1.05],
-        direction: None,
-        mu: 0.0,
-        intensity: 1.0,
-    }];
+    let lights = [led_before_the_camera()];
     let scene = sombrero_lit(side, side, &lights);
     let mut depths = scene.depth_gt.finite_values();
     depths.sort_by(f64::total_cmp);
@@ -504,12 +496,7 @@ fn a_searched_unit_shows_a_quick_look_first() {
 fn a_distance_the_depth_does_not_follow_ends_the_search() {
     use sfs_core::solver::calibrate::{DistanceTarget, solve_meeting};
     let side = 96;
-    let lights = [PointLight {
-        position: [0.0, -0.1, 1.05],
-        direction: None,
-        mu: 0.0,
-        intensity: 1.0,
-    }];
+    let lights = [led_before_the_camera()];
     let scene = sombrero_lit(side, side, &lights);
     let mut unknown = problem(&scene, &lights);
     let (_, fit) = solve_meeting(
