@@ -154,6 +154,13 @@ fn solves_the_sample_and_streams_its_levels_and_reports_errors() {
         .errors
         .expect("the sample has ground truth");
     assert!(rse < 0.02 && rie < 0.03, "rse {rse} rie {rie}");
+    // "done in" is the whole wait, which holds the final solve.
+    let solve_seconds = app.solve_state().finished().map(|s| s.seconds);
+    let waited = app.solve_state().waited_seconds;
+    assert!(
+        waited.zip(solve_seconds).is_some_and(|(w, s)| w >= s),
+        "waited {waited:?}, the solve {solve_seconds:?}"
+    );
     // Every export writes a readable file.
     let app = harness.state_mut();
     for (name, what) in [

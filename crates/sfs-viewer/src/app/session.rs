@@ -114,6 +114,10 @@ pub struct SolveState {
     pub job: Option<JobId>,
     /// When it was submitted.
     pub submitted: Option<Instant>,
+    /// From the submission to the final result, seconds: the whole wait
+    /// (the depth unit's searches and the albedo decision included, which
+    /// the final solve's own `seconds` leave out).
+    pub waited_seconds: Option<f64>,
     /// Running (no terminal event yet).
     pub running: bool,
     /// Level sizes of the newest job as they arrived (coarse to fine).
@@ -683,6 +687,7 @@ impl Session {
         let solve = &mut self.solve;
         solve.job = Some(job);
         solve.submitted = Some(Instant::now());
+        solve.waited_seconds = None;
         solve.running = true;
         solve.arrived.clear();
         solve.energies.clear();
@@ -763,6 +768,8 @@ impl Session {
                         .map(|e| (e.rse, e.rie))
                     });
                     let estimated_albedo = solution.albedo_fit.is_some();
+                    self.solve.waited_seconds =
+                        self.solve.submitted.map(|t| t.elapsed().as_secs_f64());
                     self.solve.solved = Some(solved);
                     self.solve.end_job();
                     if self.albedo_texture

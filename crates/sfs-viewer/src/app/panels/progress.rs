@@ -51,7 +51,19 @@ impl Panels {
                         );
                 }
             } else if let Some(done) = s.finished() {
-                ui.label(format!("done in {:.2} s", done.seconds));
+                // The whole wait: the final solve is only its last part
+                // where the depth unit was searched.
+                match s.waited_seconds {
+                    Some(waited) => {
+                        ui.label(format!("done in {waited:.2} s"))
+                            .on_hover_text(format!(
+                                "from the request to the result; the final solve took {:.2} s \
+                             (before it: the depth unit's searches and the albedo decision)",
+                                done.seconds
+                            ))
+                    }
+                    None => ui.label(format!("done in {:.2} s", done.seconds)),
+                };
             } else if let Some(done) = &s.set {
                 ui.label(format!("set done in {:.2} s", done.seconds));
             } else if s.failure.is_some() {
