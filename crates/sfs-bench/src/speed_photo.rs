@@ -103,19 +103,16 @@ fn albedo_row(scene: &sfs_core::scene::Scene) -> Result<PhotoSpeedRow> {
     })
 }
 
-/// The shared face's LED 4 alone at its full size, with its calibration,
-/// mask and ambient photograph (the README's command); `None` without it.
+/// The shared face's LED 4 alone at its full size: the set's input
+/// (its calibration, mask and ambient photograph) cut to that photograph,
+/// as the README's command reads it; `None` without it.
 fn face_led4(args: &BenchArgs) -> Option<photo::PhotoInput> {
-    let dir = args.real.join("near_ps_human1");
-    let image = dir.join("led4.png");
-    let camera = dir.join("calibration.json");
-    (image.is_file() && camera.is_file()).then(|| photo::PhotoInput {
-        camera: photo::CameraSpec::File(camera),
-        lights: photo::LightSpec::CameraFile { picks: Vec::new() },
-        object_mask: Some(dir.join("mask.png")).filter(|p| p.is_file()),
-        ambient: Some(dir.join("ambient.png")).filter(|p| p.is_file()),
-        ..photo::PhotoInput::new(&image)
-    })
+    let set = super::face::face_input(&args.real, None)?;
+    let k = set
+        .images
+        .iter()
+        .position(|p| p.file_name().is_some_and(|n| n == "led4.png"))?;
+    set.one_of_set(k)
 }
 
 /// LED 4 from its files to the finished solve at the command line's
