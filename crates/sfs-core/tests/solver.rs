@@ -696,3 +696,81 @@ fn counts_that_never_bind_are_reported_unused() {
         solved.unused_parameters
     );
 }
+
+/// Offers one memo to every solve and counts what it hears.
+struct Remembering {
+    memo: std::sync::Arc<sfs_core::solver::SolveMemo>,
+    levels: usize,
+    iterations: usize,
+}
+
+impl SolveObserver for Remembering {
+    fn on_iteration(&mut self, _report: &IterationReport) {
+        self.iterations += 1;
+    }
+    fn on_level(&mut self, _result: &LevelResult) {
+        self.levels += 1;
+    }
+    fn memo(&self) -> Option<std::sync::Arc<sfs_core::solver::SolveMemo>> {
+        Some(std::sync::Arc::clone(&self.memo))
+    }
+}
+
+#[test]
+fn a_working_copy_solved_again_in_one_pipeline_is_recalled_with_its_levels() {
+    let scene = sombrero(64, 48);
+    let params = pyramid_params();
+    let mut observer = Remembering {
+        memo: Default::default(),
+        levels: 0,
+        iterations: 0,
+    };
+    let bits = |s: &sfs_core::solver::Solution| -> Vec<u64> {
+        s.depth.as_slice().iter().map(|z| z.to_bits()).collect()
+    };
+    let first = solve(&problem(&scene), &params, &mut observer).expect("solves");
+    let heard = (observer.levels, observer.iterations);
+    assert!(heard.0 > 3 && heard.1 >= heard.0, "{heard:?}");
+    assert!(first.phases.linear_seconds > 0.0);
+    // The same problem and parameters: the kept answer, the same messages
+    // again, and no work counted.
+    let again = solve(&problem(&scene), &params, &mut observer).expect("solves");
+    assert_eq!(bits(&again), bits(&first));
+    assert_eq!(again.levels.len(), first.levels.len());
+    assert_eq!(
+        (observer.levels, observer.iterations),
+        (2 * heard.0, 2 * heard.1)
+    );
+    assert_eq!(again.phases.linear_seconds, 0.0);
+    // Anything else is solved: another intensity scale, other parameters.
+    let mut brighter = problem(&scene);
+    brighter.intensity_scale *= 1.5;
+    let other = solve(&brighter, &params, &mut observer).expect("solves");
+    assert!(other.phases.linear_seconds > 0.0);
+    assert_ne!(bits(&other), bits(&first));
+    let fewer = SolverParams {
+        kappa: params.kappa - 1,
+        ..params.clone()
+    };
+    let other = solve(&problem(&scene), &fewer, &mut observer).expect("solves");
+    assert!(other.phases.linear_seconds > 0.0);
+    // Without a memo every solve is solved.
+    let plain = solve(&problem(&scene), &params, &mut ()).expect("solves");
+    assert!(plain.phases.linear_seconds > 0.0);
+    assert_eq!(bits(&plain), bits(&first));
+}
+
+#[test]
+fn a_problem_larger_than_a_working_copy_is_not_kept() {
+    let scene = sombrero(272, 256);
+    const { assert!(272 * 256 > sfs_core::solver::problem::MEMO_MAX_PIXELS) };
+    let mut observer = Remembering {
+        memo: Default::default(),
+        levels: 0,
+        iterations: 0,
+    };
+    let params = SolverParams::default();
+    solve(&problem(&scene), &params, &mut observer).expect("solves");
+    let again = solve(&problem(&scene), &params, &mut observer).expect("solves");
+    assert!(again.phases.linear_seconds > 0.0);
+}

@@ -25,6 +25,8 @@
 //! [`solve_photograph`] takes the cues, solves, and returns the
 //! [`DepthUnit`]: which cue set the unit, how precisely, and its words.
 
+use std::sync::Arc;
+
 use glam::{DMat3, DVec3};
 use serde::Serialize;
 
@@ -32,7 +34,7 @@ use crate::light::PointLight;
 use crate::params::SolverParams;
 
 use super::calibrate::{self, DistanceTarget, KnownDepth, KnownDepthFit, ScaleEstimate};
-use super::problem::{Problem, Solution, SolveError, SolveObserver};
+use super::problem::{Problem, Solution, SolveError, SolveMemo, SolveObserver};
 
 /// The precision promised for a distance set by a rig's aim point
 /// (relative). Measured: the shared face sits 21 % behind its rig's aim
@@ -326,6 +328,12 @@ pub fn solve_photograph(
             .into(),
         ));
     }
+    // Every solve below shares one store of solved working copies.
+    let mut shared = SharesMemo {
+        memo: observer.memo().unwrap_or_default(),
+        observer,
+    };
+    let observer: &mut dyn SolveObserver = &mut shared;
     let aim = aim_of(problem, cues);
     // Lights off the centre: every cue but a given scale is searched with
     // trial solves (seconds on a photograph) before the solve shows a
@@ -418,6 +426,28 @@ pub fn solve_photograph(
     Ok((solution, unit))
 }
 
+/// Passes everything on and offers one [`SolveMemo`] to every solve of a
+/// photograph's pipeline.
+struct SharesMemo<'a> {
+    observer: &'a mut dyn SolveObserver,
+    memo: Arc<SolveMemo>,
+}
+
+impl SolveObserver for SharesMemo<'_> {
+    fn on_iteration(&mut self, report: &super::problem::IterationReport) {
+        self.observer.on_iteration(report);
+    }
+    fn on_level(&mut self, result: &super::problem::LevelResult) {
+        self.observer.on_level(result);
+    }
+    fn is_cancelled(&self) -> bool {
+        self.observer.is_cancelled()
+    }
+    fn memo(&self) -> Option<Arc<SolveMemo>> {
+        Some(Arc::clone(&self.memo))
+    }
+}
+
 /// The longest side of the quick look [`send_walk_preview`] solves.
 pub const PREVIEW_WALK_SIDE: usize = 128;
 
@@ -433,6 +463,9 @@ impl SolveObserver for LastLevel<'_> {
     }
     fn is_cancelled(&self) -> bool {
         self.observer.is_cancelled()
+    }
+    fn memo(&self) -> Option<std::sync::Arc<super::problem::SolveMemo>> {
+        self.observer.memo()
     }
 }
 

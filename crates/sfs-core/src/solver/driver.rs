@@ -18,8 +18,8 @@ use super::coarse_to_fine::{LevelEnd, LevelScheme, LevelStep, coarse_to_fine};
 use super::multigrid::Multigrid;
 use super::prepare::{Crop, Prepared, level_energy, prepare};
 use super::problem::{
-    IterationReport, PhaseTimes, Problem, Solution, SolveError, SolveObserver, check_cancelled,
-    free_on_pool, rows_per_task,
+    IterationReport, MEMO_MAX_PIXELS, ObserverEvent, PhaseTimes, Problem, RememberedSolve,
+    Solution, SolveError, SolveMemo, SolveObserver, check_cancelled, free_on_pool, rows_per_task,
 };
 use super::sor;
 use super::system::LinearSystem;
@@ -29,12 +29,15 @@ use super::unused::{Effects, Path, unused_parameters};
 /// (`auto` as Lambert, what it resolves to; [`super::solve`] runs its fit
 /// first): the paper's model with
 /// the light at the optical centre, or lights anywhere (METHOD.md section 9).
+/// A working copy solved before in the same pipeline is not solved again
+/// (see [`SolveMemo`](super::problem::SolveMemo)).
 pub fn solve(
     problem: &Problem,
     params: &SolverParams,
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
-    solve_with_model(problem, params, &problem.model(params.material()), observer)
+    crate::memory::return_large_frees_to_the_system();
+    rayon::scope(|_| solve_own_model(problem, params, observer)).map(|(solution, _)| solution)
 }
 
 /// Solves with any reflectance model.
@@ -50,31 +53,120 @@ pub fn solve_with_model<M: Reflectance>(
     observer: &mut dyn SolveObserver,
 ) -> Result<Solution, SolveError> {
     crate::memory::return_large_frees_to_the_system();
-    rayon::scope(|_| solve_on_worker(problem, params, model, observer))
+    rayon::scope(|_| {
+        solve_with_effects(problem, params, model, false, observer).map(|(solution, _)| solution)
+    })
 }
 
-fn solve_on_worker<M: Reflectance>(
+/// [`solve`] on the calling worker, with what its decisions did; kept in
+/// and taken from the observer's memo where it offers one.
+fn solve_own_model(
     problem: &Problem,
     params: &SolverParams,
-    model: &M,
     observer: &mut dyn SolveObserver,
-) -> Result<Solution, SolveError> {
-    solve_with_effects(problem, params, model, observer).map(|(solution, _)| solution)
+) -> Result<(Solution, Effects), SolveError> {
+    let solve = |observer: &mut dyn SolveObserver| {
+        solve_with_effects(
+            problem,
+            params,
+            &problem.model(params.material()),
+            true,
+            observer,
+        )
+    };
+    let (width, height) = problem.image.size();
+    match observer.memo() {
+        Some(memo) if width * height <= MEMO_MAX_PIXELS => {
+            remembered(&memo, problem, params, observer, solve)
+        }
+        _ => solve(observer),
+    }
 }
 
-/// [`solve_on_worker`] with what its decisions did (for a walked start's
-/// refinement, which reports the options of the whole solve).
+/// `solve`'s answer from `memo` (its messages sent to `observer` again),
+/// or `solve` run and kept there.
+fn remembered(
+    memo: &SolveMemo,
+    problem: &Problem,
+    params: &SolverParams,
+    observer: &mut dyn SolveObserver,
+    solve: impl FnOnce(&mut dyn SolveObserver) -> Result<(Solution, Effects), SolveError>,
+) -> Result<(Solution, Effects), SolveError> {
+    let key = (problem.clone(), params.clone());
+    if let Some(kept) = memo.0.get(&key) {
+        let start = Instant::now();
+        for event in &kept.events {
+            match event {
+                ObserverEvent::Iteration(report) => observer.on_iteration(report),
+                ObserverEvent::Level(level) => observer.on_level(level),
+            }
+        }
+        check_cancelled(observer)?;
+        let mut solution = kept.solution;
+        solution.seconds = start.elapsed().as_secs_f64();
+        solution.phases = PhaseTimes::default();
+        return Ok((solution, kept.effects));
+    }
+    let mut recorder = Recorder {
+        observer,
+        events: Vec::new(),
+    };
+    let (solution, effects) = solve(&mut recorder)?;
+    memo.0.insert(
+        key,
+        RememberedSolve {
+            solution: solution.clone(),
+            effects,
+            events: recorder.events,
+        },
+    );
+    Ok((solution, effects))
+}
+
+/// Passes everything on and keeps the messages (for [`remembered`]).
+struct Recorder<'a> {
+    observer: &'a mut dyn SolveObserver,
+    events: Vec<ObserverEvent>,
+}
+
+impl SolveObserver for Recorder<'_> {
+    fn on_iteration(&mut self, report: &IterationReport) {
+        self.events.push(ObserverEvent::Iteration(report.clone()));
+        self.observer.on_iteration(report);
+    }
+    fn on_level(&mut self, result: &super::problem::LevelResult) {
+        self.events.push(ObserverEvent::Level(result.clone()));
+        self.observer.on_level(result);
+    }
+    fn is_cancelled(&self) -> bool {
+        self.observer.is_cancelled()
+    }
+    fn memo(&self) -> Option<std::sync::Arc<SolveMemo>> {
+        self.observer.memo()
+    }
+}
+
+/// The scheme with `model`, and what its decisions did (for a walked
+/// start's refinement, which reports the options of the whole solve).
+/// `own_model`: `model` is the problem's own (its intensity scale, lights
+/// and `params`' material), so a walked start's copy is solved with its
+/// own too, through the memo.
 fn solve_with_effects<M: Reflectance>(
     problem: &Problem,
     params: &SolverParams,
     model: &M,
+    own_model: bool,
     observer: &mut dyn SolveObserver,
 ) -> Result<(Solution, Effects), SolveError> {
     let start = Instant::now();
     // The default start where fast marching cannot serve a large image: the
     // same scheme on a working copy (see `prepare::WALK_SIDE`).
     let mut walker = |copy: &Problem, observer: &mut dyn SolveObserver| {
-        solve_with_effects(copy, params, model, observer)
+        if own_model {
+            solve_own_model(copy, params, observer)
+        } else {
+            solve_with_effects(copy, params, model, false, observer)
+        }
     };
     let mut prepared = prepare(problem, params, Some(start), Some(&mut walker), observer)?;
     let initial = prepared.take_depth();

@@ -18,6 +18,7 @@ pub mod fits;
 pub mod holes;
 pub(crate) mod light_frame;
 pub mod material_fit;
+pub(crate) mod memo;
 pub mod method;
 pub mod multigrid;
 pub mod photometric;
@@ -40,5 +41,5 @@ pub use method::{Method, solve, solve_method};
 pub use prepare::{WALK_SIDE, initial_depth_from_image};
 pub use problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveObserver,
+    SolveMemo, SolveObserver,
 };

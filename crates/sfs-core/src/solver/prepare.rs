@@ -142,6 +142,9 @@ impl SolveObserver for WalkLevels<'_> {
     fn is_cancelled(&self) -> bool {
         self.observer.is_cancelled()
     }
+    fn memo(&self) -> Option<std::sync::Arc<super::problem::SolveMemo>> {
+        self.observer.memo()
+    }
 }
 
 impl Prepared<'_> {

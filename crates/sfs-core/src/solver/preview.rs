@@ -38,6 +38,9 @@ impl SolveObserver for Relabel<'_> {
     fn is_cancelled(&self) -> bool {
         self.observer.is_cancelled()
     }
+    fn memo(&self) -> Option<std::sync::Arc<super::problem::SolveMemo>> {
+        self.observer.memo()
+    }
 }
 
 /// Sends the preview of `problem` to `observer` as level 0 of `levels`,

@@ -56,7 +56,7 @@ pub(crate) fn depth_divergence(values: &[f64]) -> Option<String> {
 }
 
 /// What the solver is asked to explain.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Problem {
     /// Linear image values (>= 0, finite).
     pub image: Grid<f64>,
@@ -302,10 +302,58 @@ pub trait SolveObserver: Send + Sync {
     fn is_cancelled(&self) -> bool {
         false
     }
+    /// The store of solved working copies this solve's pipeline shares
+    /// ([`SolveMemo`]); none by default. An observer that wraps another
+    /// passes the other's on.
+    fn memo(&self) -> Option<std::sync::Arc<SolveMemo>> {
+        None
+    }
 }
 
 /// An observer that ignores everything.
 impl SolveObserver for () {}
+
+/// How many solves a [`SolveMemo`] keeps.
+pub const MEMO_ENTRIES: usize = 8;
+
+/// The largest problem (in pixels) a [`SolveMemo`] keeps: the working
+/// copies of 256 px on a side that a photograph's searches, its albedo
+/// decision and its walked start solve.
+pub const MEMO_MAX_PIXELS: usize = 256 * 256;
+
+/// The solves of working copies that one photograph's pipeline shares, so
+/// that a copy solved once at a scale is not solved again: the search of
+/// the depth unit solves a 256 px copy, the full-size solve then walks the
+/// same copy for its start and the albedo decision solves it with albedo 1.
+/// A solve (`solver::driver`) whose observer offers one and whose problem
+/// has at most [`MEMO_MAX_PIXELS`] pixels returns the kept solution of an
+/// equal problem and parameters, its observer hearing the same iterations
+/// and levels again; its time and phases then count no work. Kept for one
+/// pipeline (`depth_unit::solve_photograph`), [`MEMO_ENTRIES`] at most.
+pub struct SolveMemo(
+    pub(crate) super::memo::Memo<(Problem, crate::params::SolverParams), RememberedSolve>,
+);
+
+impl Default for SolveMemo {
+    fn default() -> Self {
+        SolveMemo(super::memo::Memo::new(MEMO_ENTRIES))
+    }
+}
+
+/// A kept solve: what it returned and what its observer heard.
+#[derive(Clone)]
+pub(crate) struct RememberedSolve {
+    pub solution: Solution,
+    pub effects: super::unused::Effects,
+    pub events: Vec<ObserverEvent>,
+}
+
+/// One message a solve sent its observer.
+#[derive(Clone)]
+pub(crate) enum ObserverEvent {
+    Iteration(IterationReport),
+    Level(LevelResult),
+}
 
 impl Problem {
     /// The reflectance model of this problem's lights and intensity scale

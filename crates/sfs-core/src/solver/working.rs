@@ -39,6 +39,9 @@ impl SolveObserver for Forward<'_> {
     fn is_cancelled(&self) -> bool {
         self.0.is_cancelled()
     }
+    fn memo(&self) -> Option<std::sync::Arc<super::problem::SolveMemo>> {
+        self.0.memo()
+    }
 }
 
 /// How well a trial solve explains its image: `sqrt(sum c (I - R)^2 /
