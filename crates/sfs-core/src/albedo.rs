@@ -442,28 +442,83 @@ struct Stencil {
 }
 
 impl Stencil {
-    /// `A v`, each pixel gathering its own links (rows in parallel).
+    /// `(A v)_p` at pixel `p` of row `r`, column `c`: the pixel gathering
+    /// its own links.
+    #[inline(always)]
+    fn row_times(&self, v: &[f64], p: usize, r: usize, c: usize) -> f64 {
+        let w = self.width;
+        let mut sum = self.screen[p] * v[p];
+        if self.right[p] > 0.0 {
+            sum += self.right[p] * (v[p] - v[p + 1]);
+        }
+        if c > 0 && self.right[p - 1] > 0.0 {
+            sum += self.right[p - 1] * (v[p] - v[p - 1]);
+        }
+        if self.down[p] > 0.0 {
+            sum += self.down[p] * (v[p] - v[p + w]);
+        }
+        if r > 0 && self.down[p - w] > 0.0 {
+            sum += self.down[p - w] * (v[p] - v[p - w]);
+        }
+        sum
+    }
+
+    /// `A v` (rows in parallel).
     fn apply(&self, v: &[f64], out: &mut [f64]) {
         let w = self.width;
         out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
             for (c, o) in row.iter_mut().enumerate() {
-                let p = r * w + c;
-                let mut sum = self.screen[p] * v[p];
-                if self.right[p] > 0.0 {
-                    sum += self.right[p] * (v[p] - v[p + 1]);
-                }
-                if c > 0 && self.right[p - 1] > 0.0 {
-                    sum += self.right[p - 1] * (v[p] - v[p - 1]);
-                }
-                if self.down[p] > 0.0 {
-                    sum += self.down[p] * (v[p] - v[p + w]);
-                }
-                if r > 0 && self.down[p - w] > 0.0 {
-                    sum += self.down[p - w] * (v[p] - v[p - w]);
-                }
-                *o = sum;
+                *o = self.row_times(v, r * w + c, r, c);
             }
         });
+    }
+
+    /// One damped Jacobi sweep for `A x = b` into `next` (`x` unread where
+    /// `x_is_zero`: `A 0 = 0`), in one pass over the rows (in parallel).
+    fn jacobi_sweep(
+        &self,
+        (x, x_is_zero): (&[f64], bool),
+        b: &[f64],
+        diagonal: &[f64],
+        next: &mut [f64],
+    ) {
+        let w = self.width;
+        next.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+            for (c, z) in row.iter_mut().enumerate() {
+                let p = r * w + c;
+                let (old, az) = if x_is_zero {
+                    (0.0, 0.0)
+                } else {
+                    (x[p], self.row_times(x, p, r, c))
+                };
+                let d = diagonal[p];
+                *z = if d > 0.0 {
+                    old + JACOBI_DAMPING * (b[p] - az) / d
+                } else {
+                    old
+                };
+            }
+        });
+    }
+
+    /// The residual `b - A x` summed over the 2x2 blocks (coarse rows in
+    /// parallel; each block's four pixels added in row order).
+    fn restricted_residual(&self, x: &[f64], b: &[f64]) -> Vec<f64> {
+        let (w, h) = (self.width, self.height);
+        let cw = w.div_ceil(2);
+        let mut coarse = vec![0.0; cw * h.div_ceil(2)];
+        coarse
+            .par_chunks_mut(cw)
+            .enumerate()
+            .for_each(|(coarse_row, line)| {
+                for r in 2 * coarse_row..(2 * coarse_row + 2).min(h) {
+                    for c in 0..w {
+                        let p = r * w + c;
+                        line[c / 2] += b[p] - self.row_times(x, p, r, c);
+                    }
+                }
+            });
+        coarse
     }
 
     /// The diagonal of `A`.
@@ -581,8 +636,10 @@ struct JacobiLevel<S> {
     /// The right-hand side (the finest level's: the residual to
     /// precondition).
     b: Vec<f64>,
-    /// `A x` and residuals.
+    /// The next sweep's unknowns.
     scratch: Vec<f64>,
+    /// `x` is all zero (set by `zero_unknowns`; a sweep then skips `A x`).
+    x_is_zero: bool,
 }
 
 /// The coarsest level's longest side, pixels.
@@ -613,6 +670,7 @@ impl<S: Borrow<Stencil>> JacobiLevel<S> {
             x: vec![0.0; n],
             b: vec![0.0; n],
             scratch: vec![0.0; n],
+            x_is_zero: true,
         }
     }
 }
@@ -636,31 +694,21 @@ impl<S: Borrow<Stencil>> multigrid::Level for JacobiLevel<S> {
     fn smooth(&mut self, sweeps: usize) {
         let stencil: &Stencil = self.stencil.borrow();
         for _ in 0..sweeps {
-            stencil.apply(&self.x, &mut self.scratch);
-            self.x
-                .par_iter_mut()
-                .zip(
-                    self.scratch
-                        .par_iter()
-                        .zip(self.b.par_iter().zip(self.diagonal.par_iter())),
-                )
-                .for_each(|(z, (az, (r, d)))| {
-                    if *d > 0.0 {
-                        *z += JACOBI_DAMPING * (r - az) / d;
-                    }
-                });
+            stencil.jacobi_sweep(
+                (&self.x, self.x_is_zero),
+                &self.b,
+                &self.diagonal,
+                &mut self.scratch,
+            );
+            std::mem::swap(&mut self.x, &mut self.scratch);
+            self.x_is_zero = false;
         }
     }
 
     /// The residual `b - A x` summed over the 2x2 blocks.
     fn restrict_residual(&mut self, coarse: &mut JacobiLevel<Stencil>) {
         let stencil: &Stencil = self.stencil.borrow();
-        stencil.apply(&self.x, &mut self.scratch);
-        self.scratch
-            .par_iter_mut()
-            .zip(self.b.par_iter())
-            .for_each(|(az, r)| *az = r - *az);
-        coarse.b = stencil.restrict(&self.scratch);
+        coarse.b = stencil.restricted_residual(&self.x, &self.b);
     }
 
     /// Each 2x2 block of `x` raised by [`COARSE_CORRECTION`] times its
@@ -668,10 +716,12 @@ impl<S: Borrow<Stencil>> multigrid::Level for JacobiLevel<S> {
     fn prolong_add(&mut self, coarse: &JacobiLevel<Stencil>) {
         let stencil: &Stencil = self.stencil.borrow();
         stencil.prolong_add(&coarse.x, COARSE_CORRECTION, &mut self.x);
+        self.x_is_zero = false;
     }
 
     fn zero_unknowns(&mut self) {
         self.x.iter_mut().for_each(|v| *v = 0.0);
+        self.x_is_zero = true;
     }
 }
 
