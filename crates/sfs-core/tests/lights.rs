@@ -510,3 +510,63 @@ fn a_distance_the_depth_does_not_follow_ends_the_search() {
     assert!(!fit.converged, "{fit:?}");
     assert!(fit.solves <= 4, "{fit:?}");
 }
+
+/// With `--albedo auto` on a large photograph whose distance is searched,
+/// the albedo is decided at the scale the working copy's search found; an
+/// estimate used as judged is then searched on the divided image from the
+/// scale albedo 1's search corrected the plane's guess to, and albedo 1 is
+/// not solved at the full size at all: every full-size solve the observer
+/// sees is one the fit counts, and the distance is met.
+#[test]
+fn a_used_albedo_estimate_costs_no_full_size_solve_of_albedo_one() {
+    use sfs_core::params::AlbedoChoice;
+    use sfs_core::solver::calibrate::{
+        DistanceTarget, MEDIAN_TOLERANCE, median_depth, solve_meeting,
+    };
+    let side = 520;
+    let lights = [flash_beside_the_lens()];
+    let scene = sombrero_lit(side, side, &lights);
+    // Checkered albedo patches (1 and 0.55, 8 per side).
+    let mut lit = problem(&scene, &lights);
+    let cell = side / 8;
+    lit.image = sfs_core::grid::Grid::from_fn(side, side, |c, r| {
+        let albedo = if (c / cell + r / cell) % 2 == 0 {
+            1.0
+        } else {
+            0.55
+        };
+        albedo * *scene.image.at(c, r)
+    });
+    lit.intensity_scale = 1.0;
+    let distance = median_depth(&scene.depth_gt);
+    let mut full_size = FullSizeSolves::default();
+    let (solution, fit) = solve_meeting(
+        &mut lit,
+        &SolverParams {
+            albedo: AlbedoChoice::Auto,
+            ..SolverParams::default()
+        },
+        &Method::Linearised,
+        &DistanceTarget::Median(distance),
+        &mut full_size,
+    )
+    .expect("solves");
+    let albedo = solution.albedo_fit.as_ref().expect("decided");
+    assert!(albedo.used, "{}", albedo.summary);
+    assert_eq!(full_size.0, fit.solves, "{fit:?}");
+    assert_eq!(fit.solves, 1, "{fit:?}");
+    let met = median_depth(&solution.depth) / distance - 1.0;
+    assert!(met.abs() < MEDIAN_TOLERANCE, "{met}");
+}
+
+/// Counts the solves that end at the full size of a 520 px image.
+#[derive(Default)]
+struct FullSizeSolves(usize);
+
+impl sfs_core::solver::SolveObserver for FullSizeSolves {
+    fn on_level(&mut self, result: &sfs_core::solver::LevelResult) {
+        if result.level + 1 == result.levels && result.geometry.width == 520 {
+            self.0 += 1;
+        }
+    }
+}

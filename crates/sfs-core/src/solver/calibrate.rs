@@ -848,9 +848,11 @@ pub fn solve_with_known_depths(
 /// with the nose known 23.4 to 28.4 at 648 px. Not kept.)
 ///
 /// With `--albedo auto` the albedo is decided once, at the scale the search
-/// found with albedo 1 ([`super::albedo_fit`]); when it is used, the search
-/// runs again on the image divided by it, so every solve of a search
-/// solves one model. When the estimate fitted better at that scale but fell
+/// found with albedo 1 ([`super::albedo_fit`]; on a large image the working
+/// copy's, whose full-size solve is then made only if the estimate is not
+/// used as judged); when it is used, the search runs again on the image
+/// divided by it, starting where albedo 1's search corrected the plane's
+/// guess to, so every solve of a search solves one model. When the estimate fitted better at that scale but fell
 /// short of the margin, it is searched on its own scale too and the two
 /// solutions are compared on the full photograph by the same rule.
 ///
@@ -867,13 +869,30 @@ pub fn solve_meeting(
 ) -> Result<(super::problem::Solution, KnownDepthFit), SolveError> {
     target.check()?;
     let params = &search_params(problem, params, target);
-    let (mut solution, fit) = search_target(problem, params, method, target, observer)?;
+    let copy = search_copy(problem, params, method, target, 1.0, observer);
     if params.albedo != crate::params::AlbedoChoice::Auto {
-        return Ok((solution, fit));
+        return search_full(problem, params, method, target, copy.slope, observer);
     }
+    // The albedo is decided at the scale the search found with albedo 1:
+    // the working copy's where one was searched (a full-size solve at that
+    // scale is only read when the estimate is not used as judged), else
+    // the full size's.
+    let mut first = if copy.ran {
+        None
+    } else {
+        Some(search_full(
+            problem, params, method, target, copy.slope, observer,
+        )?)
+    };
+    let first_solves = first.as_ref().map_or(0, |(_, fit)| fit.solves);
     let (divided, albedo) = super::albedo_fit::apply(problem, params, observer)?;
+    let mut albedo_one =
+        |problem: &mut Problem, observer: &mut dyn SolveObserver| match first.take() {
+            Some(first) => Ok(first),
+            None => search_full(problem, params, method, target, copy.slope, observer),
+        };
     let Some(mut albedo) = albedo else {
-        return Ok((solution, fit));
+        return albedo_one(problem, observer);
     };
     // Judged at albedo 1's scale, an estimate that fitted better but fell
     // short is searched on its own scale too: albedo 1's is the one that
@@ -886,19 +905,40 @@ pub fn solve_meeting(
         None => match albedo.albedo.as_ref().filter(|_| albedo.misfit_ratio < 1.0) {
             Some(estimate) => super::albedo_fit::divide_out(problem, estimate),
             None => {
+                let (mut solution, fit) = albedo_one(problem, observer)?;
                 albedo.restore(&mut solution);
                 return Ok((solution, fit));
             }
         },
     };
-    let (mut again, mut fit_again) = search_target(&mut divided, params, method, target, observer)?;
+    // The divided photograph's search starts where albedo 1's plane guess
+    // was corrected to (the same photograph, the same miss of the plane).
+    let divided_copy = search_copy(
+        &mut divided,
+        params,
+        method,
+        target,
+        copy.over_plane,
+        observer,
+    );
+    let (mut again, mut fit_again) = search_full(
+        &mut divided,
+        params,
+        method,
+        target,
+        divided_copy.slope,
+        observer,
+    )?;
     albedo.multiply_back(divisor, &mut again);
+    let mut solves_one = first_solves;
     if !judged {
+        let (mut solution, fit) = albedo_one(problem, observer)?;
         albedo.decide(super::albedo_fit::misfit_ratio(problem, &solution, &again));
         if !albedo.used {
             albedo.restore(&mut solution);
             return Ok((solution, fit));
         }
+        solves_one = fit.solves;
         albedo.divisor = divisor;
         let (w, h) = problem.image.size();
         albedo.working_side = w.max(h);
@@ -908,17 +948,83 @@ pub fn solve_meeting(
     }
     problem.intensity_scale = divided.intensity_scale * divisor;
     fit_again.intensity_scale = problem.intensity_scale;
-    fit_again.solves += fit.solves;
+    fit_again.solves += solves_one;
     again.albedo_fit = Some(albedo);
     Ok((again, fit_again))
 }
 
-/// [`solve_meeting`] with one model in every solve (albedo 1).
-fn search_target(
+/// Where a search on a working copy left the intensity scale (see
+/// [`search_copy`]).
+#[derive(Clone, Copy, Debug)]
+struct CopySearch {
+    /// The copy was searched (lights off the centre, a large image).
+    ran: bool,
+    /// The slope of log depth over log scale it measured (-1/2 unmeasured).
+    slope: f64,
+    /// The scale it found over the plane's (`plane_ratio`): how far the
+    /// plane's guess missed on this photograph.
+    over_plane: f64,
+}
+
+/// The first part of a search with lights off the centre: the intensity
+/// scale set where a plane at the target's mean depth shows the image's
+/// median brightness (times `over_plane`: what another search of the same
+/// photograph found), then, on an image more than twice
+/// [`KNOWN_DEPTH_SEARCH_SIDE`], to what the search of a working copy finds
+/// (each solve there a fraction of the cost). Centred lights: nothing.
+fn search_copy(
     problem: &mut Problem,
     params: &SolverParams,
     method: &super::method::Method,
     target: &DistanceTarget,
+    over_plane: f64,
+    observer: &mut dyn SolveObserver,
+) -> CopySearch {
+    let mut found = CopySearch {
+        ran: false,
+        slope: -0.5,
+        over_plane: 1.0,
+    };
+    if problem.light_is_centred() {
+        return found;
+    }
+    // With lights off the centre the depth is metric.
+    let plane = plane_ratio(problem, target.mean_depth()).filter(|s| s.is_finite() && *s > 0.0);
+    if let Some(s) = plane {
+        problem.intensity_scale = s * over_plane;
+    }
+    let (w, h) = problem.image.size();
+    if w.max(h) > 2 * KNOWN_DEPTH_SEARCH_SIDE {
+        let mut copy = working_copy(problem, KNOWN_DEPTH_SEARCH_SIDE);
+        let scaled = target.at_size((w, h), copy.image.size());
+        if let Ok((search, _, measured)) = search_scale(
+            &mut copy,
+            &params.without_fit(),
+            method,
+            &scaled,
+            (KNOWN_DEPTH_SOLVES, target.tolerance()),
+            found.slope,
+            &mut Forward(observer),
+        ) {
+            problem.intensity_scale = search.intensity_scale;
+            found = CopySearch {
+                ran: true,
+                slope: measured,
+                over_plane: plane.map_or(1.0, |s| search.intensity_scale / s),
+            };
+        }
+    }
+    found
+}
+
+/// The search at the full size from the problem's intensity scale (after
+/// [`search_copy`], with the slope it measured), and its fit to the target.
+fn search_full(
+    problem: &mut Problem,
+    params: &SolverParams,
+    method: &super::method::Method,
+    target: &DistanceTarget,
+    slope: f64,
     observer: &mut dyn SolveObserver,
 ) -> Result<(super::problem::Solution, KnownDepthFit), SolveError> {
     // `auto` searches as Lambert (what it stands for: the fit only
@@ -927,35 +1033,6 @@ fn search_target(
     let auto = params.fixed_material().is_none();
     let user_params = params;
     let params = &resolved;
-    let mut slope = -0.5;
-    if !problem.light_is_centred() {
-        // With lights off the centre the depth is metric: the search starts
-        // from the scale at which a plane at the target's mean depth shows
-        // the image's median brightness, and on a large image first runs
-        // on a working copy (each solve there a fraction of the cost).
-        if let Some(s) =
-            plane_ratio(problem, target.mean_depth()).filter(|s| s.is_finite() && *s > 0.0)
-        {
-            problem.intensity_scale = s;
-        }
-        let (w, h) = problem.image.size();
-        if w.max(h) > 2 * KNOWN_DEPTH_SEARCH_SIDE {
-            let mut copy = working_copy(problem, KNOWN_DEPTH_SEARCH_SIDE);
-            let scaled = target.at_size((w, h), copy.image.size());
-            if let Ok((search, _, measured)) = search_scale(
-                &mut copy,
-                params,
-                method,
-                &scaled,
-                (KNOWN_DEPTH_SOLVES, target.tolerance()),
-                slope,
-                &mut Forward(observer),
-            ) {
-                problem.intensity_scale = search.intensity_scale;
-                slope = measured;
-            }
-        }
-    }
     let (search, mut solution) = if problem.light_is_centred() {
         let mut solution = super::method::solve_method(problem, params, method, observer)?;
         let mut solves = 1;
