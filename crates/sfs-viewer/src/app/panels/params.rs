@@ -134,9 +134,9 @@ impl Panels {
             ui.label("start")
                 .on_hover_text("Initial depth: fast marching refined at full resolution (default), the paper's constant depth from the brightest pixel, or a constant, each followed by the solver. With lights off the optical centre fast marching runs in the lights' own frame (within 20 degrees of the camera and a third of the way to the object), else from the best-fitting plane; the paper's start is that plane");
             ui.selectable_value(initial, InitialChoice::FastMarching, fast_marching.0)
-                .on_hover_text(fast_marching.1);
+                .on_hover_text(fast_marching.1.as_str());
             ui.selectable_value(initial, InitialChoice::FromImage, from_image.0)
-                .on_hover_text(from_image.1);
+                .on_hover_text(from_image.1.as_str());
             if ui
                 .selectable_label(matches!(initial, InitialChoice::Constant(_)), "constant")
                 .clicked()
@@ -178,25 +178,31 @@ impl Panels {
 /// degrees of the camera (seen from the object), else the solver starts
 /// from the best-fitting plane (`sfs_core::solver::prepare`); the paper's
 /// start from the image is then that plane; the labels say so.
-fn start_labels(lights_off_centre: bool) -> [(&'static str, &'static str); 2] {
+fn start_labels(lights_off_centre: bool) -> [(&'static str, String); 2] {
     if lights_off_centre {
         [
             (
                 "fast marching (in the lights' frame)",
-                "Fast marching solves the light at the optical centre: with these lights it is \
-                 marched in their own frame (a camera at the lights, where they are centred) \
-                 and refined by the solver at full resolution. Lights more than 20 degrees off \
-                 the camera, seen from the object, or more than a third of the way to it, start \
-                 from the constant depth \
-                 (fronto-parallel plane) whose rendering best fits the image, refined through \
-                 the whole pyramid.",
+                format!(
+                    "Fast marching solves the light at the optical centre: with these lights it \
+                     is marched in their own frame (a camera at the lights, where they are \
+                     centred) and refined by the solver at full resolution. Lights more than 20 \
+                     degrees off the camera, seen from the object, or more than a third of the \
+                     way to it, start from the constant depth (fronto-parallel plane) whose \
+                     rendering best fits the image, refined through the whole pyramid: on an \
+                     image more than {} pixels on a side, the pyramid of a {}-pixel working copy, \
+                     whose surface is then refined at full resolution.",
+                    2 * sfs_core::solver::WALK_SIDE,
+                    sfs_core::solver::WALK_SIDE
+                ),
             ),
             (
                 "from image (lights off the centre: best-fitting plane)",
                 "The paper's constant from the brightest pixel assumes the light at the optical \
                  centre. With these lights the solver starts from the constant depth \
                  (fronto-parallel plane) whose rendering best fits the image, refined through \
-                 the whole pyramid.",
+                 the whole pyramid."
+                    .into(),
             ),
         ]
     } else {
@@ -204,12 +210,14 @@ fn start_labels(lights_off_centre: bool) -> [(&'static str, &'static str); 2] {
             (
                 "fast marching",
                 "Fast marching on the (denoised) image, refined by the solver at full \
-                 resolution (the default).",
+                 resolution (the default)."
+                    .into(),
             ),
             (
                 "from image",
                 "The paper's start: a constant depth from the brightest pixel, refined through \
-                 the whole pyramid.",
+                 the whole pyramid."
+                    .into(),
             ),
         ]
     }
