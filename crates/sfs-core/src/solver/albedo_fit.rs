@@ -52,13 +52,14 @@ use std::time::Instant;
 
 use super::problem::{Problem, SATURATED, Solution, SolveError, SolveObserver};
 use super::pyramid::{bilinear_taps, map_coordinate};
-use super::working::{Forward, working_copy};
+use super::working::{CancelOnly, Forward, working_copy};
 use crate::albedo::{self, EdgePrior, EdgeRule};
 use crate::albedo_chain::{CHAIN_WINDOW_SHARE, MIN_WINDOW_PX};
 use crate::albedo_texture::{TextureSummary, texture_albedo};
 use crate::cancel::Cancel;
 use crate::grid::Grid;
 use crate::params::{AlbedoChoice, SolverParams};
+use rayon::prelude::*;
 
 /// Longest side of the working copy both explanations are solved on.
 pub const GATE_SIDE: usize = 256;
@@ -248,19 +249,31 @@ pub fn apply(
     // its own bar (its misfit ratio below 1 - max(MIN_GAIN, noise share))
     // by the most is decided on, the plain steps on a tie.
     let mut best: Option<(f64, f64, f64, usize, Evidence)> = None;
-    for (k, c) in candidates.iter().enumerate() {
-        if c.edge_pairs == 0 {
+    // Each candidate's solve of its working copy is independent and small:
+    // solved side by side, then scored in order.
+    let shared: &dyn SolveObserver = &*observer;
+    let scored = candidates
+        .par_iter()
+        .map(|c| {
+            if c.edge_pairs == 0 {
+                return Ok(None);
+            }
+            misfits(
+                &plain,
+                &one,
+                &c.divided,
+                &c.estimate.albedo,
+                c.divisor,
+                &one_params,
+                &mut CancelOnly(shared),
+            )
+            .map(Some)
+        })
+        .collect::<Result<Vec<_>, SolveError>>()?;
+    for (k, (c, misfits)) in candidates.iter().zip(scored).enumerate() {
+        let Some(misfits) = misfits else {
             continue;
-        }
-        let misfits = misfits(
-            &plain,
-            &one,
-            &c.divided,
-            &c.estimate.albedo,
-            c.divisor,
-            &one_params,
-            observer,
-        )?;
+        };
         let (ratio, noise_share) = if misfits.one > 0.0 {
             (misfits.with / misfits.one, c.noise_misfit / misfits.one)
         } else {

@@ -9,13 +9,14 @@
 //! image best, on a small working copy of the problem.
 
 use glam::DVec3;
+use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::grid::Grid;
 use crate::params::SolverParams;
 
 use super::problem::{Problem, SolveError, SolveObserver};
-use super::working::{Forward, relative_residual, working_copy};
+use super::working::{CancelOnly, Forward, relative_residual, working_copy};
 
 /// Longest side of the working copy the scale is searched on.
 pub const SEARCH_SIDE: usize = 128;
@@ -131,6 +132,41 @@ pub fn estimate_intensity_scale(
     let nearest = super::plane_start::nearest_object_depth(&problem.lights).max(0.5 * reach);
     let (lo, hi) = (nearest.ln(), (20.0 * reach).ln());
     let mut trials = Vec::new();
+    let steps = 9;
+    let step = (hi - lo) / (steps - 1) as f64;
+    // The grid's trials are independent: solved side by side (each a small
+    // solve that leaves a core idle), then read in order.
+    let shared: &dyn SolveObserver = &*observer;
+    let grid = (0..steps)
+        .into_par_iter()
+        .map(|k| {
+            let log_z = lo + k as f64 * step;
+            let mut copy = work.clone();
+            let Some(s) = plane_ratio(&copy, log_z.exp()) else {
+                return Ok((log_z, None));
+            };
+            copy.intensity_scale = s;
+            let (residual, depth) = trial(&copy, params, &mut CancelOnly(shared))?;
+            Ok((log_z, Some((s, depth, residual))))
+        })
+        .collect::<Result<Vec<_>, SolveError>>()?;
+    let mut best = (lo, f64::INFINITY, 0usize);
+    for (k, (log_z, found)) in grid.into_iter().enumerate() {
+        let value = match found {
+            None => f64::INFINITY,
+            Some((s, depth, residual)) => {
+                trials.push((s, depth, residual));
+                if residual.is_finite() {
+                    residual
+                } else {
+                    f64::INFINITY
+                }
+            }
+        };
+        if value < best.1 {
+            best = (log_z, value, k);
+        }
+    }
     let mut evaluate = |log_z: f64, trials: &mut Vec<(f64, f64, f64)>| -> Result<f64, SolveError> {
         let Some(s) = plane_ratio(&work, log_z.exp()) else {
             return Ok(f64::INFINITY);
@@ -144,16 +180,6 @@ pub fn estimate_intensity_scale(
             f64::INFINITY
         })
     };
-    let steps = 9;
-    let step = (hi - lo) / (steps - 1) as f64;
-    let mut best = (lo, f64::INFINITY, 0usize);
-    for k in 0..steps {
-        let log_z = lo + k as f64 * step;
-        let value = evaluate(log_z, &mut trials)?;
-        if value < best.1 {
-            best = (log_z, value, k);
-        }
-    }
     let (mut a, mut b) = (best.0 - step, best.0 + step);
     let ratio = (5f64.sqrt() - 1.0) / 2.0;
     let (mut m1, mut m2) = (b - ratio * (b - a), a + ratio * (b - a));

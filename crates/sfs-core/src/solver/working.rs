@@ -44,6 +44,16 @@ impl SolveObserver for Forward<'_> {
     }
 }
 
+/// Passes cancellation through from an observer shared between solves run
+/// side by side, nothing else (no memo: such trials are not repeated).
+pub(crate) struct CancelOnly<'a>(pub(crate) &'a dyn SolveObserver);
+
+impl SolveObserver for CancelOnly<'_> {
+    fn is_cancelled(&self) -> bool {
+        self.0.is_cancelled()
+    }
+}
+
 /// How well a trial solve explains its image: `sqrt(sum c (I - R)^2 /
 /// sum c I^2)` over the solved pixels (finite depth), `c` the confidence.
 pub(crate) fn relative_residual(problem: &Problem, solution: &super::problem::Solution) -> f64 {
