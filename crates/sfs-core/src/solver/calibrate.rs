@@ -78,14 +78,25 @@ fn plane_ratio(problem: &Problem, depth: f64) -> Option<f64> {
     Some(*ratios.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
-/// Relative residual `sqrt(sum c (I - R)^2 / sum c I^2)` of a solve, and its
-/// median depth.
-fn trial(
-    problem: &Problem,
+/// A trial solve of `work` at the intensity scale that shows a plane at
+/// depth `exp(log_z)` with the image's median brightness: `(s, median
+/// depth, relative residual sqrt(sum c (I - R)^2 / sum c I^2))`; `None`
+/// where no pixel gives that scale. It hears only `observer`'s
+/// cancellation (a trial is never solved twice: not kept in the memo).
+fn trial_at(
+    work: &Problem,
+    log_z: f64,
     params: &SolverParams,
-    observer: &mut dyn SolveObserver,
-) -> Result<(f64, f64), SolveError> {
-    let solution = super::method::solve(problem, params, &mut Forward(observer))?;
+    observer: &dyn SolveObserver,
+) -> Result<Option<(f64, f64, f64)>, SolveError> {
+    let Some(s) = plane_ratio(work, log_z.exp()) else {
+        return Ok(None);
+    };
+    let scaled = Problem {
+        intensity_scale: s,
+        ..work.clone()
+    };
+    let solution = super::method::solve(&scaled, params, &mut CancelOnly(observer))?;
     let mut depths = solution.depth.finite_values();
     let middle = depths.len() / 2;
     let depth = if depths.is_empty() {
@@ -93,7 +104,7 @@ fn trial(
     } else {
         *depths.select_nth_unstable_by(middle, f64::total_cmp).1
     };
-    Ok((relative_residual(problem, &solution), depth))
+    Ok(Some((s, depth, relative_residual(&scaled, &solution))))
 }
 
 /// Estimates `s` for a problem whose lights are off the optical centre (see
@@ -123,7 +134,7 @@ pub fn estimate_intensity_scale(
                 .into(),
         ));
     }
-    let mut work = small(problem);
+    let work = small(problem);
     let reach = problem
         .lights
         .iter()
@@ -132,6 +143,19 @@ pub fn estimate_intensity_scale(
     let nearest = super::plane_start::nearest_object_depth(&problem.lights).max(0.5 * reach);
     let (lo, hi) = (nearest.ln(), (20.0 * reach).ln());
     let mut trials = Vec::new();
+    // Each trial is kept; its value is its residual (infinite where there
+    // is none).
+    let keep = |found: Option<(f64, f64, f64)>, trials: &mut Vec<(f64, f64, f64)>| match found {
+        None => f64::INFINITY,
+        Some(trial) => {
+            trials.push(trial);
+            if trial.2.is_finite() {
+                trial.2
+            } else {
+                f64::INFINITY
+            }
+        }
+    };
     let steps = 9;
     let step = (hi - lo) / (steps - 1) as f64;
     // The grid's trials are independent: solved side by side (each a small
@@ -141,44 +165,18 @@ pub fn estimate_intensity_scale(
         .into_par_iter()
         .map(|k| {
             let log_z = lo + k as f64 * step;
-            let mut copy = work.clone();
-            let Some(s) = plane_ratio(&copy, log_z.exp()) else {
-                return Ok((log_z, None));
-            };
-            copy.intensity_scale = s;
-            let (residual, depth) = trial(&copy, params, &mut CancelOnly(shared))?;
-            Ok((log_z, Some((s, depth, residual))))
+            Ok((log_z, trial_at(&work, log_z, params, shared)?))
         })
         .collect::<Result<Vec<_>, SolveError>>()?;
     let mut best = (lo, f64::INFINITY, 0usize);
     for (k, (log_z, found)) in grid.into_iter().enumerate() {
-        let value = match found {
-            None => f64::INFINITY,
-            Some((s, depth, residual)) => {
-                trials.push((s, depth, residual));
-                if residual.is_finite() {
-                    residual
-                } else {
-                    f64::INFINITY
-                }
-            }
-        };
+        let value = keep(found, &mut trials);
         if value < best.1 {
             best = (log_z, value, k);
         }
     }
-    let mut evaluate = |log_z: f64, trials: &mut Vec<(f64, f64, f64)>| -> Result<f64, SolveError> {
-        let Some(s) = plane_ratio(&work, log_z.exp()) else {
-            return Ok(f64::INFINITY);
-        };
-        work.intensity_scale = s;
-        let (residual, depth) = trial(&work, params, observer)?;
-        trials.push((s, depth, residual));
-        Ok(if residual.is_finite() {
-            residual
-        } else {
-            f64::INFINITY
-        })
+    let evaluate = |log_z: f64, trials: &mut Vec<(f64, f64, f64)>| -> Result<f64, SolveError> {
+        Ok(keep(trial_at(&work, log_z, params, shared)?, trials))
     };
     let (mut a, mut b) = (best.0 - step, best.0 + step);
     let ratio = (5f64.sqrt() - 1.0) / 2.0;

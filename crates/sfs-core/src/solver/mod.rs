@@ -38,7 +38,7 @@ pub use driver::solve_with_model;
 pub use explicit::{ExplicitParams, solve_explicit};
 pub use fast_marching::{FastMarchingParams, solve_fast_marching};
 pub use method::{Method, solve, solve_method};
-pub use prepare::{WALK_SIDE, initial_depth_from_image};
+pub use prepare::{WALK_ABOVE_SIDE, WALK_SIDE, initial_depth_from_image};
 pub use problem::{
     IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
     SolveMemo, SolveObserver,

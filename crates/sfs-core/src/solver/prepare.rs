@@ -92,6 +92,10 @@ pub(crate) struct Prepared<'a> {
 /// the whole pyramid.
 pub const WALK_SIDE: usize = 256;
 
+/// The longest image side above which the walk runs on a copy of
+/// [`WALK_SIDE`] (twice it: below, the copy would save little).
+pub const WALK_ABOVE_SIDE: usize = 2 * WALK_SIDE;
+
 /// What the working copy's walk ran, carried into the solve's report.
 pub(crate) struct WalkedStart {
     /// The copy's levels, coarsest first.
@@ -181,7 +185,7 @@ impl Crop {
 /// `start`).
 ///
 /// With `walker` (a scheme that can solve a working copy), where the
-/// default start cannot march a photograph more than twice [`WALK_SIDE`],
+/// default start cannot march a photograph more than [`WALK_ABOVE_SIDE`] on a side,
 /// the start is `walker`'s solve of a working copy, its levels shown to
 /// `observer` as the solve's first.
 pub(crate) fn prepare<'a>(
@@ -278,7 +282,7 @@ pub(crate) fn prepare<'a>(
         InitialDepth::FastMarching => !fast_marching_start_wanted,
         InitialDepth::Walk => true,
         _ => false,
-    } && w.max(h) > 2 * WALK_SIDE;
+    } && w.max(h) > WALK_ABOVE_SIDE;
     let (walked, walked_depth) = match walker {
         Some(walker) if walk_wanted => {
             let copy = super::working::working_copy(problem, WALK_SIDE);

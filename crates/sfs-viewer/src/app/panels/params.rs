@@ -192,7 +192,7 @@ fn start_labels(lights_off_centre: bool) -> [(&'static str, String); 2] {
                      rendering best fits the image, refined through the whole pyramid: on an \
                      image more than {} pixels on a side, the pyramid of a {}-pixel working copy, \
                      whose surface is then refined at full resolution.",
-                    2 * sfs_core::solver::WALK_SIDE,
+                    sfs_core::solver::WALK_ABOVE_SIDE,
                     sfs_core::solver::WALK_SIDE
                 ),
             ),
