@@ -755,6 +755,7 @@ fn conjugate_gradients(
             before_test: false,
         },
         rz_guard: cg::RzGuard::AfterPreconditioning,
+        beta: cg::Beta::FletcherReeves,
     };
     cg::solve(
         x,

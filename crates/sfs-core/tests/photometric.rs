@@ -95,6 +95,9 @@ fn eight_leds_recover_shape_and_albedo() {
     assert!(normals < 3.0, "mean normal error {normals} deg");
     assert!(rse < 0.005, "RSE {rse}");
     assert!(albedo < 0.05, "albedo error {albedo}");
+    // Every linearisation's linear solve met its tolerance.
+    assert!(solution.linear.solves > 0);
+    assert_eq!(solution.linear.capped, 0, "{:?}", solution.linear);
     // The albedo's patches come back as patches, not as shading: the ratio
     // of the two albedos on either side of a patch edge is the truth's.
     assert!(solution.albedo.as_slice().iter().any(|a| a.is_finite()));

@@ -1,14 +1,16 @@
 //! The one preconditioned conjugate-gradient routine of the crate
 //! ([`solve`]), used by the albedo integration (`crate::albedo`, a
 //! multigrid V-cycle as preconditioner), the thin-plate hole fill
-//! (`solver::holes`) and the photometric linear systems
-//! (`solver::photometric::linear`, both Jacobi-preconditioned).
+//! (`solver::holes`, Jacobi-preconditioned) and the photometric linear
+//! systems (`solver::photometric::linear`, a multigrid V-cycle of their
+//! rows, in the flexible form of [`Beta::PolakRibiere`]).
 //!
 //! Each caller keeps its own rules, which are parameters here
 //! ([`Settings`]): how dot products are summed ([`Summation`]), which
 //! residual norm stops the iteration, against what and when ([`Stop`]), how
 //! often cancellation is polled and where ([`CancelPoll`]), and what a
-//! non-positive `r . z` does ([`RzGuard`]). The floating-point operations
+//! non-positive `r . z` does ([`RzGuard`]), how the next direction is
+//! formed ([`Beta`]). The floating-point operations
 //! and their order are the same as each caller's own loop had, so results
 //! are the same to the bit. Uses `cancel` only.
 
@@ -113,6 +115,18 @@ pub(crate) enum RzGuard {
     BeforeStep,
 }
 
+/// How the next direction is formed from the new preconditioned residual.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Beta {
+    /// `beta = r' . z' / r . z` (Fletcher-Reeves): the classical
+    /// conjugate gradients, for a fixed symmetric preconditioner.
+    FletcherReeves,
+    /// `beta = (r' - r) . z' / r . z` (Polak-Ribiere): flexible conjugate
+    /// gradients, robust to a preconditioner that is not exactly symmetric
+    /// (a multigrid cycle with Gauss-Seidel smoothing).
+    PolakRibiere,
+}
+
 /// The rules of one caller's iteration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Settings {
@@ -126,6 +140,8 @@ pub(crate) struct Settings {
     pub cancel_poll: CancelPoll,
     /// What a non-positive `r . z` does.
     pub rz_guard: RzGuard,
+    /// How the next direction is formed.
+    pub beta: Beta,
 }
 
 /// Solves `A x = b` by preconditioned conjugate gradients from `x`, given
@@ -164,6 +180,10 @@ pub(crate) fn solve(
     let poll = settings.cancel_poll;
     let every = poll.every.max(1);
     let mut ad = vec![0.0; n];
+    let mut previous_r = match settings.beta {
+        Beta::FletcherReeves => Vec::new(),
+        Beta::PolakRibiere => vec![0.0; n],
+    };
     for iteration in 0..settings.max_iterations {
         let due = iteration % every == 0;
         if due && poll.before_test {
@@ -186,6 +206,9 @@ pub(crate) fn solve(
             return Ok(iteration);
         }
         let step = rz / curvature;
+        if settings.beta == Beta::PolakRibiere {
+            previous_r.copy_from_slice(&r);
+        }
         x.par_iter_mut()
             .with_min_len(PARALLEL_MIN_LEN)
             .zip(r.par_iter_mut())
@@ -206,7 +229,10 @@ pub(crate) fn solve(
         {
             return Ok(iteration + 1);
         }
-        let beta = rz_next / rz;
+        let beta = match settings.beta {
+            Beta::FletcherReeves => rz_next / rz,
+            Beta::PolakRibiere => (rz_next - dot(&previous_r, &z)) / rz,
+        };
         rz = rz_next;
         d.par_iter_mut()
             .with_min_len(PARALLEL_MIN_LEN)

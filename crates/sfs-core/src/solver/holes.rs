@@ -317,6 +317,7 @@ fn conjugate_gradients(
             before_test: true,
         },
         rz_guard: cg::RzGuard::BeforeStep,
+        beta: cg::Beta::FletcherReeves,
     };
     let mut x: Vec<f64> = unknown.iter().map(|&q| depth.as_slice()[q]).collect();
     let result = cg::solve(&mut x, residual, apply, precondition, &settings, cancel);

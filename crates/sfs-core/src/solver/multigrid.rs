@@ -99,6 +99,17 @@ impl Axis {
     }
 }
 
+/// How a Gauss-Seidel update sums a row's 24 neighbour terms.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Summing {
+    /// One chain in stencil order (the depth solve's levels: their bits).
+    InOrder,
+    /// A chain per stencil row, the five added in order: the same terms
+    /// with five times the instruction-level parallelism
+    /// ([`RowsCycle`]'s levels).
+    ByRows,
+}
+
 /// One coarse level: its Galerkin operator and vectors.
 pub(crate) struct CoarseLevel {
     width: usize,
@@ -116,6 +127,8 @@ pub(crate) struct CoarseLevel {
     /// The axes from the level above (finer) to this one.
     x_axis: Axis,
     y_axis: Axis,
+    /// How Gauss-Seidel sums (the levels below inherit it).
+    summing: Summing,
 }
 
 impl CoarseLevel {
@@ -192,21 +205,117 @@ impl Multigrid {
     }
 }
 
+/// One V-cycle from zero as a preconditioner (`z = M^-1 r`) of a
+/// symmetric system given by its rows: a 5x5 stencil per pixel (`None`:
+/// not solved for). The rows are kept in f32 as the finest level of the
+/// Galerkin hierarchy below them, smoothed by the same band red-black
+/// Gauss-Seidel as the coarse levels. Used by the photometric-stereo steps
+/// (`solver::photometric::linear`), whose Jacobi preconditioner left the
+/// smooth error of a 1296 px face to hundreds of iterations.
+pub(crate) struct RowsCycle {
+    fine: CoarseLevel,
+    hierarchy: Hierarchy<CoarseLevel>,
+    sweeps: Sweeps,
+}
+
+impl RowsCycle {
+    /// The hierarchy of the `width x height` system whose rows `rows`
+    /// gives, with `smoothing` sweeps before and after each coarse
+    /// correction. (Keeping one solve's storage for the next of its level
+    /// saved little time and raised the face set's peak memory by 13 %.)
+    pub(crate) fn build<F>(width: usize, height: usize, rows: F, smoothing: usize) -> Self
+    where
+        F: Fn(usize, usize) -> Option<[f32; 25]> + Sync,
+    {
+        let mut coefficients = vec![0.0f32; 25 * width * height];
+        let mut inverse_diagonal = vec![0.0f32; width * height];
+        let rows_per_task = (2048 / width.max(1)).max(1);
+        coefficients
+            .par_chunks_mut(25 * width.max(1))
+            .zip(inverse_diagonal.par_chunks_mut(width.max(1)))
+            .with_min_len(rows_per_task)
+            .enumerate()
+            .for_each(|(row, (out, inverse_out))| {
+                for column in 0..width {
+                    // Rows that are not solved for stay 0.
+                    if let Some(a) = rows(column, row)
+                        && a[12] > 0.0
+                        && (1.0 / a[12]).is_finite()
+                    {
+                        out[25 * column..25 * (column + 1)].copy_from_slice(&a);
+                        inverse_out[column] = 1.0 / a[12];
+                    }
+                }
+            });
+        // The finest level has no level above it: no transfers of its own.
+        let none = || Axis {
+            parents: Vec::new(),
+            children: Vec::new(),
+        };
+        let fine = level_from_rows(
+            width,
+            height,
+            coefficients,
+            inverse_diagonal,
+            (none(), none()),
+            Summing::ByRows,
+        );
+        let hierarchy = Hierarchy::build(&fine);
+        Self {
+            fine,
+            hierarchy,
+            sweeps: Sweeps {
+                smoothing: smoothing.max(1),
+                coarsest: COARSEST_SWEEPS,
+            },
+        }
+    }
+
+    /// `z = M^-1 r`: one V-cycle from zero on `r` (0 at pixels not solved
+    /// for). `r` and `z` are row-major over the system's pixels.
+    pub(crate) fn apply(&mut self, r: &[f64], z: &mut [f64]) {
+        let fine = &mut self.fine;
+        for ((b, &r), &inverse) in fine.b.iter_mut().zip(r).zip(&fine.inverse_diagonal) {
+            *b = if inverse == 0.0 { 0.0 } else { r as f32 };
+        }
+        multigrid::Level::zero_unknowns(fine);
+        self.hierarchy.cycle(fine, self.sweeps);
+        let (w, pw) = (fine.width, fine.padded_width());
+        z.par_chunks_mut(w.max(1))
+            .enumerate()
+            .for_each(|(row, out)| {
+                let line = &fine.x[(row + HALO) * pw + HALO..(row + HALO) * pw + HALO + w];
+                for ((z, &x), &inverse) in out
+                    .iter_mut()
+                    .zip(line)
+                    .zip(&fine.inverse_diagonal[row * w..(row + 1) * w])
+                {
+                    *z = if inverse == 0.0 { 0.0 } else { f64::from(x) };
+                }
+            });
+    }
+}
+
 /// The next coarser level below a `w x h` one whose rows `stencil` gives,
 /// or None when a side would fall below [`COARSEST_SIDE`].
-fn coarser<F>(w: usize, h: usize, stencil: F) -> Option<CoarseLevel>
+fn coarser<F>(w: usize, h: usize, stencil: F, summing: Summing) -> Option<CoarseLevel>
 where
     F: Fn(usize, usize) -> Option<[f32; 25]> + Sync,
 {
     (w.div_ceil(2) >= COARSEST_SIDE && h.div_ceil(2) >= COARSEST_SIDE)
-        .then(|| galerkin(w, h, stencil, Axis::new(w), Axis::new(h)))
+        .then(|| galerkin(w, h, stencil, (Axis::new(w), Axis::new(h)), summing))
 }
 
 impl Coarsen for LinearSystem {
     type Coarse = CoarseLevel;
 
     fn coarsen(&self) -> Option<CoarseLevel> {
-        coarser(self.width, self.height, |c, r| self.stencil(c, r))
+        coarser(
+            self.width,
+            self.height,
+            |c, r| self.stencil(c, r),
+            Summing::InOrder,
+        )
     }
 }
 
@@ -214,7 +323,12 @@ impl Coarsen for CoarseLevel {
     type Coarse = CoarseLevel;
 
     fn coarsen(&self) -> Option<CoarseLevel> {
-        coarser(self.width, self.height, |c, r| self.stencil_at(c, r))
+        coarser(
+            self.width,
+            self.height,
+            |c, r| self.stencil_at(c, r),
+            self.summing,
+        )
     }
 }
 
@@ -295,7 +409,13 @@ fn weighted(pairs: &[(usize, f32)]) -> impl Iterator<Item = (usize, f32)> + '_ {
 
 /// The Galerkin operator `P^T A P` of a `w x h` level whose rows `stencil`
 /// gives (None: not solved for), on the grid the axes coarsen to.
-fn galerkin<F>(w: usize, h: usize, stencil: F, x_axis: Axis, y_axis: Axis) -> CoarseLevel
+fn galerkin<F>(
+    w: usize,
+    h: usize,
+    stencil: F,
+    (x_axis, y_axis): (Axis, Axis),
+    summing: Summing,
+) -> CoarseLevel
 where
     F: Fn(usize, usize) -> Option<[f32; 25]> + Sync,
 {
@@ -345,8 +465,29 @@ where
                 }
             }
         });
-    // Couplings to pixels that are not solved for are dropped, so that the
-    // coarse stencil reads only unknowns it may use.
+    level_from_rows(
+        wc,
+        hc,
+        coefficients,
+        inverse_diagonal,
+        (x_axis, y_axis),
+        summing,
+    )
+}
+
+/// A `wc x hc` level from its rows (25 per pixel) and inverse diagonal (0:
+/// not solved for), with the transfers from the level above and its way of
+/// summing. Couplings to
+/// pixels that are not solved for are dropped, so that the stencil reads
+/// only unknowns it may use.
+fn level_from_rows(
+    wc: usize,
+    hc: usize,
+    mut coefficients: Vec<f32>,
+    inverse_diagonal: Vec<f32>,
+    (x_axis, y_axis): (Axis, Axis),
+    summing: Summing,
+) -> CoarseLevel {
     for q in 0..wc * hc {
         if inverse_diagonal[q] == 0.0 {
             continue;
@@ -375,6 +516,7 @@ where
         r: vec![0.0; wc * hc],
         x_axis,
         y_axis,
+        summing,
     }
 }
 
@@ -492,6 +634,7 @@ fn gauss_seidel(level: &mut CoarseLevel) {
         &level.inverse_diagonal[..],
         &level.b[..],
     );
+    let summing = level.summing;
     let bands = sor::bands(h);
     assert!(len >= (h + 2 * HALO) * pw && stencil.len() >= 25 * w * h);
     let sweep_band = |rows: std::ops::Range<usize>| {
@@ -513,13 +656,34 @@ fn gauss_seidel(level: &mut CoarseLevel) {
                 // apart (the stencil's reach), so no value one task writes is
                 // read or written by another running task.
                 unsafe {
-                    let mut sum = 0.0f32;
-                    for (k, &coefficient) in a.iter().enumerate() {
-                        if k != 12 {
-                            let i = (row + k / 5) * pw + column + k % 5;
-                            sum += coefficient * *x.add(i);
+                    let sum = match summing {
+                        Summing::InOrder => {
+                            let mut sum = 0.0f32;
+                            for (k, &coefficient) in a.iter().enumerate() {
+                                if k != 12 {
+                                    let i = (row + k / 5) * pw + column + k % 5;
+                                    sum += coefficient * *x.add(i);
+                                }
+                            }
+                            sum
                         }
-                    }
+                        Summing::ByRows => {
+                            let at = |dy: usize, dx: usize| *x.add((row + dy) * pw + column + dx);
+                            let line = |dy: usize| {
+                                let a = &a[5 * dy..5 * dy + 5];
+                                a[0] * at(dy, 0)
+                                    + a[1] * at(dy, 1)
+                                    + a[2] * at(dy, 2)
+                                    + a[3] * at(dy, 3)
+                                    + a[4] * at(dy, 4)
+                            };
+                            let middle = a[10] * at(2, 0)
+                                + a[11] * at(2, 1)
+                                + a[13] * at(2, 3)
+                                + a[14] * at(2, 4);
+                            line(0) + line(1) + middle + line(3) + line(4)
+                        }
+                    };
                     *x.add(centre) = inv * (b[q] - sum);
                 }
             }
@@ -677,5 +841,100 @@ mod tests {
         // f32 unknowns bound the attainable relative residual near 1e-6.
         let reduction = residual(&s) / r0;
         assert!(reduction < 1e-4, "after 40 cycles {reduction}");
+    }
+
+    /// `A v` from a system's 5x5 rows (0 where not solved for).
+    fn apply_rows(rows: &[Option<[f32; 25]>], w: usize, h: usize, v: &[f64], out: &mut [f64]) {
+        for (p, out) in out.iter_mut().enumerate() {
+            let Some(a) = rows[p] else {
+                *out = 0.0;
+                continue;
+            };
+            let (c, r) = ((p % w) as isize, (p / w) as isize);
+            let mut sum = 0.0;
+            for (k, &value) in a.iter().enumerate() {
+                let (cc, rr) = (c + (k % 5) as isize - 2, r + (k / 5) as isize - 2);
+                if value != 0.0 && cc >= 0 && rr >= 0 && (cc as usize) < w && (rr as usize) < h {
+                    sum += f64::from(value) * v[rr as usize * w + cc as usize];
+                }
+            }
+            *out = sum;
+        }
+    }
+
+    /// Conjugate gradients to `1e-6` on the disc system's rows, with one
+    /// `RowsCycle` or the diagonal as preconditioner: iterations taken.
+    fn cg_iterations(w: usize, h: usize, cycle: bool) -> usize {
+        use crate::linalg::cg;
+        let s = system(w, h, 0.3);
+        let rows: Vec<Option<[f32; 25]>> = (0..w * h).map(|p| s.stencil(p % w, p / w)).collect();
+        let b: Vec<f64> = (0..w * h)
+            .map(|p| {
+                if rows[p].is_some() {
+                    ((p * 7919) % 101) as f64 / 101.0 - 0.5
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut preconditioner = RowsCycle::build(w, h, |c, r| s.stencil(c, r), 2);
+        let settings = cg::Settings {
+            max_iterations: 2000,
+            summation: cg::Summation::Serial,
+            stop: cg::Stop::AfterStepRelative {
+                norm: cg::Norm::Euclidean,
+                tolerance: 1e-6,
+            },
+            cancel_poll: cg::CancelPoll {
+                every: 1,
+                before_test: true,
+            },
+            rz_guard: cg::RzGuard::None,
+            beta: cg::Beta::PolakRibiere,
+        };
+        let mut x = vec![0.0; w * h];
+        let its = cg::solve(
+            &mut x,
+            b.clone(),
+            |v, out| apply_rows(&rows, w, h, v, out),
+            |r, z| {
+                if cycle {
+                    preconditioner.apply(r, z);
+                } else {
+                    for (p, (z, r)) in z.iter_mut().zip(r).enumerate() {
+                        *z = rows[p].map_or(0.0, |a| r / f64::from(a[12]));
+                    }
+                }
+            },
+            &settings,
+            Cancel::NEVER,
+        )
+        .uncancelled();
+        // The answer solves the system.
+        let mut ax = vec![0.0; w * h];
+        apply_rows(&rows, w, h, &x, &mut ax);
+        let residual: f64 = ax
+            .iter()
+            .zip(&b)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let norm: f64 = b.iter().map(|b| b * b).sum::<f64>().sqrt();
+        assert!(
+            residual <= 2e-6 * norm,
+            "{w}x{h}: residual {residual} of {norm}"
+        );
+        its
+    }
+
+    #[test]
+    fn a_rows_cycle_preconditions_conjugate_gradients_far_better_than_jacobi() {
+        // On the disc with scattered holes at 192x144: 56 iterations with
+        // the cycle, 1159 with the diagonal (11 with the cycle at 48x36: the
+        // holes cost the coarse levels some of their reach).
+        let cycle = cg_iterations(192, 144, true);
+        let jacobi = cg_iterations(192, 144, false);
+        assert!(10 * cycle < jacobi, "cycle {cycle}, Jacobi {jacobi}");
+        assert!(cg_iterations(48, 36, true) <= 20);
     }
 }

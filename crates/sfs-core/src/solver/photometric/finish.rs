@@ -24,6 +24,7 @@ pub(super) struct FinishInfo {
     pub(super) energy: Energy,
     pub(super) levels: Vec<LevelReport>,
     pub(super) iterations: usize,
+    pub(super) linear: super::set::LinearSolves,
     pub(super) start: Instant,
     /// Each photograph predicted from the others (empty: not measured).
     pub(super) held_out: Vec<HeldOutFit>,
@@ -162,6 +163,7 @@ pub(super) fn finish(
         energy: info.energy,
         levels: info.levels,
         iterations: info.iterations,
+        linear: info.linear,
         seconds: info.start.elapsed().as_secs_f64(),
         held_out_seconds: info.held_out_seconds,
     }

@@ -55,7 +55,9 @@ pub use compare::{
     SingleComparison, compare_single, depth_normals, depth_range, positive_quantile,
 };
 pub use level::{LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, USED};
-pub use set::{PhotoResult, PhotometricParams, PhotometricProblem, PhotometricSolution, SetPhoto};
+pub use set::{
+    LinearSolves, PhotoResult, PhotometricParams, PhotometricProblem, PhotometricSolution, SetPhoto,
+};
 
 /// Checks the set: at least two photographs of one size, each with a valid
 /// light, no two lights at the same place, masks of the photographs' size.
@@ -483,6 +485,7 @@ pub fn solve_photometric(
     let mut robust_scale = params.robust_scale.map(|s| s * brightness);
     let mut reports = Vec::new();
     let mut iterations = 0usize;
+    let mut linear = LinearSolves::default();
     let mut distances_tried = Vec::new();
     let mut initial_depth = f64::NAN;
     let mut first_level = 0;
@@ -565,7 +568,7 @@ pub fn solve_photometric(
             0
         };
         let mut refit = 0;
-        let (e, energies, its) = loop {
+        let outcome = loop {
             let last = refit == refits;
             let result = run_level(
                 level,
@@ -582,6 +585,7 @@ pub fn solve_photometric(
                 },
                 observer,
             )?;
+            linear = linear.plus(result.linear);
             if last {
                 break result;
             }
@@ -589,7 +593,8 @@ pub fn solve_photometric(
             intensities = level.refit_intensities(&shared, &zeta, &m);
             refit += 1;
         };
-        iterations += its;
+        let (e, energies) = (outcome.energy, outcome.energies);
+        iterations += outcome.steps;
         energy = e;
         if level.width.max(level.height) <= HELD_OUT_SIDE || snapshot.is_none() {
             snapshot = Some((
@@ -648,6 +653,7 @@ pub fn solve_photometric(
             energy,
             levels: reports,
             iterations,
+            linear,
             start,
             held_out,
             held_out_seconds: held_out_start.elapsed().as_secs_f64(),

@@ -174,6 +174,40 @@ pub struct PhotoResult {
     pub left_out: Grid<u8>,
 }
 
+/// The conjugate-gradient solves of the levels' linearisations: how many,
+/// their iterations in all, and how many stopped at their iteration cap
+/// rather than at their tolerance (0: every step converged).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct LinearSolves {
+    /// Solves.
+    pub solves: usize,
+    /// Iterations over all solves.
+    pub iterations: usize,
+    /// Solves that ran their most iterations.
+    pub capped: usize,
+}
+
+impl LinearSolves {
+    /// Adds one solve of `iterations` whose cap was `cap`.
+    pub fn add(&mut self, iterations: usize, cap: usize) {
+        self.solves += 1;
+        self.iterations += iterations;
+        if iterations >= cap {
+            self.capped += 1;
+        }
+    }
+
+    /// The two runs' solves together.
+    #[must_use]
+    pub fn plus(self, other: Self) -> Self {
+        Self {
+            solves: self.solves + other.solves,
+            iterations: self.iterations + other.iterations,
+            capped: self.capped + other.capped,
+        }
+    }
+}
+
 /// The result of a photometric-stereo solve.
 #[derive(Clone, Debug)]
 pub struct PhotometricSolution {
@@ -213,6 +247,9 @@ pub struct PhotometricSolution {
     pub levels: Vec<LevelReport>,
     /// Linearisations over all levels.
     pub iterations: usize,
+    /// The levels' linear solves (the start's trials and the held-out check
+    /// not counted).
+    pub linear: LinearSolves,
     /// Wall time, seconds.
     pub seconds: f64,
     /// Of which the held-out check (each photograph predicted from the

@@ -64,7 +64,7 @@ pub(super) fn choose_start(
         let mut zeta = vec![d.ln(); n];
         let mut m = vec![0.0; n];
         let mut phi = intensities.to_vec();
-        let (e, _, _) = run_level(
+        let e = run_level(
             coarsest,
             lights,
             &mut phi,
@@ -75,7 +75,8 @@ pub(super) fn choose_start(
             &mut m,
             how,
             observer,
-        )?;
+        )?
+        .energy;
         let value = per_pixel(e, coarsest);
         tried.push((d, value));
         runs.push((value, d, zeta, m, phi));
@@ -88,7 +89,7 @@ pub(super) fn choose_start(
         for run in &mut runs {
             run.2 = upsample(&run.2, coarsest, next);
             run.3 = upsample(&run.3, coarsest, next);
-            let (e, _, _) = run_level(
+            let e = run_level(
                 next,
                 lights,
                 &mut run.4,
@@ -99,7 +100,8 @@ pub(super) fn choose_start(
                 &mut run.3,
                 how,
                 observer,
-            )?;
+            )?
+            .energy;
             run.0 = per_pixel(e, next);
         }
         runs.sort_by(|a, b| a.0.total_cmp(&b.0));
