@@ -14,6 +14,7 @@ use super::level::{Level, MAX_PHOTOS, Observation, Scales, Shared, USED, light_v
 use super::run::{LevelRun, run_level};
 use crate::light::PointLight;
 use crate::solver::problem::{SolveError, SolveObserver};
+use crate::solver::working::CancelOnly;
 
 /// The held-out check runs on the finest level whose longest side is at
 /// most this many pixels (the shape there is what the check needs, and a
@@ -82,8 +83,10 @@ pub(super) fn held_out_fits(
     if count < HELD_OUT_MIN_PHOTOS {
         return Ok(vec![HeldOutFit::NONE; count]);
     }
-    let mut fits = Vec::with_capacity(count);
-    for k in 0..count {
+    // Each photograph's check on its own thread, the observer heard for
+    // cancellation only (the checks report nothing), read in order.
+    let shared_observer: &dyn SolveObserver = observer;
+    let fit_without = |k: usize| -> Result<HeldOutFit, SolveError> {
         let without = |all: &[Vec<f64>]| -> Vec<Vec<f64>> {
             all.iter()
                 .enumerate()
@@ -122,7 +125,7 @@ pub(super) fn held_out_fits(
                 search_distance: false,
                 report: None,
             },
-            observer,
+            &mut CancelOnly(shared_observer),
         )?;
         let shared = Shared::new(
             &other_lights,
@@ -142,12 +145,12 @@ pub(super) fn held_out_fits(
             (&lights[k], snapshot.intensities[k]),
             cast,
         );
-        fits.push(HeldOutFit {
+        Ok(HeldOutFit {
             rest_residual,
             ..fit
-        });
-    }
-    Ok(fits)
+        })
+    };
+    (0..count).into_par_iter().map(fit_without).collect()
 }
 
 /// The relative residual of all of `level`'s photographs over their used

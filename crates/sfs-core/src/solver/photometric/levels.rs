@@ -2,6 +2,8 @@
 //! averaging, a per-pixel value brought to a finer level, and the
 //! brightness and noise measured on the finest.
 
+use rayon::prelude::*;
+
 use super::level::Level;
 use super::set::PhotometricProblem;
 use crate::cancel::{Cancel, Uncancelled};
@@ -15,14 +17,15 @@ pub(super) fn finest_level(problem: &PhotometricProblem) -> Level {
         Some(mask) => mask.as_slice().to_vec(),
         None => vec![true; w * h],
     };
+    // The photographs side by side (each one's values in its own order).
     let images = problem
         .photos
-        .iter()
+        .par_iter()
         .map(|p| p.image.as_slice().iter().map(|v| v.max(0.0)).collect())
         .collect();
     let weights = problem
         .photos
-        .iter()
+        .par_iter()
         .map(|p| {
             (0..w * h)
                 .map(|q| {
@@ -69,7 +72,7 @@ pub(super) fn coarsen(finer: &Level, w: usize, h: usize) -> Level {
     let domain: Vec<bool> = coverage.iter().map(|&c| c >= 0.5).collect();
     let images = finer
         .images
-        .iter()
+        .par_iter()
         .map(|image| {
             let sums = area(
                 image
@@ -86,7 +89,7 @@ pub(super) fn coarsen(finer: &Level, w: usize, h: usize) -> Level {
         .collect();
     let weights = finer
         .weights
-        .iter()
+        .par_iter()
         .map(|weights| {
             let untrusted_in_domain: Vec<f64> = weights
                 .iter()
@@ -148,7 +151,7 @@ pub(super) fn noise_sigma(problem: &PhotometricProblem, level: &Level) -> f64 {
     let (w, h) = (level.width, level.height);
     let mut sigmas: Vec<f64> = problem
         .photos
-        .iter()
+        .par_iter()
         .zip(&level.weights)
         .map(|(photo, weights)| {
             let trusted = Grid::from_vec(w, h, weights.iter().map(|v| *v > 0.0).collect())
