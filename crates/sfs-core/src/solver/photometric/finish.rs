@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::held_out::HeldOutFit;
 use super::level::{LEFT_OUT_OFF, LEFT_OUT_ROBUST, LEFT_OUT_SHADOW, LEFT_OUT_UNTRUSTED, USED};
@@ -44,29 +45,41 @@ pub(super) fn finish(
     let (w, h) = (level.width, level.height);
     let f = level.camera.focal_px;
     let depth = depth_grid(level, zeta);
-    let mut normals = Grid::filled(w, h, [f64::NAN; 3]);
-    let mut albedo = Grid::filled(w, h, f64::NAN);
     let s = problem.intensity_scale.unwrap_or(1.0);
-    for (p, &m_p) in m.iter().enumerate() {
-        if !level.domain[p] {
-            continue;
-        }
-        let mut obs = [Observation::default(); MAX_PHOTOS];
-        let g = level.observe(shared, zeta, p, 0.0, &mut obs).g;
-        let (x, y) = level.camera.image_xy((p % w) as f64, (p / w) as f64);
-        let n = DVec3::new(f * g[0], f * g[1], -(1.0 + x * g[0] + y * g[1]));
-        let length = n.length();
-        if length > 0.0 && length.is_finite() {
-            normals.as_mut_slice()[p] = (n / length).to_array();
-            if m_p > 0.0 {
-                albedo.as_mut_slice()[p] = m_p * length / s;
+    // Each pixel's normal and albedo (pixels in parallel).
+    let (normal_values, albedo_values): (Vec<[f64; 3]>, Vec<f64>) = m
+        .par_iter()
+        .enumerate()
+        .map(|(p, &m_p)| {
+            if !level.domain[p] {
+                return ([f64::NAN; 3], f64::NAN);
             }
-        }
-    }
+            let mut obs = [Observation::default(); MAX_PHOTOS];
+            let g = level.observe(shared, zeta, p, 0.0, &mut obs).g;
+            let (x, y) = level.camera.image_xy((p % w) as f64, (p / w) as f64);
+            let n = DVec3::new(f * g[0], f * g[1], -(1.0 + x * g[0] + y * g[1]));
+            let length = n.length();
+            if length > 0.0 && length.is_finite() {
+                let albedo = if m_p > 0.0 {
+                    m_p * length / s
+                } else {
+                    f64::NAN
+                };
+                ((n / length).to_array(), albedo)
+            } else {
+                ([f64::NAN; 3], f64::NAN)
+            }
+        })
+        .unzip();
+    let normals =
+        Grid::from_vec(w, h, normal_values).unwrap_or_else(|| Grid::filled(w, h, [f64::NAN; 3]));
+    let albedo =
+        Grid::from_vec(w, h, albedo_values).unwrap_or_else(|| Grid::filled(w, h, f64::NAN));
     let per_pixel = level.residuals(shared, zeta, m);
+    // Each photograph's fit (in parallel, read in order).
     let mut photos = problem
         .photos
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(j, photo)| {
             let mut residual = Grid::filled(w, h, f64::NAN);
