@@ -9,7 +9,9 @@
 //! photographs of a sum must be float too (on the same scale); the pipeline
 //! then scales the result ([`super::prepare`]).
 
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 
 use crate::camera::Intrinsics;
 use crate::cancel::{Cancel, Uncancelled};
@@ -208,11 +210,48 @@ struct Corrected {
     lost: Option<Grid<f64>>,
 }
 
+/// The correction frames (ambient, flat field, albedo) of one load, each
+/// file read once: every photograph of a set is corrected by the same
+/// files (seven photographs read the ambient frame eight times before).
+#[derive(Default)]
+struct Frames(RefCell<Vec<FrameRead>>);
+
+/// One correction frame as read: its file, role and values.
+type FrameRead = (PathBuf, &'static str, Rc<Grid<f64>>, Option<FloatSamples>);
+
+impl Frames {
+    /// [`read_sized`] of `path` as `what`, from the first read when there
+    /// was one.
+    fn read(
+        &self,
+        path: &Path,
+        what: &'static str,
+        size: (usize, usize),
+        mode: SrgbMode,
+    ) -> Result<(Rc<Grid<f64>>, Option<FloatSamples>), IoError> {
+        if let Some((_, _, grid, float)) = self
+            .0
+            .borrow()
+            .iter()
+            .find(|(p, w, _, _)| p == path && *w == what)
+        {
+            return Ok((Rc::clone(grid), *float));
+        }
+        let (grid, float) = read_sized(path, what, size, mode)?;
+        let grid = Rc::new(grid);
+        self.0
+            .borrow_mut()
+            .push((path.to_path_buf(), what, Rc::clone(&grid), float));
+        Ok((grid, float))
+    }
+}
+
 /// Applies the corrections of `setup` to `image`, the sum of `frames`
 /// photographs of `size` pixels decoded as `decoding` says: the ambient
 /// frame (of the photographs' kind) subtracted `frames` times (clamped at
 /// 0), the flat field or cos^4 and the albedo divided out. The frames are
-/// read here, one at a time.
+/// read through `read`, each file once per load.
+#[allow(clippy::too_many_arguments)]
 fn correct(
     mut image: Grid<f64>,
     frames: usize,
@@ -220,11 +259,12 @@ fn correct(
     size: (usize, usize),
     decoding: &mut Decoding<'_>,
     camera: Option<Intrinsics>,
+    read: &Frames,
 ) -> Result<Corrected, IoError> {
     let mode = decoding.mode;
     let mut clamped = 0usize;
     if let Some(path) = setup.ambient {
-        let (ambient, float) = read_sized(path, "ambient frame", size, mode)?;
+        let (ambient, float) = read.read(path, "ambient frame", size, mode)?;
         decoding.check_kind(path, "ambient frame", float.is_some())?;
         decoding.record(path, float);
         let frames = frames as f64;
@@ -237,7 +277,7 @@ fn correct(
         });
     }
     if let Vignetting::FlatField(path) = setup.vignetting {
-        let (flat, float) = read_sized(path, "flat field", size, mode)?;
+        let (flat, float) = read.read(path, "flat field", size, mode)?;
         decoding.record(path, float);
         let mean = flat.as_slice().iter().sum::<f64>() / flat.len().max(1) as f64;
         if mean.is_nan() || mean <= 0.0 {
@@ -254,7 +294,7 @@ fn correct(
     }
     let mut lost = None;
     if let Some(path) = setup.albedo {
-        let (albedo, float) = read_sized(path, "albedo", size, SrgbMode::Off)?;
+        let (albedo, float) = read.read(path, "albedo", size, SrgbMode::Off)?;
         decoding.record(path, float);
         image = image.zip_map(&albedo, |a, b| if *b >= MIN_ALBEDO { a / b } else { 0.0 });
         lost = Some(albedo.map(|&b| if b >= MIN_ALBEDO { 1.0 } else { 0.0 }));
@@ -303,6 +343,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
     let saturated = |v: f64| !is_float && v >= SATURATED;
     let (w, h) = working_size(size.0, size.1, setup.max_side);
     let resize = |grid: &Grid<f64>| resize_area(grid, w, h, Cancel::NEVER).uncancelled();
+    let frames = Frames::default();
     // One of several photographs: where it is saturated (a working pixel
     // with any saturated source pixel: area weights are positive), and its
     // own corrected image when asked for.
@@ -310,7 +351,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         |photo: &Grid<f64>, decoding: &mut Decoding<'_>| -> Result<Each, IoError> {
             let clipped = resize(&photo.map(|&v| if saturated(v) { 1.0 } else { 0.0 }));
             let image = if setup.keep_each {
-                let own = correct(photo.clone(), 1, setup, size, decoding, camera)?;
+                let own = correct(photo.clone(), 1, setup, size, decoding, camera, &frames)?;
                 Some(resize(&own.image))
             } else {
                 None
@@ -351,6 +392,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         size,
         &mut decoding,
         camera,
+        &frames,
     )?;
     let ambient_clamped = match setup.ambient {
         Some(_) => corrected.clamped as f64 / corrected.image.len().max(1) as f64,
