@@ -210,16 +210,30 @@ struct Corrected {
     lost: Option<Grid<f64>>,
 }
 
-/// The correction frames (ambient, flat field, albedo) of one load, each
-/// file read once: every photograph of a set is corrected by the same
-/// files (seven photographs read the ambient frame eight times before).
-#[derive(Default)]
-struct Frames(RefCell<Vec<FrameRead>>);
+/// The correction frames (ambient, flat field, albedo) of one load of
+/// several photographs, each file read once: every photograph of a set is
+/// corrected by the same files (seven photographs read the ambient frame
+/// eight times before). A single photograph's load keeps nothing (its
+/// frames are read once anyway, and freed after use).
+struct Frames {
+    /// Whether frames are kept for a later use.
+    keep: bool,
+    /// The frames read so far.
+    read: RefCell<Vec<FrameRead>>,
+}
 
 /// One correction frame as read: its file, role and values.
 type FrameRead = (PathBuf, &'static str, Rc<Grid<f64>>, Option<FloatSamples>);
 
 impl Frames {
+    /// A load's frames, kept when `keep`.
+    fn new(keep: bool) -> Self {
+        Self {
+            keep,
+            read: RefCell::new(Vec::new()),
+        }
+    }
+
     /// [`read_sized`] of `path` as `what`, from the first read when there
     /// was one.
     fn read(
@@ -230,7 +244,7 @@ impl Frames {
         mode: SrgbMode,
     ) -> Result<(Rc<Grid<f64>>, Option<FloatSamples>), IoError> {
         if let Some((_, _, grid, float)) = self
-            .0
+            .read
             .borrow()
             .iter()
             .find(|(p, w, _, _)| p == path && *w == what)
@@ -239,9 +253,11 @@ impl Frames {
         }
         let (grid, float) = read_sized(path, what, size, mode)?;
         let grid = Rc::new(grid);
-        self.0
-            .borrow_mut()
-            .push((path.to_path_buf(), what, Rc::clone(&grid), float));
+        if self.keep {
+            self.read
+                .borrow_mut()
+                .push((path.to_path_buf(), what, Rc::clone(&grid), float));
+        }
         Ok((grid, float))
     }
 }
@@ -343,7 +359,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
     let saturated = |v: f64| !is_float && v >= SATURATED;
     let (w, h) = working_size(size.0, size.1, setup.max_side);
     let resize = |grid: &Grid<f64>| resize_area(grid, w, h, Cancel::NEVER).uncancelled();
-    let frames = Frames::default();
+    let frames = Frames::new(setup.images.len() > 1);
     // One of several photographs: where it is saturated (a working pixel
     // with any saturated source pixel: area weights are positive), and its
     // own corrected image when asked for.
