@@ -9,7 +9,6 @@
 //! photographs of a sum must be float too (on the same scale); the pipeline
 //! then scales the result ([`super::prepare`]).
 
-use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::rc::Rc;
 
@@ -123,7 +122,8 @@ pub(super) struct Photo {
 }
 
 /// How the photographs of a load were decoded, which every photograph-like
-/// file must match, and the float files' negative samples met so far.
+/// file must match, the float files' negative samples met so far, and the
+/// correction frames kept.
 struct Decoding<'a> {
     /// The first photograph.
     first: &'a Path,
@@ -133,9 +133,41 @@ struct Decoding<'a> {
     float: bool,
     /// Float files with negative samples.
     negatives: Vec<(PathBuf, FloatSamples)>,
+    /// The correction frames read so far, when a load of several
+    /// photographs keeps them (each is then decoded once, not once per
+    /// photograph; a single photograph's frame is freed after use).
+    frames: Option<Vec<FrameRead>>,
 }
 
+/// One correction frame as read: its file, role and values.
+type FrameRead = (PathBuf, &'static str, Rc<Grid<f64>>, Option<FloatSamples>);
+
 impl Decoding<'_> {
+    /// [`read_sized`] of the correction frame `path` as `what`, from its
+    /// first read when the load keeps frames.
+    fn frame(
+        &mut self,
+        path: &Path,
+        what: &'static str,
+        size: (usize, usize),
+        mode: SrgbMode,
+    ) -> Result<(Rc<Grid<f64>>, Option<FloatSamples>), IoError> {
+        if let Some((_, _, grid, float)) = self
+            .frames
+            .iter()
+            .flatten()
+            .find(|(p, w, _, _)| p == path && *w == what)
+        {
+            return Ok((Rc::clone(grid), *float));
+        }
+        let (grid, float) = read_sized(path, what, size, mode)?;
+        let grid = Rc::new(grid);
+        if let Some(frames) = &mut self.frames {
+            frames.push((path.to_path_buf(), what, Rc::clone(&grid), float));
+        }
+        Ok((grid, float))
+    }
+
     /// Notes a float file's negative samples (once per file).
     fn record(&mut self, path: &Path, float: Option<FloatSamples>) {
         if let Some(samples) = float.filter(|f| f.negative_pixels > 0)
@@ -210,64 +242,11 @@ struct Corrected {
     lost: Option<Grid<f64>>,
 }
 
-/// The correction frames (ambient, flat field, albedo) of one load of
-/// several photographs, each file read once: every photograph of a set is
-/// corrected by the same files (seven photographs read the ambient frame
-/// eight times before). A single photograph's load keeps nothing (its
-/// frames are read once anyway, and freed after use).
-struct Frames {
-    /// Whether frames are kept for a later use.
-    keep: bool,
-    /// The frames read so far.
-    read: RefCell<Vec<FrameRead>>,
-}
-
-/// One correction frame as read: its file, role and values.
-type FrameRead = (PathBuf, &'static str, Rc<Grid<f64>>, Option<FloatSamples>);
-
-impl Frames {
-    /// A load's frames, kept when `keep`.
-    fn new(keep: bool) -> Self {
-        Self {
-            keep,
-            read: RefCell::new(Vec::new()),
-        }
-    }
-
-    /// [`read_sized`] of `path` as `what`, from the first read when there
-    /// was one.
-    fn read(
-        &self,
-        path: &Path,
-        what: &'static str,
-        size: (usize, usize),
-        mode: SrgbMode,
-    ) -> Result<(Rc<Grid<f64>>, Option<FloatSamples>), IoError> {
-        if let Some((_, _, grid, float)) = self
-            .read
-            .borrow()
-            .iter()
-            .find(|(p, w, _, _)| p == path && *w == what)
-        {
-            return Ok((Rc::clone(grid), *float));
-        }
-        let (grid, float) = read_sized(path, what, size, mode)?;
-        let grid = Rc::new(grid);
-        if self.keep {
-            self.read
-                .borrow_mut()
-                .push((path.to_path_buf(), what, Rc::clone(&grid), float));
-        }
-        Ok((grid, float))
-    }
-}
-
 /// Applies the corrections of `setup` to `image`, the sum of `frames`
 /// photographs of `size` pixels decoded as `decoding` says: the ambient
 /// frame (of the photographs' kind) subtracted `frames` times (clamped at
 /// 0), the flat field or cos^4 and the albedo divided out. The frames are
-/// read through `read`, each file once per load.
-#[allow(clippy::too_many_arguments)]
+/// read through `decoding` (each file once per load of several).
 fn correct(
     mut image: Grid<f64>,
     frames: usize,
@@ -275,12 +254,11 @@ fn correct(
     size: (usize, usize),
     decoding: &mut Decoding<'_>,
     camera: Option<Intrinsics>,
-    read: &Frames,
 ) -> Result<Corrected, IoError> {
     let mode = decoding.mode;
     let mut clamped = 0usize;
     if let Some(path) = setup.ambient {
-        let (ambient, float) = read.read(path, "ambient frame", size, mode)?;
+        let (ambient, float) = decoding.frame(path, "ambient frame", size, mode)?;
         decoding.check_kind(path, "ambient frame", float.is_some())?;
         decoding.record(path, float);
         let frames = frames as f64;
@@ -293,7 +271,7 @@ fn correct(
         });
     }
     if let Vignetting::FlatField(path) = setup.vignetting {
-        let (flat, float) = read.read(path, "flat field", size, mode)?;
+        let (flat, float) = decoding.frame(path, "flat field", size, mode)?;
         decoding.record(path, float);
         let mean = flat.as_slice().iter().sum::<f64>() / flat.len().max(1) as f64;
         if mean.is_nan() || mean <= 0.0 {
@@ -310,7 +288,7 @@ fn correct(
     }
     let mut lost = None;
     if let Some(path) = setup.albedo {
-        let (albedo, float) = read.read(path, "albedo", size, SrgbMode::Off)?;
+        let (albedo, float) = decoding.frame(path, "albedo", size, SrgbMode::Off)?;
         decoding.record(path, float);
         image = image.zip_map(&albedo, |a, b| if *b >= MIN_ALBEDO { a / b } else { 0.0 });
         lost = Some(albedo.map(|&b| if b >= MIN_ALBEDO { 1.0 } else { 0.0 }));
@@ -351,6 +329,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         mode,
         float: float.is_some(),
         negatives: Vec::new(),
+        frames: (setup.images.len() > 1).then(Vec::new),
     };
     decoding.record(first, float);
     // A float has no clipping level: saturation is not inferred from its
@@ -359,7 +338,6 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
     let saturated = |v: f64| !is_float && v >= SATURATED;
     let (w, h) = working_size(size.0, size.1, setup.max_side);
     let resize = |grid: &Grid<f64>| resize_area(grid, w, h, Cancel::NEVER).uncancelled();
-    let frames = Frames::new(setup.images.len() > 1);
     // One of several photographs: where it is saturated (a working pixel
     // with any saturated source pixel: area weights are positive), and its
     // own corrected image when asked for.
@@ -367,7 +345,7 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         |photo: &Grid<f64>, decoding: &mut Decoding<'_>| -> Result<Each, IoError> {
             let clipped = resize(&photo.map(|&v| if saturated(v) { 1.0 } else { 0.0 }));
             let image = if setup.keep_each {
-                let own = correct(photo.clone(), 1, setup, size, decoding, camera, &frames)?;
+                let own = correct(photo.clone(), 1, setup, size, decoding, camera)?;
                 Some(resize(&own.image))
             } else {
                 None
@@ -408,7 +386,6 @@ pub(super) fn load(setup: &Corrections<'_>, camera: Option<Intrinsics>) -> Resul
         size,
         &mut decoding,
         camera,
-        &frames,
     )?;
     let ambient_clamped = match setup.ambient {
         Some(_) => corrected.clamped as f64 / corrected.image.len().max(1) as f64,
