@@ -697,6 +697,55 @@ fn counts_that_never_bind_are_reported_unused() {
     );
 }
 
+/// The step tolerance stops a clean Sombrero's refinement once the depth
+/// stopped moving (its fast-marching start is nearly the minimum: at 256 px
+/// the first outer iteration moves the depth by about 5e-5 of itself, at
+/// 128 px the second): fewer outer iterations than five, the same RSE within
+/// 5 %. Unit invariant: the same count with the depth in another unit. Up a pyramid (no start to
+/// refine) it does nothing and says so.
+#[test]
+fn the_step_tolerance_stops_a_refinement_whose_depth_has_settled() {
+    let scene = sombrero(128, 128);
+    let problem = problem(&scene);
+    let full = solve(&problem, &SolverParams::default(), &mut ()).expect("solves");
+    let settling = SolverParams {
+        step_tolerance: 1e-4,
+        ..SolverParams::default()
+    };
+    let settled = solve(&problem, &settling, &mut ()).expect("solves");
+    let outer = |s: &sfs_core::solver::Solution| -> usize {
+        s.levels.iter().map(|l| l.energies.len()).sum()
+    };
+    assert_eq!(outer(&full), 5);
+    assert!(outer(&settled) < 5, "{} outer iterations", outer(&settled));
+    assert_rse_within_5_percent(&scene, [("settled", &settled), ("full", &full)], "clean");
+    // Another unit of depth (the intensity scale with the square of it).
+    let mut in_mm = problem.clone();
+    in_mm.intensity_scale *= 1e6;
+    let settled_mm = solve(&in_mm, &settling, &mut ()).expect("solves");
+    assert_eq!(outer(&settled_mm), outer(&settled));
+    // A tolerance far below any step: the full schedule, bit for bit.
+    let tight = SolverParams {
+        step_tolerance: 1e-12,
+        ..SolverParams::default()
+    };
+    let tight = solve(&problem, &tight, &mut ()).expect("solves");
+    assert_eq!(tight.depth.as_slice(), full.depth.as_slice());
+    let pyramid = SolverParams {
+        step_tolerance: 1e-4,
+        ..pyramid_params()
+    };
+    let walked = solve(&problem, &pyramid, &mut ()).expect("solves");
+    assert!(
+        walked
+            .unused_parameters
+            .iter()
+            .any(|u| u.starts_with("--step-tolerance ")),
+        "{:?}",
+        walked.unused_parameters
+    );
+}
+
 /// Offers one memo to every solve and counts what it hears.
 struct Remembering {
     memo: std::sync::Arc<sfs_core::solver::SolveMemo>,

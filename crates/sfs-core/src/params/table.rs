@@ -425,6 +425,15 @@ pub const PARAMS: &[ParamSpec] = &[
          (default 0: the fixed sweep or cycle count, the paper's)."
     },
     field_param! {
+        "step-tolerance", "step tolerance",
+        step_tolerance, linear((0.0, 1.0)), slider = None,
+        "Refining a full-resolution start (not across holes), a level stops once an outer \
+         iteration moved the depth by less than this share of itself on average, before \
+         kappa iterations if need be. Default 0 (kappa and the level tolerance alone, \
+         the paper's); 1e-4 (a hundredth of a percent) about halves the refinement's time \
+         on clean images at the same RSE, with a worse image fit (RIE)."
+    },
+    field_param! {
         "inner-tolerance", "inner tolerance",
         inner_tolerance, linear((0.0, 1.0)), slider = None,
         "Refining a full-resolution start, the inner iterations stop when the \

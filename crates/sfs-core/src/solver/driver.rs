@@ -386,14 +386,27 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             self.prepared.refines_holes,
         );
         let converged = |energies: &[f64], tolerance: f64| matches!(energies[..], [.., before, after] if before - after <= tolerance * before);
-        let default_stops = |iteration: usize, energies: &[f64]| {
+        // Refining a full-resolution start (not across holes, whose fill
+        // moves a small share of the pixels far), the level has converged
+        // once an outer iteration moved the depth by less than
+        // `step_tolerance` of itself on average (`last_step`).
+        let step_rule = refines_warm_start && !self.prepared.refines_holes;
+        let settled = |last_step: Option<f64>, tolerance: f64| {
+            step_rule && tolerance > 0.0 && last_step.is_some_and(|step| step < tolerance)
+        };
+        let default_stops = |iteration: usize, energies: &[f64], last_step: Option<f64>| {
             iteration >= default_schedule.kappa_max
                 || (iteration >= default_schedule.kappa
                     && converged(energies, defaults.level_tolerance))
+                || settled(last_step, defaults.step_tolerance)
         };
+        // The mean share of the depth the last outer iteration moved.
+        let mut last_step: Option<f64> = None;
         for iteration in 0..schedule.kappa_max {
-            let stops = iteration >= schedule.kappa && converged(&energies, params.level_tolerance);
-            if stops != default_stops(iteration, &energies) {
+            let stops = (iteration >= schedule.kappa
+                && converged(&energies, params.level_tolerance))
+                || settled(last_step, params.step_tolerance);
+            if stops != default_stops(iteration, &energies, last_step) {
                 self.effects.level_stop_differed = true;
             }
             if stops {
@@ -517,19 +530,19 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             };
             let t3 = Instant::now();
             let z_floor = self.z_floor;
-            let (max_step, energy) = match params.step_control {
+            let (moved, energy) = match params.step_control {
                 StepControl::Crop => {
                     let before = match current {
                         Some(energy) => energy,
                         None => energy_of(depth, observer)?,
                     };
-                    let step =
+                    let moved =
                         apply_update(depth, &system, &level.domain, crop, 1.0, z_floor, observer);
                     check_cancelled(observer)?;
                     let after = energy_of(depth, observer)?;
                     // Backtracking would have halved this step.
                     self.effects.energy_rose |= after.total > before.total;
-                    (step, after)
+                    (moved, after)
                 }
                 StepControl::Backtracking => {
                     let before = match current {
@@ -541,7 +554,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                     system.stash_depth(depth);
                     let mut scale = 1.0;
                     loop {
-                        let step = apply_update(
+                        let moved = apply_update(
                             depth,
                             &system,
                             &level.domain,
@@ -553,7 +566,7 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                         check_cancelled(observer)?;
                         let after = energy_of(depth, observer)?;
                         if after.total <= before.total || scale < 1.0 / 16.0 {
-                            break (step, after);
+                            break (moved, after);
                         }
                         system.restore_depth(depth);
                         scale *= 0.5;
@@ -562,6 +575,8 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
             };
             energies.push(energy.total);
             current = Some(energy);
+            last_step = Some(moved.mean_share);
+            let max_step = moved.max;
             self.phases.update_seconds += t3.elapsed().as_secs_f64();
             observer.on_iteration(&IterationReport {
                 level: step.index,
@@ -574,7 +589,9 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
                 elapsed: step.start.elapsed(),
             });
         }
-        if energies.len() == schedule.kappa_max && !default_stops(schedule.kappa_max, &energies) {
+        if energies.len() == schedule.kappa_max
+            && !default_stops(schedule.kappa_max, &energies, last_step)
+        {
             // The defaults would have gone on past kappa-max.
             self.effects.level_stop_differed = true;
         }
@@ -593,7 +610,8 @@ impl<M: Reflectance> LevelScheme for GaussNewton<'_, M> {
         self.effects.kappa_max_bound |= ran > default_cap
             || (ran == schedule.kappa_max
                 && ran < default_cap
-                && !(ran >= schedule.kappa && converged(&energies, params.level_tolerance)));
+                && !(ran >= schedule.kappa && converged(&energies, params.level_tolerance))
+                && !settled(last_step, params.step_tolerance));
         let energy = match current {
             Some(energy) => energy,
             None => energy_of(depth, observer)?,
@@ -715,10 +733,18 @@ fn residual_norm(system: &LinearSystem, observer: &dyn SolveObserver) -> Result<
         .sqrt())
 }
 
-/// Crops `dz`, adds it to the depth (kept above `z_floor`), returns the
-/// largest applied step. Rows in parallel (the largest step does not depend
-/// on their order), each polling `observer`'s cancellation (the depth is
-/// then half updated: the caller stops).
+/// What one update moved: its largest step, and the mean of its steps'
+/// lengths as a share of the mean depth over the domain (after the update).
+#[derive(Clone, Copy, Debug)]
+struct Moved {
+    max: f64,
+    mean_share: f64,
+}
+
+/// Crops `dz`, adds it to the depth (kept above `z_floor`), returns what it
+/// moved. Rows in parallel (the sums added in row order: the same on every
+/// run), each polling `observer`'s cancellation (the depth is then half
+/// updated: the caller stops).
 fn apply_update(
     depth: &mut Grid<f64>,
     system: &LinearSystem,
@@ -727,18 +753,19 @@ fn apply_update(
     scale: f64,
     z_floor: f64,
     observer: &dyn SolveObserver,
-) -> f64 {
+) -> Moved {
     use rayon::prelude::*;
     let w = depth.size().0;
-    depth
+    let rows: Vec<[f64; 3]> = depth
         .as_mut_slice()
         .par_chunks_mut(w)
         .enumerate()
         .with_min_len(rows_per_task(w))
         .map(|(r, row)| {
-            let mut max_step: f64 = 0.0;
+            // Largest step, sum of steps, sum of depths.
+            let mut sums = [0.0f64; 3];
             if observer.is_cancelled() {
-                return max_step;
+                return sums;
             }
             for (c, z) in row.iter_mut().enumerate() {
                 if !domain.at(c, r) {
@@ -752,10 +779,20 @@ fn apply_update(
                     0.0
                 };
                 let new = (*z + dz).max(z_floor);
-                max_step = max_step.max((new - *z).abs());
+                let step = (new - *z).abs();
+                sums[0] = sums[0].max(step);
+                sums[1] += step;
+                sums[2] += new.abs();
                 *z = new;
             }
-            max_step
+            sums
         })
-        .reduce(|| 0.0, f64::max)
+        .collect();
+    let [max, steps, depths] = rows.into_iter().fold([0.0f64; 3], |a, b| {
+        [a[0].max(b[0]), a[1] + b[1], a[2] + b[2]]
+    });
+    Moved {
+        max,
+        mean_share: if depths > 0.0 { steps / depths } else { 0.0 },
+    }
 }

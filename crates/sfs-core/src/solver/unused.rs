@@ -114,9 +114,14 @@ pub(crate) fn unused_parameters(
                 "every level ran kappa-max outer iterations (kappa is not below it), so the \
                  convergence test never ran; set --kappa below --kappa-max",
             ),
-            "kappa" | "level-tolerance" if !effects.level_stop_differed => Some(
-                "no level stopped at another iteration than with the default (the energy did \
-                 not settle within --level-tolerance before kappa-max iterations)",
+            "step-tolerance" if !path.refines_warm_start || path.refines_holes => Some(
+                "it stops the outer iterations refining a full-resolution start without holes, \
+                 and this solve refined none (a pyramid, or a start across holes)",
+            ),
+            "kappa" | "level-tolerance" | "step-tolerance" if !effects.level_stop_differed => Some(
+                "no level stopped at another iteration than with the default (neither the \
+                 energy within --level-tolerance nor the depth within --step-tolerance settled \
+                 otherwise before kappa-max iterations)",
             ),
             "kappa-max" if !effects.kappa_max_bound => Some(
                 "every level stopped (by --level-tolerance, or at kappa) within the default \
