@@ -213,12 +213,15 @@ fn bench_speed_reports_every_method_side_by_side() {
             "fixed counts",
             "multigrid",
             "paper schedule",
+            "step tolerance 1e-4",
         ],
     );
     for row in rows {
         assert_eq!(row["size"], "256x256");
         let rse = row["rse"].as_f64().unwrap();
         assert!(rse.is_finite() && rse < 0.1, "{row}");
+        let rie = row["rie"].as_f64().unwrap();
+        assert!(rie.is_finite() && rie < 0.1, "{row}");
         assert!(!row["curve"].as_array().unwrap().is_empty(), "{row}");
     }
     // The adaptive stops run fewer inner iterations than the fixed counts.
@@ -229,6 +232,9 @@ fn bench_speed_reports_every_method_side_by_side() {
             .expect("inner iterations")
     };
     assert!(inner("defaults") < inner("fixed counts"));
+    // The clean Sombrero's depth settles after its first outer iteration:
+    // the step tolerance stops there (one inner iteration, the defaults five).
+    assert!(inner("step tolerance 1e-4") < inner("defaults"));
     // SOR against V-cycles on the same system: both reduce the residual,
     // 4 cycles further than 40 sweeps.
     let convergence = run.report["convergence"].as_array().expect("convergence");
