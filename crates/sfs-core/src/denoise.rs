@@ -143,6 +143,34 @@ pub fn robust_noise_sigma(
     Ok(quartile.map_or(0.0, |q| q / (6.0 * ABS_NORMAL_LOWER_QUARTILE)))
 }
 
+/// [`robust_noise_sigma`] over the brightest quarter of the trusted pixels
+/// alone (pixels whose 3x3 neighbourhood lies in that quarter). Shading
+/// changes least with the surface's tilt where the surface faces the light
+/// (`d cos(theta) / d theta = 0` at `theta = 0`), so surface detail (fine
+/// relief, facets, a rendered depth map's pixel-scale steps) shows least
+/// there, while the camera's noise is as large or larger (shot noise grows
+/// with brightness). 0 when no such pixel exists. Polls `cancel` per row.
+pub fn facing_noise_sigma(
+    image: &Grid<f64>,
+    trusted: &Grid<bool>,
+    cancel: Cancel<'_>,
+) -> Result<f64, Cancelled> {
+    let (w, h) = image.size();
+    let values = |r: usize, out: &mut Vec<f64>| {
+        out.extend(
+            (0..w)
+                .filter(|&c| *trusted.at(c, r) && image.at(c, r).is_finite())
+                .map(|c| image.at(c, r).max(0.0)),
+        );
+    };
+    // The brightest quarter: at least the value of rank 3n/4.
+    let Some(cut) = crate::selection::kth_smallest(h, values, |n| n * 3 / 4, cancel)? else {
+        return Ok(0.0);
+    };
+    let bright = Grid::from_fn(w, h, |c, r| *trusted.at(c, r) && *image.at(c, r) >= cut);
+    robust_noise_sigma(image, &bright, cancel)
+}
+
 /// The lower quartile of `|N(0, 1)|`: the normal quantile at 0.625.
 const ABS_NORMAL_LOWER_QUARTILE: f64 = 0.318_639_363_964_375;
 
@@ -257,6 +285,34 @@ mod tests {
             tv_denoise(&noisy, 0.0, 10, Cancel::NEVER),
             Ok(noisy.clone())
         );
+    }
+
+    #[test]
+    fn the_facing_estimate_reads_noise_everywhere_but_detail_only_where_it_is() {
+        // A ramp of brightness 0.1..0.9; detail (a pixel checkerboard of 5 %)
+        // on its darker four fifths only, or noise everywhere.
+        let (w, h) = (128, 128);
+        let ramp = |c: usize| 0.1 + 0.8 * c as f64 / (w - 1) as f64;
+        let detailed = Grid::from_fn(w, h, |c, r| {
+            let checker = if (c + r) % 2 == 0 { 0.05 } else { -0.05 };
+            ramp(c) + if c < 4 * w / 5 { checker } else { 0.0 }
+        });
+        let all = Grid::filled(w, h, true);
+        let read = |image: &Grid<f64>| {
+            (
+                robust_noise_sigma(image, &all, Cancel::NEVER).uncancelled() * 255.0,
+                facing_noise_sigma(image, &all, Cancel::NEVER).uncancelled() * 255.0,
+            )
+        };
+        let (everywhere, facing) = read(&detailed);
+        assert!(everywhere > 5.0 && facing < 0.5, "{everywhere} {facing}");
+        let noisy = add_noise(&Grid::from_fn(w, h, |c, _| ramp(c)), 10.0, 4);
+        let (everywhere, facing) = read(&noisy);
+        assert!((everywhere - 10.0).abs() < 1.5, "{everywhere}");
+        assert!((facing - 10.0).abs() < 2.0, "{facing}");
+        // No trusted pixel: nothing read.
+        let none = Grid::filled(w, h, false);
+        assert_eq!(facing_noise_sigma(&noisy, &none, Cancel::NEVER), Ok(0.0));
     }
 
     #[test]

@@ -823,3 +823,68 @@ fn a_problem_larger_than_a_working_copy_is_not_kept() {
     let again = solve(&problem(&scene), &params, &mut observer).expect("solves");
     assert!(again.phases.linear_seconds > 0.0);
 }
+
+/// The start's denoising decision reads noise, not surface detail: a clean
+/// render of a finely rough Sombrero (pixel-scale relief shaded through the
+/// model) reads noisy over all its pixels but not where it faces the light,
+/// so `auto` marches the image as given and ends nearer the truth than a
+/// denoised start; the same render with camera noise is denoised. The
+/// reading is unit invariant.
+#[test]
+fn the_start_is_denoised_for_camera_noise_not_for_surface_detail() {
+    use sfs_core::params::{FAST_MARCHING_DENOISE_ABOVE, StartDenoise};
+    let smooth = sombrero(128, 128);
+    // A fixed pseudo-random relief of 0.4 % of the depth per pixel.
+    let relief = |c: usize, r: usize| {
+        let k = (c as u64 * 7_919 + r as u64 * 104_729) % 1_009;
+        (k as f64 / 1_009.0 - 0.5) * 0.008
+    };
+    let (w, h) = smooth.depth_gt.size();
+    let rough_depth = Grid::from_fn(w, h, |c, r| smooth.depth_gt.at(c, r) * (1.0 + relief(c, r)));
+    let rough = sfs_core::scene::shading::shade_from_depth(&sfs_core::scene::Scene {
+        depth_gt: rough_depth,
+        ..smooth.clone()
+    });
+    let with = |image: Grid<f64>, start_denoise: StartDenoise| {
+        let params = SolverParams {
+            start_denoise,
+            ..SolverParams::default()
+        };
+        let solved = solve(
+            &Problem {
+                image,
+                ..problem(&rough)
+            },
+            &params,
+            &mut (),
+        )
+        .expect("solves");
+        let rse = metrics::rse(&solved.depth, &rough.depth_gt).expect("rse");
+        (solved, rse)
+    };
+    let (auto, auto_rse) = with(rough.image.clone(), StartDenoise::Auto);
+    let noise = auto.noise.expect("read");
+    assert!(noise.relative > FAST_MARCHING_DENOISE_ABOVE, "{noise:?}");
+    assert!(
+        noise.relative_facing < FAST_MARCHING_DENOISE_ABOVE,
+        "{noise:?}"
+    );
+    assert_eq!(auto.start_denoised, Some(false));
+    let (on, on_rse) = with(rough.image.clone(), StartDenoise::On);
+    assert_eq!(on.start_denoised, Some(true));
+    assert!(auto_rse < on_rse, "as given {auto_rse}, denoised {on_rse}");
+    let noisy = sfs_core::scene::add_noise(&rough.image, 5.0, 3);
+    let (auto_noisy, _) = with(noisy.clone(), StartDenoise::Auto);
+    assert_eq!(auto_noisy.start_denoised, Some(true));
+    // The same reading with the depth in another unit (s x 1e6).
+    let unit = 1000.0;
+    let scaled = Problem {
+        intensity_scale: rough.intensity_scale * unit * unit,
+        ..problem(&rough)
+    };
+    let solved = solve(&scaled, &SolverParams::default(), &mut ()).expect("solves");
+    let scaled_noise = solved.noise.expect("read");
+    assert!((scaled_noise.relative / noise.relative - 1.0).abs() < 1e-9);
+    assert!((scaled_noise.relative_facing / noise.relative_facing - 1.0).abs() < 1e-9);
+    assert_eq!(solved.start_denoised, Some(false));
+}

@@ -68,8 +68,28 @@ pub enum Units {
 }
 
 /// Relative noise level (of the brightness scale) above which the
-/// fast-marching start works on a TV-denoised image.
+/// fast-marching start works on a TV-denoised image ([`StartDenoise::Auto`]):
+/// read over all trusted pixels and over the brightest quarter of them.
 pub const FAST_MARCHING_DENOISE_ABOVE: f64 = 0.01;
+
+/// Whether the fast-marching start marches a TV-denoised image
+/// (`--start-denoise`). The refinement always fits the image as given.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum StartDenoise {
+    /// Denoised when the image reads noisy: its noise above
+    /// [`FAST_MARCHING_DENOISE_ABOVE`] of the brightness scale both over
+    /// all trusted pixels and over the brightest quarter of them, where the
+    /// surface faces the light and its own detail shows least
+    /// (docs/paper-table1.md, "The start's denoising").
+    #[default]
+    Auto,
+    /// Always denoised (with the noise level read over all trusted pixels
+    /// as the TV weight).
+    On,
+    /// Never: fast marching reads the image as given.
+    Off,
+}
 
 /// The smoothness weight: chosen by the solver, or given.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
@@ -282,6 +302,9 @@ pub struct SolverParams {
     /// The linear solver of each inner iteration; default
     /// [`LinearSolver::Auto`] (multigrid across holes, SOR elsewhere).
     pub linear_solver: LinearSolver,
+    /// Whether the fast-marching start marches a denoised image; default
+    /// [`StartDenoise::Auto`] (when the image reads noisy).
+    pub start_denoise: StartDenoise,
     /// V-cycles per inner iteration at most (multigrid); default 4.
     pub cycles: usize,
     /// SOR sweeps before and after each coarse correction of a V-cycle;
@@ -369,6 +392,7 @@ impl Default for SolverParams {
             inner_iterations: 9,
             sor_iterations: 10,
             linear_solver: LinearSolver::Auto,
+            start_denoise: StartDenoise::Auto,
             cycles: 4,
             smoothing_sweeps: 2,
             linear_tolerance: 0.0,

@@ -5,7 +5,8 @@
 //! a parameter is added in one place.
 
 use super::settings::{
-    Alpha, DomainMode, LinearSolver, ReflectanceChoice, SolverParams, StepControl, Units,
+    Alpha, DomainMode, LinearSolver, ReflectanceChoice, SolverParams, StartDenoise, StepControl,
+    Units,
 };
 use crate::model::Derivatives;
 
@@ -407,6 +408,19 @@ pub const PARAMS: &[ParamSpec] = &[
          holes (object pixels of confidence below 0.5), SOR elsewhere; 'multigrid': \
          V-cycles with Galerkin coarse levels and SOR smoothing; 'sor': the paper's SOR \
          sweeps."
+    },
+    choice_param! {
+        "start-denoise", "start denoising",
+        start_denoise, [
+            "auto" => StartDenoise::Auto,
+            "on" => StartDenoise::On,
+            "off" => StartDenoise::Off,
+        ],
+        "Whether the fast-marching start marches a TV-denoised image. 'auto' (default): \
+         when the image reads noisy (noise above 1 % of the brightness scale over the \
+         object and over its brightest quarter, where the surface's own detail shows \
+         least); 'on': always; 'off': never (a clean image of a finely detailed surface). \
+         The refinement always fits the image as given."
     },
     field_param! {
         "cycles", "V-cycles",

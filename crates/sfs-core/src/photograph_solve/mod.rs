@@ -792,6 +792,8 @@ impl SolvedPhotograph {
             lambda_px: solution.lambda_px,
             scales: &solution.scales,
             initial_depth: solution.initial_depth,
+            start_denoised: solution.start_denoised,
+            noise: solution.noise,
             levels: &solution.levels,
             phases: &solution.phases,
             final_energy: &solution.final_energy,

@@ -61,6 +61,13 @@ pub struct SolveReport<'a> {
     pub scales: &'a crate::params::ProblemScales,
     /// The initial depth the solve started from.
     pub initial_depth: f64,
+    /// Whether the fast-marching start marched a TV-denoised image (absent
+    /// when no such start was marched).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start_denoised: Option<bool>,
+    /// The image's noise as the solve read it (absent for fast marching).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise: Option<crate::solver::NoiseReading>,
     /// Every level of the pyramid.
     pub levels: &'a [LevelReport],
     /// Time per phase.

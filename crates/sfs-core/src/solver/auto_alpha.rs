@@ -37,6 +37,21 @@ pub fn relative_noise(
         .map(|sigma| sigma / scales.intensity)
 }
 
+/// The relative noise level of the problem's finest level read where the
+/// surface faces the light ([`crate::denoise::facing_noise_sigma`] over its
+/// trusted pixels, relative to `I_ref`), polling `cancel` per row.
+pub fn relative_facing_noise(
+    finest: &PyramidLevel,
+    scales: &ProblemScales,
+    cancel: Cancel<'_>,
+) -> Result<f64, Cancelled> {
+    let trusted = Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
+        *finest.domain.at(c, r) && finest.confidence.at(c, r) > 0.0
+    });
+    crate::denoise::facing_noise_sigma(&finest.image, &trusted, cancel)
+        .map(|sigma| sigma / scales.intensity)
+}
+
 /// The automatic alpha in relative units for an image whose relative noise
 /// level is `relative_noise` (see the module doc).
 pub fn choose(relative_noise: f64) -> f64 {

@@ -111,6 +111,8 @@ impl Walk {
             material: params.material(),
             material_fit: None,
             albedo_fit: None,
+            start_denoised: prepared.start_denoised,
+            noise: Some(prepared.noise),
             unused_parameters: Vec::new(),
         }
         .checked()

@@ -212,6 +212,8 @@ fn solve_with_effects<M: Reflectance>(
             kappa_max: scheme.schedule.kappa_max,
             has_object_mask: problem.object_mask.is_some(),
             shadow_bound_moved: walk.shadow_bound_moved,
+            start_denoised: prepared.start_denoised,
+            auto_start_denoised: prepared.auto_start_denoised,
         },
         scheme.effects,
     );

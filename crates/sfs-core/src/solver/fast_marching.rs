@@ -770,6 +770,8 @@ pub fn solve_fast_marching(
         material: settings.material,
         material_fit: None,
         albedo_fit: None,
+        start_denoised: None,
+        noise: None,
         unused_parameters: Vec::new(),
     }
     .checked()

@@ -40,6 +40,6 @@ pub use fast_marching::{FastMarchingParams, solve_fast_marching};
 pub use method::{Method, solve, solve_method};
 pub use prepare::{WALK_ABOVE_SIDE, WALK_SIDE, initial_depth_from_image};
 pub use problem::{
-    IterationReport, LevelReport, LevelResult, PhaseTimes, Problem, Solution, SolveError,
-    SolveMemo, SolveObserver,
+    IterationReport, LevelReport, LevelResult, NoiseReading, PhaseTimes, Problem, Solution,
+    SolveError, SolveMemo, SolveObserver,
 };

@@ -12,13 +12,15 @@ use crate::cancel::{Cancel, Cancelled};
 use crate::grid::{Confidence, Grid, Weights};
 use crate::model::{self, Derivatives, Energy, LevelGeometry, Reflectance};
 use crate::params::{
-    Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, Units,
+    Alpha, FAST_MARCHING_DENOISE_ABOVE, InitialDepth, ProblemScales, SolverParams, StartDenoise,
+    Units,
 };
 
 pub use super::plane_start::nearest_object_depth;
 use super::plane_start::plane_fit;
 use super::problem::{
-    LevelResult, Problem, Solution, SolveError, SolveObserver, check_cancelled, masked,
+    LevelResult, NoiseReading, Problem, Solution, SolveError, SolveObserver, check_cancelled,
+    masked,
 };
 use super::pyramid::{self, PyramidLevel};
 
@@ -53,12 +55,19 @@ pub(crate) struct Prepared<'a> {
     pub refines_warm_start: bool,
     /// That full-resolution start is refined across holes (object pixels of
     /// confidence below [`super::holes::HOLE_CONFIDENCE`] wider than a
-    /// speck) in a clean image (noise at most
-    /// [`FAST_MARCHING_DENOISE_ABOVE`]): the level runs `kappa_holes`
+    /// speck) in an image that does not read noisy (see
+    /// [`StartDenoise::Auto`]): the level runs `kappa_holes`
     /// iterations and [`LinearSolver::Auto`] is multigrid.
     ///
     /// [`LinearSolver::Auto`]: crate::params::LinearSolver::Auto
     pub refines_holes: bool,
+    /// Whether the fast-marching start marched a denoised image; `None`
+    /// when no fast-marching start was marched.
+    pub start_denoised: Option<bool>,
+    /// Whether the image reads noisy (what [`StartDenoise::Auto`] decides).
+    pub auto_start_denoised: bool,
+    /// The image's noise as read here.
+    pub noise: NoiseReading,
     /// Other full-resolution starts that compete with `depth` where holes
     /// leave the start ambiguous (see `fast_marching_start`); empty
     /// otherwise.
@@ -226,6 +235,27 @@ pub(crate) fn prepare<'a>(
         &scales,
         Cancel::new(&|| observer.is_cancelled()),
     )?;
+    // The image reads noisy where the noise over all trusted pixels and over
+    // the brightest quarter of them (where the surface's own detail shows
+    // least) are both above the threshold: the fast-marching start is then
+    // denoised (`StartDenoise::Auto`), and holes get the schedule without
+    // holes (see `refines_holes`). A clean render of a finely faceted
+    // surface reads above it over all pixels alone (docs/paper-table1.md).
+    let relative_facing = match relative_noise > FAST_MARCHING_DENOISE_ABOVE {
+        true => super::auto_alpha::relative_facing_noise(
+            &finest,
+            &scales,
+            Cancel::new(&|| observer.is_cancelled()),
+        )?,
+        false => f64::NAN,
+    };
+    let reads_noisy = relative_noise > FAST_MARCHING_DENOISE_ABOVE
+        && relative_facing > FAST_MARCHING_DENOISE_ABOVE;
+    let start_denoised = match params.start_denoise {
+        StartDenoise::Auto => reads_noisy,
+        StartDenoise::On => true,
+        StartDenoise::Off => false,
+    };
     let alpha_used = match params.alpha {
         Alpha::Value(alpha) => alpha,
         Alpha::Auto => {
@@ -317,7 +347,7 @@ pub(crate) fn prepare<'a>(
                 material,
                 &finest,
                 relative_noise * scales.intensity,
-                relative_noise > FAST_MARCHING_DENOISE_ABOVE,
+                start_denoised,
                 shadow.as_ref(),
                 cancel,
             )?
@@ -413,7 +443,7 @@ pub(crate) fn prepare<'a>(
     // a converged solve fitted the noise (the noisy Sombrero's band 0.041
     // against 0.017).
     let refines_holes = warm.is_some()
-        && relative_noise <= FAST_MARCHING_DENOISE_ABOVE
+        && !reads_noisy
         && levels
             .last()
             .is_some_and(|l| has_wide_holes(problem, l, shadow.as_ref()));
@@ -430,6 +460,12 @@ pub(crate) fn prepare<'a>(
         derivatives,
         refines_warm_start: warm.is_some(),
         refines_holes,
+        start_denoised: fast_marching_start_wanted.then_some(start_denoised),
+        auto_start_denoised: reads_noisy,
+        noise: NoiseReading {
+            relative: relative_noise,
+            relative_facing,
+        },
         alternatives,
         shadow,
         lights: &problem.lights,

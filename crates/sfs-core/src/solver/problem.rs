@@ -200,6 +200,20 @@ impl PhaseTimes {
     }
 }
 
+/// The image's noise level as a solve read it, relative to the brightness
+/// scale `I_ref` (robust Immerkaer estimates, `crate::denoise`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct NoiseReading {
+    /// Over every trusted object pixel: what the automatic alpha and the
+    /// shadows read.
+    pub relative: f64,
+    /// Over the brightest quarter of them, where the surface's own detail
+    /// shows least; read only where `relative` is above
+    /// [`crate::params::FAST_MARCHING_DENOISE_ABOVE`] (NaN, `null` in JSON,
+    /// otherwise).
+    pub relative_facing: f64,
+}
+
 /// The result of a solve.
 #[derive(Clone, Debug)]
 pub struct Solution {
@@ -246,6 +260,11 @@ pub struct Solution {
     /// With `--albedo auto`, the estimated albedo and whether the solve
     /// used it ([`super::albedo_fit`]); `None` otherwise.
     pub albedo_fit: Option<super::fits::AlbedoFit>,
+    /// Whether the fast-marching start marched a TV-denoised image
+    /// (`--start-denoise`); `None` when the solve marched no such start.
+    pub start_denoised: Option<bool>,
+    /// The image's noise as the solve read it; `None` for fast marching.
+    pub noise: Option<NoiseReading>,
     /// The parameters set away from their defaults that this solve left
     /// without effect, each `--NAME VALUE: why` (the path it took skipped
     /// them, or their decisions came out as the defaults' would have).

@@ -64,6 +64,10 @@ pub(crate) struct Path {
     pub kappa_max: usize,
     /// The problem has an object mask.
     pub has_object_mask: bool,
+    /// Whether the fast-marching start marched a denoised image (`None`:
+    /// no such start), and whether the automatic decision would have.
+    pub start_denoised: Option<bool>,
+    pub auto_start_denoised: bool,
     /// The pixels the shadow bound moved; `None` when it did not run (no
     /// shadow: the light at the optical centre, reported before the solve).
     pub shadow_bound_moved: Option<usize>,
@@ -96,6 +100,22 @@ pub(crate) fn unused_parameters(
                     "the solve refines a full-resolution start (--init-depth fast-marching) on \
                      the full image alone, without a pyramid (--init-depth constant walks one)",
                 )
+            }
+            "start-denoise" if path.start_denoised.is_none() => Some(
+                "this solve marched no fast-marching start (--init-depth from-image, a \
+                 constant or a map, a light far off the lens, or a material fast marching \
+                 cannot solve)",
+            ),
+            "start-denoise" if path.start_denoised == Some(path.auto_start_denoised) => {
+                Some(match path.auto_start_denoised {
+                    true => {
+                        "the image reads noisy, so the automatic decision denoised the start too"
+                    }
+                    false => {
+                        "the image does not read noisy, so the automatic decision left the \
+                         start's image as given too"
+                    }
+                })
             }
             "kappa-holes" if !path.refines_holes => Some(
                 "no full-resolution start was refined across holes (wide regions of confidence \
@@ -227,6 +247,8 @@ mod tests {
             kappa_max: 5,
             has_object_mask: false,
             shadow_bound_moved: Some(0),
+            start_denoised: Some(false),
+            auto_start_denoised: false,
         }
     }
 
@@ -262,6 +284,11 @@ mod tests {
             ("step-control", "crop", "halved none"),
             ("shadow-bound", "on", "moved no pixel"),
             ("kappa-max", "20", "never bound"),
+            (
+                "start-denoise",
+                "off",
+                "left the start's image as given too",
+            ),
         ] {
             let unused = unused_parameters(&set(name, value), path(), Effects::default());
             assert_eq!(unused.len(), 1, "{name}: {unused:?}");
@@ -294,6 +321,33 @@ mod tests {
             let unused = unused_parameters(&set(name, value), pyramid, acted);
             assert!(unused.is_empty(), "{name}: {unused:?}");
         }
+    }
+
+    #[test]
+    fn the_start_denoising_is_used_only_where_it_overrode_the_automatic_decision() {
+        let marched = |denoised: bool, auto: bool| Path {
+            start_denoised: Some(denoised),
+            auto_start_denoised: auto,
+            ..path()
+        };
+        let on = set("start-denoise", "on");
+        let off = set("start-denoise", "off");
+        assert!(unused_parameters(&on, marched(true, false), Effects::default()).is_empty());
+        assert!(unused_parameters(&off, marched(false, true), Effects::default()).is_empty());
+        let same = unused_parameters(&on, marched(true, true), Effects::default());
+        assert!(
+            same.len() == 1 && same[0].contains("reads noisy"),
+            "{same:?}"
+        );
+        let none = Path {
+            start_denoised: None,
+            ..path()
+        };
+        let unused = unused_parameters(&off, none, Effects::default());
+        assert!(
+            unused.len() == 1 && unused[0].contains("marched no fast-marching start"),
+            "{unused:?}"
+        );
     }
 
     #[test]
