@@ -8,7 +8,8 @@
 //! Each is solved at the defaults (the depth unit and the albedo decided
 //! by the tool; the rig listed as a camera file lists it) and with
 //! `--albedo 1`. A textured share (patch and line albedos) shows what the
-//! albedo decision gains. Writes corpus.md and corpus.json.
+//! albedo decision gains. A second draw scores the start's denoising
+//! (`corpus_denoise`). Writes corpus.md and corpus.json.
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -91,6 +92,8 @@ struct CorpusReport {
     /// The image sides drawn from (`--corpus-sides`).
     sides: Vec<usize>,
     rows: Vec<CorpusRow>,
+    /// The start's denoising decision (`corpus_denoise`).
+    start_denoise: Vec<super::corpus_denoise::DenoiseRow>,
     skipped: Vec<String>,
 }
 
@@ -151,10 +154,22 @@ pub fn run(args: &BenchArgs) -> Result<()> {
         );
         rows.push(row);
     }
+    let scenes: Vec<&str> = SCENES
+        .iter()
+        .copied()
+        .filter(|&name| name != "face" || face.is_some())
+        .collect();
+    let start_denoise = super::corpus_denoise::run(
+        args,
+        &|name, side, lights| render(args, face.as_ref(), name, side, lights),
+        &scenes,
+        &mut skipped,
+    );
     let report = CorpusReport {
         seed: args.seed.unwrap_or(0),
         sides: args.corpus_sides.clone(),
         rows,
+        start_denoise,
         skipped,
     };
     sfs_core::io::write_json(&args.out.join("corpus.json"), &report)?;
@@ -481,9 +496,10 @@ fn markdown(report: &CorpusReport) -> String {
             100.0 * errors.get(errors.len() / 2).copied().unwrap_or(f64::NAN)
         );
     }
+    super::corpus_denoise::markdown(&report.start_denoise, &mut md);
     let _ = writeln!(
         md,
-        "\n## Every case\n\n| case | scene | size | light | shadows | noise | albedo | unit from | \
+        "\n## Every case of the albedo and depth-unit corpus\n\n| case | scene | size | light | shadows | noise | albedo | unit from | \
          distance error | albedo used | normal error (deg) | albedo 1 (deg) | RSE | albedo 1 \
          |\n| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"
     );

@@ -17,6 +17,7 @@ use clap::Parser;
 
 mod albedo;
 mod corpus;
+mod corpus_denoise;
 mod depth_smoothing;
 mod edges;
 mod face;
