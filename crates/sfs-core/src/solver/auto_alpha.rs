@@ -30,10 +30,7 @@ pub fn relative_noise(
     scales: &ProblemScales,
     cancel: Cancel<'_>,
 ) -> Result<f64, Cancelled> {
-    let trusted = Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
-        *finest.domain.at(c, r) && finest.confidence.at(c, r) > 0.0
-    });
-    crate::denoise::robust_noise_sigma(&finest.image, &trusted, cancel)
+    crate::denoise::robust_noise_sigma(&finest.image, &trusted(finest), cancel)
         .map(|sigma| sigma / scales.intensity)
 }
 
@@ -45,11 +42,15 @@ pub fn relative_facing_noise(
     scales: &ProblemScales,
     cancel: Cancel<'_>,
 ) -> Result<f64, Cancelled> {
-    let trusted = Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
-        *finest.domain.at(c, r) && finest.confidence.at(c, r) > 0.0
-    });
-    crate::denoise::facing_noise_sigma(&finest.image, &trusted, cancel)
+    crate::denoise::facing_noise_sigma(&finest.image, &trusted(finest), cancel)
         .map(|sigma| sigma / scales.intensity)
+}
+
+/// The level's pixels the noise is read on: in its domain, confidence above 0.
+fn trusted(finest: &PyramidLevel) -> Grid<bool> {
+    Grid::from_fn(finest.image.width(), finest.image.height(), |c, r| {
+        *finest.domain.at(c, r) && finest.confidence.at(c, r) > 0.0
+    })
 }
 
 /// The automatic alpha in relative units for an image whose relative noise
