@@ -37,6 +37,8 @@ pub struct LikeRow {
     pub rie: f64,
     /// The alpha the defaults chose (relative units).
     pub chosen_alpha: f64,
+    /// Whether the fast-marching start marched a denoised image.
+    pub start_denoised: Option<bool>,
     /// The paper's RSE for the scene at this noise (Table 1; NaN: none).
     pub paper_rse: f64,
     /// Wall time of the solve.
@@ -96,6 +98,7 @@ pub fn run(
                     rse: errors.rse,
                     rie: errors.rie,
                     chosen_alpha: solution.alpha,
+                    start_denoised: solution.start_denoised,
                     paper_rse: paper_rse(name, noise > 0.0).unwrap_or(f64::NAN),
                     seconds,
                 });
@@ -156,12 +159,14 @@ pub fn markdown(rows: &[LikeRow]) -> String {
          exactly, the convention under which the paper's figures are reproduced). Solved at \
          the defaults (alpha auto, relative units, fast-marching start); noise Gaussian sigma \
          {NOISE_SIGMA} of 255, seed {}, quantised to 8 bits. \"at or below\": depth-map RSE \
-         at or below the paper's.\n",
+         at or below the paper's. \"start denoised\": whether the fast-marching start \
+         marched a TV-denoised image (`--start-denoise auto`: the image reads noisy over \
+         all its pixels and over the brightest quarter).\n",
         super::scenes::SEED
     );
     super::markdown::table_head(
         &mut md,
-        "| scene | noise | mesh RSE | depth-map RSE | paper RSE | depth-map / paper | at or below | alpha chosen (mesh, depth-map) |",
+        "| scene | noise | mesh RSE | depth-map RSE | paper RSE | depth-map / paper | at or below | alpha chosen (mesh, depth-map) | start denoised (mesh, depth-map) |",
     );
     let mut seen: Vec<(&str, f64)> = Vec::new();
     for row in rows {
@@ -172,16 +177,22 @@ pub fn markdown(rows: &[LikeRow]) -> String {
         seen.push(key);
         let mesh = rse_of(rows, &row.scene, Shading::Mesh, row.noise);
         let depth_map = rse_of(rows, &row.scene, Shading::DepthMap, row.noise);
+        let of = |shading: Shading| {
+            rows.iter().find(|r| {
+                r.scene == row.scene && r.noise == row.noise && r.shading == shading.name()
+            })
+        };
         let alpha = |shading: Shading| {
-            rows.iter()
-                .find(|r| {
-                    r.scene == row.scene && r.noise == row.noise && r.shading == shading.name()
-                })
-                .map_or("–".into(), |r| format!("{:.2e}", r.chosen_alpha))
+            of(shading).map_or("–".into(), |r| format!("{:.2e}", r.chosen_alpha))
+        };
+        let denoised = |shading: Shading| match of(shading).and_then(|r| r.start_denoised) {
+            Some(true) => "yes",
+            Some(false) => "no",
+            None => "–",
         };
         let _ = writeln!(
             md,
-            "| {} {} | {} | {} | {} | {} | {:.2} | {} | {}, {} |",
+            "| {} {} | {} | {} | {} | {} | {:.2} | {} | {}, {} | {}, {} |",
             row.scene,
             row.size,
             row.noise,
@@ -196,6 +207,8 @@ pub fn markdown(rows: &[LikeRow]) -> String {
             },
             alpha(Shading::Mesh),
             alpha(Shading::DepthMap),
+            denoised(Shading::Mesh),
+            denoised(Shading::DepthMap),
         );
     }
     md
@@ -214,6 +227,7 @@ mod tests {
             rse,
             rie: rse / 2.0,
             chosen_alpha: 1e-7,
+            start_denoised: Some(noise > 0.0),
             paper_rse: paper_rse(scene, noise > 0.0).unwrap_or(f64::NAN),
             seconds: 1.0,
         }
@@ -229,8 +243,8 @@ mod tests {
         ];
         let md = markdown(&rows);
         for line in [
-            "| sombrero 64x64 | 0 | 0.02000 | 0.00500 | 0.00768 | 0.65 | yes | 1.00e-7, 1.00e-7 |",
-            "| sombrero 64x64 | 20 | 0.03000 | 0.02000 | 0.01542 | 1.30 | no | 1.00e-7, 1.00e-7 |",
+            "| sombrero 64x64 | 0 | 0.02000 | 0.00500 | 0.00768 | 0.65 | yes | 1.00e-7, 1.00e-7 | no, no |",
+            "| sombrero 64x64 | 20 | 0.03000 | 0.02000 | 0.01542 | 1.30 | no | 1.00e-7, 1.00e-7 | yes, yes |",
         ] {
             assert!(md.contains(line), "no {line:?} in\n{md}");
         }
