@@ -213,7 +213,7 @@ fn solve_with_effects<M: Reflectance>(
             has_object_mask: problem.object_mask.is_some(),
             shadow_bound_moved: walk.shadow_bound_moved,
             start_denoised: prepared.start_denoised,
-            auto_start_denoised: prepared.auto_start_denoised,
+            auto_start_denoised: prepared.noise.reads_noisy(),
         },
         scheme.effects,
     );

@@ -64,9 +64,8 @@ pub(crate) struct Prepared<'a> {
     /// Whether the fast-marching start marched a denoised image; `None`
     /// when no fast-marching start was marched.
     pub start_denoised: Option<bool>,
-    /// Whether the image reads noisy (what [`StartDenoise::Auto`] decides).
-    pub auto_start_denoised: bool,
-    /// The image's noise as read here.
+    /// The image's noise as read here (whether it reads noisy:
+    /// [`NoiseReading::reads_noisy`]).
     pub noise: NoiseReading,
     /// Other full-resolution starts that compete with `depth` where holes
     /// leave the start ambiguous (see `fast_marching_start`); empty
@@ -249,8 +248,11 @@ pub(crate) fn prepare<'a>(
         )?,
         false => f64::NAN,
     };
-    let reads_noisy = relative_noise > FAST_MARCHING_DENOISE_ABOVE
-        && relative_facing > FAST_MARCHING_DENOISE_ABOVE;
+    let noise = NoiseReading {
+        relative: relative_noise,
+        relative_facing,
+    };
+    let reads_noisy = noise.reads_noisy();
     let start_denoised = match params.start_denoise {
         StartDenoise::Auto => reads_noisy,
         StartDenoise::On => true,
@@ -461,11 +463,7 @@ pub(crate) fn prepare<'a>(
         refines_warm_start: warm.is_some(),
         refines_holes,
         start_denoised: fast_marching_start_wanted.then_some(start_denoised),
-        auto_start_denoised: reads_noisy,
-        noise: NoiseReading {
-            relative: relative_noise,
-            relative_facing,
-        },
+        noise,
         alternatives,
         shadow,
         lights: &problem.lights,

@@ -214,6 +214,17 @@ pub struct NoiseReading {
     pub relative_facing: f64,
 }
 
+impl NoiseReading {
+    /// The image reads noisy: both readings above
+    /// [`crate::params::FAST_MARCHING_DENOISE_ABOVE`]. What
+    /// `StartDenoise::Auto` decides, and what keeps a start refined across
+    /// holes on the schedule without holes.
+    pub fn reads_noisy(&self) -> bool {
+        use crate::params::FAST_MARCHING_DENOISE_ABOVE as ABOVE;
+        self.relative > ABOVE && self.relative_facing > ABOVE
+    }
+}
+
 /// The result of a solve.
 #[derive(Clone, Debug)]
 pub struct Solution {
