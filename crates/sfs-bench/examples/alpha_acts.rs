@@ -17,12 +17,14 @@
 
 use anyhow::{Context, Result, bail};
 
+mod common;
+
 use sfs_core::grid::Grid;
 use sfs_core::metrics::rse;
 use sfs_core::model::{Spacing, smoothness_squared};
 use sfs_core::params::{Alpha, DomainMode, InitialDepth, SolverParams};
-use sfs_core::scene::{self, mesh, shading::Shading, sombrero::sombrero};
-use sfs_core::solver::{Problem, solve, solve_fast_marching};
+use sfs_core::scene::{self, shading::Shading};
+use sfs_core::solver::{solve, solve_fast_marching};
 
 /// RMS of the second-derivative magnitude over the object's inner pixels.
 fn roughness(depth: &Grid<f64>, mask: &Grid<bool>) -> f64 {
@@ -51,40 +53,14 @@ fn main() -> Result<()> {
         .split(',')
         .map(|v| v.parse::<f64>().with_context(|| format!("FACTORS: {v}")))
         .collect::<Result<Vec<_>>>()?;
-    let (w, h) = if name == "suzanne" {
-        (512, 256)
-    } else {
-        (256, 256)
-    };
-    let meshes = std::env::var("SFS_MESHES").unwrap_or_else(|_| "../shared/meshes".into());
-    let rendered = match name {
-        "sombrero" => sombrero(w, h),
-        _ => {
-            let file = match name {
-                "bunny" => "stanford-bunny.obj",
-                "dragon" => "dragon.obj",
-                "suzanne" => "suzanne.obj",
-                other => bail!("SCENE: no scene {other}"),
-            };
-            let path = std::path::Path::new(&meshes).join(file);
-            let loaded = mesh::load_obj(&path)?;
-            mesh::render(&loaded, w, h, &mesh::Placement::default(), name)?
-        }
-    };
-    let truth = shading.apply(rendered);
+    let (w, h) = common::paper_size(name);
+    let truth = shading.apply(common::render(name, w, h, &common::meshes_folder())?);
     let image = if noise > 0.0 {
         scene::add_noise(&truth.image, noise, 1)
     } else {
         truth.image.clone()
     };
-    let problem = Problem {
-        image,
-        camera: truth.camera,
-        intensity_scale: truth.intensity_scale,
-        object_mask: Some(truth.object_mask.clone()),
-        confidence: None,
-        lights: Vec::new(),
-    };
+    let problem = common::problem(&truth, image, None);
     let initial_depth = match start {
         "fm" => InitialDepth::FastMarching,
         "img" => InitialDepth::FromImage,

@@ -18,43 +18,25 @@
 
 use std::collections::HashMap;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
+
+mod common;
 use rand::{Rng, SeedableRng};
 
 use sfs_core::grid::Grid;
 use sfs_core::metrics::rse;
 use sfs_core::params::{LinearSolver, SolverParams};
-use sfs_core::scene::{self, Scene, mesh, shading::Shading, sombrero::sombrero};
-use sfs_core::solver::{Problem, solve};
+use sfs_core::scene::{self, Scene, shading::Shading};
+use sfs_core::solver::solve;
 
 /// A relative RSE difference below this is a tie.
 const TIE: f64 = 0.05;
-
-fn render(name: &str, w: usize, h: usize, meshes: &str) -> Result<Scene> {
-    if name == "sombrero" {
-        return Ok(sombrero(w, h));
-    }
-    let file = match name {
-        "bunny" => "stanford-bunny.obj",
-        "dragon" => "dragon.obj",
-        _ => "suzanne.obj",
-    };
-    let path = std::path::Path::new(meshes).join(file);
-    let loaded = mesh::load_obj(&path).with_context(|| format!("{}", path.display()))?;
-    Ok(mesh::render(
-        &loaded,
-        w,
-        h,
-        &mesh::Placement::default(),
-        name,
-    )?)
-}
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let cases: usize = args.first().map_or(Ok(100), |v| v.parse())?;
     let seed: u64 = args.get(1).map_or(Ok(0), |v| v.parse())?;
-    let meshes = std::env::var("SFS_MESHES").unwrap_or_else(|_| "../shared/meshes".into());
+    let meshes = common::meshes_folder();
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let mut rendered: HashMap<(String, usize, bool), Scene> = HashMap::new();
     let (mut holes_better, mut sor_better, mut ties) = (0, 0, 0);
@@ -64,15 +46,13 @@ fn main() -> Result<()> {
         let name = ["sombrero", "bunny", "dragon", "suzanne"][rng.random_range(0..4)];
         let depth_map = rng.random_bool(0.5);
         let side = [128, 192, 256][rng.random_range(0..3)];
-        let (w, h) = if name == "suzanne" {
-            (side, side / 2)
-        } else {
-            (side, side)
-        };
+        // The paper's aspect: Suzanne 2:1, the others square.
+        let (paper_w, paper_h) = common::paper_size(name);
+        let (w, h) = (side, side * paper_h / paper_w);
         let noise = [0.0, 0.0, 2.0, 5.0, 10.0][rng.random_range(0..5)];
         let key = (name.to_string(), side, depth_map);
         if !rendered.contains_key(&key) {
-            let scene = render(name, w, h, &meshes)?;
+            let scene = common::render(name, w, h, &meshes)?;
             let scene = if depth_map {
                 Shading::DepthMap.apply(scene)
             } else {
@@ -122,14 +102,7 @@ fn main() -> Result<()> {
         } else {
             truth.image.clone()
         };
-        let problem = Problem {
-            image,
-            camera: truth.camera,
-            intensity_scale: truth.intensity_scale,
-            object_mask: Some(object.clone()),
-            confidence: Some(confidence.clone()),
-            lights: Vec::new(),
-        };
+        let problem = common::problem(truth, image, Some(confidence.clone()));
         let defaults = SolverParams::default();
         let without = SolverParams {
             linear_solver: LinearSolver::Sor,

@@ -8,13 +8,15 @@
 //! 0.00696 without the hole, so its region cost at most about 0.004), and
 //! the RSE at the defaults with `--albedo 1` and `--albedo auto`.
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
+
+mod common;
 
 use sfs_core::grid::Grid;
 use sfs_core::metrics::rse;
 use sfs_core::params::{AlbedoChoice, LinearSolver, SolverParams};
-use sfs_core::scene::{self, mesh, shading::Shading, sombrero::sombrero};
-use sfs_core::solver::{Problem, solve};
+use sfs_core::scene::{self, shading::Shading};
+use sfs_core::solver::solve;
 
 fn main() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -23,40 +25,15 @@ fn main() -> Result<()> {
     let noise: f64 = arg(1, "0").parse().context("NOISE: a number")?;
     // SCHEDULE `sor`: the schedule without holes (SOR, kappa 5) across holes too.
     let schedule = arg(2, "defaults");
-    let (w, h) = if name == "suzanne" {
-        (512, 256)
-    } else {
-        (256, 256)
-    };
-    let meshes = std::env::var("SFS_MESHES").unwrap_or_else(|_| "../shared/meshes".into());
-    let rendered = match name {
-        "sombrero" => sombrero(w, h),
-        _ => {
-            let file = match name {
-                "bunny" => "stanford-bunny.obj",
-                "dragon" => "dragon.obj",
-                "suzanne" => "suzanne.obj",
-                other => bail!("SCENE: no scene {other}"),
-            };
-            let path = std::path::Path::new(&meshes).join(file);
-            let loaded = mesh::load_obj(&path)?;
-            mesh::render(&loaded, w, h, &mesh::Placement::default(), name)?
-        }
-    };
-    let truth = Shading::DepthMap.apply(rendered);
+    let (w, h) = common::paper_size(name);
+    let truth = Shading::DepthMap.apply(common::render(name, w, h, &common::meshes_folder())?);
     let image = if noise > 0.0 {
         scene::add_noise(&truth.image, noise, 1)
     } else {
         truth.image.clone()
     };
-    let problem = |confidence: Option<Grid<f64>>| Problem {
-        image: image.clone(),
-        camera: truth.camera,
-        intensity_scale: truth.intensity_scale,
-        object_mask: Some(truth.object_mask.clone()),
-        confidence,
-        lights: Vec::new(),
-    };
+    let problem =
+        |confidence: Option<Grid<f64>>| common::problem(&truth, image.clone(), confidence);
     let solved = |confidence: Option<Grid<f64>>, albedo: AlbedoChoice| -> Result<f64> {
         let mut params = SolverParams {
             albedo,
