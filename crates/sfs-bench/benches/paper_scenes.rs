@@ -11,7 +11,6 @@ use std::time::Instant;
 
 use sfs_core::cancel::{Cancel, Uncancelled};
 use sfs_core::grid::Grid;
-use sfs_core::metrics;
 use sfs_core::params::{Alpha, SolverParams};
 use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero};
 use sfs_core::solver::{Problem, pyramid::PyramidLevel, solve, sor, system::LinearSystem};
@@ -59,13 +58,7 @@ fn run(case: &Case, params: &SolverParams) -> (f64, f64, f64) {
         }
     };
     let seconds = start.elapsed().as_secs_f64();
-    let e = metrics::errors(
-        &solution.depth,
-        &case.scene.depth_gt,
-        &case.scene.image,
-        case.scene.camera,
-        case.scene.intensity_scale,
-    );
+    let e = case.scene.centred_errors(&solution.depth);
     match e {
         Ok(e) => (e.rse, e.rie, seconds),
         Err(_) => (f64::NAN, f64::NAN, seconds),

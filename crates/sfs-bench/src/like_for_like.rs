@@ -11,7 +11,6 @@ use std::path::Path;
 use anyhow::Result;
 use serde::Serialize;
 
-use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::scene::shading::Shading;
 
@@ -83,13 +82,7 @@ pub fn run(
                 let what = format!("{name} ({} shading, noise {noise})", shading.name());
                 let problem = problem(&scene, noisy(&scene.image, noise));
                 let (solution, seconds) = timed_solve(&problem, &SolverParams::default(), &what)?;
-                let errors = metrics::errors(
-                    &solution.depth,
-                    &scene.depth_gt,
-                    &scene.image,
-                    scene.camera,
-                    scene.intensity_scale,
-                )?;
+                let errors = scene.centred_errors(&solution.depth)?;
                 rows.push(LikeRow {
                     scene: name.into(),
                     size: format!("{w}x{h}"),

@@ -21,7 +21,6 @@ use super::shared::{
 use super::{lights, robustness};
 use sfs_core::grid::Grid;
 use sfs_core::memory::proc_mib;
-use sfs_core::metrics;
 use sfs_core::params::SolverParams;
 use sfs_core::scene::{self, Scene, mesh, sombrero::sombrero};
 use sfs_core::solver::{
@@ -130,14 +129,9 @@ impl Runner {
         let solved = solve_timed(bench, job, &name)?;
         let peak_mib = proc_mib("/proc/self/status", "VmHWM").unwrap_or(f64::NAN);
         let depth = solved.solution.depth;
-        let errors = metrics::errors(
-            &depth,
-            &scene.depth_gt,
-            &scene.image,
-            scene.camera,
-            scene.intensity_scale,
-        )
-        .with_context(|| format!("scoring {} failed", bench.name))?;
+        let errors = scene
+            .centred_errors(&depth)
+            .with_context(|| format!("scoring {} failed", bench.name))?;
         let reprojection = if post {
             reproject(scene, &depth)
         } else {

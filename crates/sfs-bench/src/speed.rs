@@ -18,7 +18,6 @@ use super::figures::{self, Figure, LogLogPlot, Series};
 use super::markdown::table;
 use super::shared::{BenchArgs, CurveRecorder, reset_peak_memory};
 use sfs_core::memory::proc_mib;
-use sfs_core::metrics;
 use sfs_core::params::{InitialDepth, LinearSolver, SolverParams};
 use sfs_core::scene::Scene;
 use sfs_core::solver::fast_marching::FastMarchingParams;
@@ -192,14 +191,9 @@ fn measure(
         .as_secs_f64();
     let peak_mib = proc_mib("/proc/self/status", "VmHWM").unwrap_or(f64::NAN);
     let growth = (peak_mib - before_mib).max(0.0);
-    let errors = metrics::errors(
-        &solution.depth,
-        &scene.depth_gt,
-        &scene.image,
-        scene.camera,
-        scene.intensity_scale,
-    )
-    .with_context(|| format!("scoring {name} failed"))?;
+    let errors = scene
+        .centred_errors(&solution.depth)
+        .with_context(|| format!("scoring {name} failed"))?;
     let row = SpeedRow {
         scene: name.into(),
         size: format!("{w}x{h}"),

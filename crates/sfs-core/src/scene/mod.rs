@@ -35,6 +35,28 @@ pub struct Scene {
     pub material: crate::material::Material,
 }
 
+impl Scene {
+    /// RSE and RIE of `depth` against this scene's truth, reprojected as
+    /// [`crate::metrics::errors`] does: Lambertian, the light at the optical
+    /// centre (the Table 1 scenes; a scene with other lights or a material
+    /// needs [`crate::metrics::errors_with_model`]).
+    ///
+    /// # Errors
+    /// As [`crate::metrics::errors`].
+    pub fn centred_errors(
+        &self,
+        depth: &Grid<f64>,
+    ) -> Result<crate::metrics::Errors, crate::metrics::MetricsError> {
+        crate::metrics::errors(
+            depth,
+            &self.depth_gt,
+            &self.image,
+            self.camera,
+            self.intensity_scale,
+        )
+    }
+}
+
 /// Adds Gaussian noise of standard deviation `sigma_255` (on the 0..255 scale)
 /// to a linear image, seeded for reproducibility, and quantises the result to
 /// 8 bits in [0, 1] (what `noisy8.png` stores). Background pixels get noise too,
